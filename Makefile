@@ -1,0 +1,48 @@
+# fem_grasp — every target sets itself up; stamps in .stamps/ keep re-runs quick.
+SHELL := /bin/bash
+SYSPY := /usr/bin/python3
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMPS := .stamps
+# Debian packages: dolfinx 0.5.2 and gmsh for /usr/bin/python3 (verification, meshing),
+# venv/pip, and SuiteSparse + OpenBLAS for the optional CHOLMOD backend.
+APT_PACKAGES := python3-dolfinx python3-gmsh python3-venv python3-pip python3-dev \
+                libsuitesparse-dev libopenblas0-pthread
+SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
+PYTEST_ARGS ?=
+
+.PHONY: setup test demo meshes spectral-vs-sparse clean-venv
+
+setup: $(STAMPS)/venv
+
+$(STAMPS)/apt:
+	@mkdir -p $(STAMPS)
+	@if dpkg -s $(APT_PACKAGES) >/dev/null 2>&1; then echo "apt: packages already installed"; else \
+	  echo "apt: installing $(APT_PACKAGES)"; \
+	  $(SUDO) apt-get update -qq && \
+	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq $(APT_PACKAGES) >/dev/null; fi
+	@touch $@
+
+# The venv sees Debian's dolfinx and gmsh; numpy stays at Debian's version, which dolfinx was built against.
+$(STAMPS)/venv: $(STAMPS)/apt pyproject.toml
+	$(SYSPY) -m venv --system-site-packages $(VENV)
+	$(SYSPY) -c "import numpy; print('numpy==' + numpy.__version__)" > $(STAMPS)/constraints.txt
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -c $(STAMPS)/constraints.txt -e ".[dev,report]"
+	$(PY) -c "import dolfinx, gmsh, numpy; print('venv ok: dolfinx', dolfinx.__version__, 'numpy', numpy.__version__)"
+	@touch $@
+
+test: setup
+	$(PY) -m pytest $(PYTEST_ARGS)
+
+demo: setup
+	$(PY) examples/demo.py --out out
+
+meshes: setup
+	$(PY) scripts/make_meshes.py
+
+spectral-vs-sparse: setup
+	$(PY) scripts/spectral_vs_sparse.py
+
+clean-venv:
+	rm -rf $(VENV) $(STAMPS)

@@ -1,0 +1,143 @@
+"""An elastic body: a tetrahedral mesh with a material and a weight (paper §II-B)."""
+
+from __future__ import annotations
+
+from functools import cached_property
+from typing import TYPE_CHECKING
+
+import numpy as np
+import scipy.sparse as sp
+
+from . import fem
+from .mesh import TetMesh
+
+if TYPE_CHECKING:
+    from .compliance import Compliance
+    from .response import ContactResponse
+    from .spectral import SpectralDecomposition
+
+
+class Body:
+    """A homogeneous linear-elastic solid under gravity.
+
+    Parameters
+    ----------
+    mesh : TetMesh
+        Reference (undeformed) shape, metres.
+    young : float
+        Young's modulus E in pascals, E > 0.
+    poisson : float
+        Poisson's ratio ν, −1 < ν < ½.
+    weight : float, optional
+        The object's weight mg in newtons.  Give exactly one of ``weight`` or
+        ``density``.
+    density : float, optional
+        Mass density in kg/m³.
+    gravity : float
+        Gravitational acceleration g in m/s² (the paper uses 9.8).
+
+    Notes
+    -----
+    Heavy quantities (K, its factorisation, the eigendecomposition) are
+    computed on first use and cached; the body is otherwise immutable.
+    """
+
+    def __init__(self, mesh: TetMesh, young: float, poisson: float, *, weight: float | None = None,
+                 density: float | None = None, gravity: float = fem.STANDARD_GRAVITY) -> None:
+        if not isinstance(mesh, TetMesh):
+            raise TypeError(f"mesh must be a TetMesh, got {type(mesh).__name__}")
+        fem.check_material(young, poisson)
+        if not np.isfinite(gravity) or gravity <= 0:
+            raise ValueError(f"gravity must be a positive acceleration in m/s², got {gravity!r}")
+        if (weight is None) == (density is None):
+            raise ValueError("give exactly one of weight (N) or density (kg/m³)")
+        if weight is not None:
+            if not np.isfinite(weight) or weight <= 0:
+                raise ValueError(f"weight must be a positive force in newtons, got {weight!r}")
+            density = weight / (gravity * mesh.volume)
+        elif not np.isfinite(density) or density <= 0:
+            raise ValueError(f"density must be positive (kg/m³), got {density!r}")
+        self.mesh = mesh
+        self.young = float(young)
+        self.poisson = float(poisson)
+        self.density = float(density)
+        self.gravity = float(gravity)
+
+    def __repr__(self) -> str:
+        return (f"Body({self.mesh!r}, young={self.young:g}, poisson={self.poisson:g}, "
+                f"weight={self.weight:.4g} N)")
+
+    def with_material(self, young: float | None = None, poisson: float | None = None) -> "Body":
+        """The same shape and weight with another E and/or ν."""
+        return Body(self.mesh, self.young if young is None else young,
+                    self.poisson if poisson is None else poisson, density=self.density, gravity=self.gravity)
+
+    def transformed(self, rotation: np.ndarray | None = None, translation: np.ndarray | None = None) -> "Body":
+        """The same body rigidly moved (see :meth:`TetMesh.transformed`)."""
+        return Body(self.mesh.transformed(rotation, translation), self.young, self.poisson,
+                    density=self.density, gravity=self.gravity)
+
+    # ------------------------------------------------------------ physics
+    @property
+    def n_nodes(self) -> int:
+        return self.mesh.n_points
+
+    @property
+    def mass(self) -> float:
+        """m in kg."""
+        return self.density * self.mesh.volume
+
+    @property
+    def weight(self) -> float:
+        """mg in newtons."""
+        return self.mass * self.gravity
+
+    @cached_property
+    def center_of_mass(self) -> np.ndarray:
+        """Centre of mass of the uniform-density mesh (the volume centroid)."""
+        p = self.mesh.points[self.mesh.tets].mean(axis=1)
+        v = self.mesh.volumes
+        return (v @ p) / v.sum()
+
+    @cached_property
+    def stiffness(self) -> sp.csr_matrix:
+        """K (3n×3n, sparse) with strain energy U = ½ΔᵀKΔ (eq. 2)."""
+        return fem.stiffness_matrix(self.mesh.points, self.mesh.tets, self.young, self.poisson)
+
+    @cached_property
+    def gravity_loads(self) -> np.ndarray:
+        """G (3n,), nodal gravity forces; G·t_z = −mg (§II-B)."""
+        return fem.gravity_loads(self.mesh.points, self.mesh.tets, self.density, self.gravity)
+
+    @cached_property
+    def rigid_modes(self) -> np.ndarray:
+        """(3n, 6) t_x, t_y, t_z, r_x, r_y, r_z of Theorem 1, rotations about the centre of mass."""
+        return fem.rigid_modes(self.mesh.points, self.center_of_mass)
+
+    def strain_energy(self, displacements: np.ndarray) -> float:
+        """U = ½ΔᵀKΔ (eq. 2) for a (n, 3) or (3n,) displacement field."""
+        u = np.asarray(displacements, dtype=float).reshape(-1)
+        if u.size != 3 * self.n_nodes:
+            raise ValueError(f"expected {3 * self.n_nodes} displacement components, got {u.size}")
+        return 0.5 * float(u @ (self.stiffness @ u))
+
+    # ------------------------------------------------------ contact solves
+    @cached_property
+    def compliance(self) -> "Compliance":
+        """Factorised generalised inverse of K (sparse backend)."""
+        from .compliance import Compliance
+
+        return Compliance(self.stiffness, self.mesh.points, self.rigid_modes)
+
+    @cached_property
+    def spectral(self) -> "SpectralDecomposition":
+        """K = VΛVᵀ and D of §II-B/C (spectral backend; dense, O(n³))."""
+        from .spectral import spectral_decomposition
+
+        return spectral_decomposition(self.stiffness, self.rigid_modes, self.gravity_loads)
+
+    def contact_response(self, nodes: np.ndarray, backend: str = "sparse") -> "ContactResponse":
+        """The response of eq. (5) for the contact index set ``nodes``; see :class:`ContactResponse`."""
+        from .response import ContactResponse
+
+        return ContactResponse(self, nodes, backend=backend)

@@ -1,0 +1,262 @@
+"""Tetrahedral meshes: validation, geometry and I/O (paper §II-B).
+
+A :class:`TetMesh` is immutable.  It is validated on construction so that
+every later stage (stiffness assembly, contact, rendering) can assume a sound
+mesh: finite coordinates, in-range indices, no duplicate or degenerate
+tetrahedra, and every tetrahedron positively oriented.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from functools import cached_property
+from os import PathLike
+from typing import Any
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+#: A tetrahedron whose volume is below this fraction of (mean edge length)^3
+#: is degenerate: its stiffness would be singular or meaningless.
+DEGENERATE_VOLUME_RATIO = 1e-10
+
+
+class MeshError(ValueError):
+    """A mesh that cannot be used for finite elements."""
+
+
+def signed_volumes(points: np.ndarray, tets: np.ndarray) -> np.ndarray:
+    """Signed volume of each tetrahedron, positive for right-handed vertex order."""
+    p = points[tets]
+    e = p[:, 1:] - p[:, :1]
+    return np.einsum("ij,ij->i", e[:, 0], np.cross(e[:, 1], e[:, 2])) / 6.0
+
+
+def _first(mask: np.ndarray) -> int:
+    return int(np.flatnonzero(mask)[0])
+
+
+def _validate(points: Any, tets: Any) -> tuple[np.ndarray, np.ndarray, int]:
+    points = np.asarray(points)
+    tets = np.asarray(tets)
+    if points.ndim != 2 or points.shape[1] != 3:
+        raise MeshError(f"points must have shape (n, 3), got {points.shape}")
+    if tets.ndim != 2 or tets.shape[1] != 4:
+        raise MeshError(f"tets must have shape (t, 4), got {tets.shape}")
+    if not np.issubdtype(points.dtype, np.number) or np.iscomplexobj(points):
+        raise MeshError(f"points must be real numbers, got dtype {points.dtype}")
+    if not np.issubdtype(tets.dtype, np.integer):
+        if tets.size and np.issubdtype(tets.dtype, np.floating) and np.all(tets == np.round(tets)):
+            tets = tets.astype(np.int64)
+        else:
+            raise MeshError(f"tets must be integer vertex indices, got dtype {tets.dtype}")
+    if len(points) < 4 or len(tets) < 1:
+        raise MeshError(f"a tetrahedral mesh needs >= 4 points and >= 1 tet, got {len(points)} and {len(tets)}")
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    tets = np.ascontiguousarray(tets, dtype=np.int64)
+
+    bad = ~np.isfinite(points).all(axis=1)
+    if bad.any():
+        raise MeshError(f"{bad.sum()} point(s) have NaN or infinite coordinates; first is point {_first(bad)}")
+    bad = ((tets < 0) | (tets >= len(points))).any(axis=1)
+    if bad.any():
+        raise MeshError(
+            f"{bad.sum()} tet(s) reference a point index outside [0, {len(points) - 1}]; first is tet {_first(bad)}"
+        )
+    srt = np.sort(tets, axis=1)
+    bad = (np.diff(srt, axis=1) == 0).any(axis=1)
+    if bad.any():
+        raise MeshError(f"{bad.sum()} tet(s) repeat a vertex (degenerate); first is tet {_first(bad)}")
+    _, first_idx, counts = np.unique(srt, axis=0, return_index=True, return_counts=True)
+    if (counts > 1).any():
+        dup = np.sort(first_idx[counts > 1])
+        raise MeshError(f"{int((counts - 1).sum())} duplicate tet(s); first duplicated is tet {int(dup[0])}")
+
+    vol = signed_volumes(points, tets)
+    edge = np.linalg.norm(points[tets[:, [1, 2, 3, 2, 3, 3]]] - points[tets[:, [0, 0, 0, 1, 1, 2]]], axis=2).mean(axis=1)
+    bad = np.abs(vol) <= DEGENERATE_VOLUME_RATIO * edge**3
+    if bad.any():
+        raise MeshError(
+            f"{bad.sum()} tet(s) have zero volume (flat or degenerate); first is tet {_first(bad)}"
+        )
+    neg = vol < 0
+    n_neg = int(neg.sum())
+    if n_neg:
+        tets = tets.copy()
+        tets[neg] = tets[neg][:, [0, 2, 1, 3]]
+        log.info("reoriented %d inverted tetrahedra (first: tet %d)", n_neg, _first(neg))
+    return points, tets, n_neg
+
+
+# Faces of a tetrahedron (v0,v1,v2,v3) ordered so their normals point outward
+# for a positively oriented tetrahedron.
+_TET_FACES = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
+
+
+@dataclass(frozen=True, eq=False)
+class TetMesh:
+    """A validated, positively oriented tetrahedral mesh.
+
+    Parameters
+    ----------
+    points : (n, 3) array_like of float
+        Vertex coordinates in metres.
+    tets : (t, 4) array_like of int
+        Vertex indices of each tetrahedron.  Negatively oriented tetrahedra
+        are reoriented; their count is kept in :attr:`n_reoriented`.
+
+    Raises
+    ------
+    MeshError
+        (a ``ValueError``) for wrong shapes or dtypes, NaN/inf coordinates,
+        out-of-range indices, duplicate or zero-volume tetrahedra; the message
+        gives the count and the first offending index.
+    """
+
+    points: np.ndarray
+    tets: np.ndarray
+    n_reoriented: int = field(init=False, default=0)
+
+    def __post_init__(self) -> None:
+        points, tets, n_neg = _validate(self.points, self.tets)
+        points.setflags(write=False)
+        tets.setflags(write=False)
+        object.__setattr__(self, "points", points)
+        object.__setattr__(self, "tets", tets)
+        object.__setattr__(self, "n_reoriented", n_neg)
+
+    def __repr__(self) -> str:
+        return f"TetMesh(n_points={self.n_points}, n_tets={self.n_tets})"
+
+    @property
+    def n_points(self) -> int:
+        return len(self.points)
+
+    @property
+    def n_tets(self) -> int:
+        return len(self.tets)
+
+    @cached_property
+    def volumes(self) -> np.ndarray:
+        """(t,) positive volume of each tetrahedron."""
+        return signed_volumes(self.points, self.tets)
+
+    @property
+    def volume(self) -> float:
+        return float(self.volumes.sum())
+
+    @cached_property
+    def surface_faces(self) -> np.ndarray:
+        """(f, 3) boundary triangles, ordered so their normals point out of the body."""
+        faces = self.tets[:, _TET_FACES].reshape(-1, 3)
+        key = np.sort(faces, axis=1)
+        _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+        inv = inv.reshape(-1)
+        if (counts > 2).any():
+            raise MeshError(f"{int((counts > 2).sum())} triangle(s) are shared by more than two tets (non-manifold)")
+        return np.ascontiguousarray(faces[counts[inv] == 1])
+
+    @cached_property
+    def surface_nodes(self) -> np.ndarray:
+        """Sorted indices of the vertices on the boundary surface."""
+        return np.unique(self.surface_faces)
+
+    @cached_property
+    def surface_normals(self) -> np.ndarray:
+        """(n, 3) outward unit normal at each vertex (area-weighted; zero off the surface)."""
+        f = self.surface_faces
+        p = self.points
+        area_normals = 0.5 * np.cross(p[f[:, 1]] - p[f[:, 0]], p[f[:, 2]] - p[f[:, 0]])
+        nodal = np.zeros_like(p)
+        for k in range(3):
+            np.add.at(nodal, f[:, k], area_normals)
+        norm = np.linalg.norm(nodal, axis=1, keepdims=True)
+        return np.divide(nodal, norm, out=np.zeros_like(nodal), where=norm > 0)
+
+    @property
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lower, upper) corners of the axis-aligned bounding box."""
+        return self.points.min(axis=0), self.points.max(axis=0)
+
+    @property
+    def diameter(self) -> float:
+        lo, hi = self.bounds
+        return float(np.linalg.norm(hi - lo))
+
+    @cached_property
+    def quality(self) -> np.ndarray:
+        """(t,) normalised shape quality in (0, 1]: 1 for a regular tetrahedron.
+
+        The ratio 6√2·V / ℓ_rms³, which tends to zero for slivers and needles.
+        """
+        p = self.points[self.tets]
+        pairs = [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)]
+        l2 = np.stack([np.sum((p[:, i] - p[:, j]) ** 2, axis=1) for i, j in pairs], axis=1)
+        l_rms = np.sqrt(l2.mean(axis=1))
+        return 6.0 * np.sqrt(2.0) * self.volumes / l_rms**3
+
+    def transformed(self, rotation: np.ndarray | None = None, translation: np.ndarray | None = None) -> "TetMesh":
+        """A new mesh with points mapped to ``rotation @ p + translation``."""
+        p = self.points
+        if rotation is not None:
+            rotation = np.asarray(rotation, dtype=float)
+            if rotation.shape != (3, 3) or not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-10):
+                raise ValueError("rotation must be a 3x3 orthogonal matrix")
+            if np.linalg.det(rotation) < 0:
+                raise ValueError("rotation must be proper (det = +1), not a reflection")
+            p = p @ rotation.T
+        if translation is not None:
+            p = p + np.asarray(translation, dtype=float)
+        return TetMesh(p, self.tets)
+
+    # ------------------------------------------------------------------ I/O
+    @classmethod
+    def from_meshio(cls, mesh: Any) -> "TetMesh":
+        """Build from a ``meshio.Mesh``, keeping only its tetra cells and the points they use."""
+        blocks = [c.data for c in mesh.cells if c.type == "tetra"]
+        if not blocks:
+            types = sorted({c.type for c in mesh.cells})
+            raise MeshError(f"the mesh has no tetra cells (cell types: {types}); mesh a surface with TetMesh.from_surface")
+        tets = np.concatenate(blocks).astype(np.int64)
+        used, tets_c = np.unique(tets, return_inverse=True)
+        return cls(np.asarray(mesh.points, dtype=float)[used, :3], tets_c.reshape(-1, 4))
+
+    @classmethod
+    def from_file(cls, path: str | PathLike) -> "TetMesh":
+        """Read any volume format meshio reads (VTU, MSH, XDMF, MEDIT, …)."""
+        import meshio
+
+        return cls.from_meshio(meshio.read(path))
+
+    def to_meshio(self, point_data: dict | None = None, cell_data: dict | None = None) -> Any:
+        import meshio
+
+        cd = {k: [np.asarray(v)] for k, v in (cell_data or {}).items()}
+        return meshio.Mesh(self.points, [("tetra", self.tets)], point_data=point_data or {}, cell_data=cd)
+
+    def write(self, path: str | PathLike, point_data: dict | None = None) -> None:
+        """Write in the format meshio infers from the file extension."""
+        self.to_meshio(point_data).write(path)
+
+
+def box_mesh(lower: tuple[float, float, float] = (0.0, 0.0, 0.0), upper: tuple[float, float, float] = (1.0, 1.0, 1.0),
+             divisions: tuple[int, int, int] = (2, 2, 2)) -> TetMesh:
+    """A structured mesh of a box, each hexahedral cell split into six tetrahedra (Kuhn split).
+
+    Needs no mesher; used by tests, examples and convergence studies.
+    """
+    nx, ny, nz = (int(d) for d in divisions)
+    if min(nx, ny, nz) < 1:
+        raise ValueError(f"divisions must be positive integers, got {divisions}")
+    axes = [np.linspace(lo, hi, d + 1) for lo, hi, d in zip(lower, upper, (nx, ny, nz))]
+    gx, gy, gz = np.meshgrid(*axes, indexing="ij")
+    points = np.stack([gx.ravel(), gy.ravel(), gz.ravel()], axis=1)
+    idx = np.arange(len(points)).reshape(nx + 1, ny + 1, nz + 1)
+    i, j, k = (a.ravel() for a in np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij"))
+    corner = np.stack([idx[i + dx, j + dy, k + dz] for dz in (0, 1) for dy in (0, 1) for dx in (0, 1)], axis=1)
+    # The six tets of the cube around its main diagonal 0-7 (corner bits x=1, y=2, z=4).
+    kuhn = np.array([[0, 1, 3, 7], [0, 1, 5, 7], [0, 2, 3, 7], [0, 2, 6, 7], [0, 4, 5, 7], [0, 4, 6, 7]])
+    tets = corner[:, kuhn].reshape(-1, 4)
+    return TetMesh(points, tets)

@@ -1,0 +1,275 @@
+"""Deformation from specified contact displacements (paper §II-C, eqs. 3–5).
+
+For a contact index set C = {i_1, …, i_m}, the contact forces F̄ (on the
+object) are affine in the contact displacements Δ̄:
+
+    F̄ = C (Δ̄ − D̄) + (mg/√n) e          (eq. 5)
+
+which :class:`ContactResponse` stores as ``F̄ = C Δ̄ + F̄₀``, F̄₀ being the
+forces when every contact node is held at its reference position.  Both
+backends solve the bordered system (3)
+
+    ⎡A  B⎤ ⎡F̄⎤   ⎡Δ̄ − D̄    ⎤
+    ⎣Bᵀ 0⎦ ⎣b ⎦ = ⎣−V₀ᵀ G   ⎦
+
+with B = V̄₀ the orthonormal rigid modes at the contact DOFs.  ``"spectral"``
+uses the paper's A = Σ v̄v̄ᵀ/λ and D; ``"sparse"`` uses a generalised inverse
+X of K in their place (:mod:`fem_grasp.compliance`), which gives the same F̄.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from functools import cached_property
+from typing import TYPE_CHECKING
+
+import numpy as np
+import scipy.linalg as la
+
+from .spectral import orthonormal_modes
+
+if TYPE_CHECKING:
+    from .body import Body
+
+log = logging.getLogger(__name__)
+
+BACKENDS = ("sparse", "spectral")
+
+#: Contacts whose spread perpendicular to their best-fit line is below this
+#: fraction of their extent along it are collinear (Proposition 2).
+COLLINEAR_TOLERANCE = 1e-8
+
+
+class CollinearContactError(ValueError):
+    """The contact set leaves a rigid rotation free (Theorem 3): M is singular."""
+
+
+def contact_dofs(nodes: np.ndarray) -> np.ndarray:
+    """(3m,) DOF numbers of the contact nodes, node-major (the paper's ā selection)."""
+    return (3 * np.asarray(nodes)[:, None] + np.arange(3)).ravel()
+
+
+def check_contact_set(points: np.ndarray, nodes: np.ndarray) -> np.ndarray:
+    """Validate a contact index set and return it as an int array.
+
+    Raises ``ValueError`` for bad indices and :class:`CollinearContactError`
+    for fewer than three nodes or collinear ones (Proposition 2, Theorem 3).
+    The collinearity test is scale-free: it compares the second singular value
+    of the centred contact positions with the first.
+    """
+    raw = np.asarray(nodes)
+    if raw.ndim != 1 or (raw.size and not np.issubdtype(raw.dtype, np.integer)):
+        raise ValueError(f"contact nodes must be a 1-D array of integer node indices, got {raw.dtype} {raw.shape}")
+    nodes = raw.astype(np.int64)
+    n = len(points)
+    bad = (nodes < 0) | (nodes >= n)
+    if bad.any():
+        raise ValueError(f"contact node {int(nodes[bad][0])} is not a node of the mesh (0 … {n - 1})")
+    if len(np.unique(nodes)) != len(nodes):
+        raise ValueError("contact nodes must be distinct; a node is listed twice")
+    if len(nodes) < 3:
+        raise CollinearContactError(
+            f"{len(nodes)} contact node(s) cannot hold the body: at least three non-collinear contacts are "
+            "needed to fix all six rigid motions (paper, Theorem 3)")
+    p = points[nodes] - points[nodes].mean(axis=0)
+    s = np.linalg.svd(p, compute_uv=False)
+    if s[1] <= COLLINEAR_TOLERANCE * s[0]:
+        raise CollinearContactError(
+            f"the {len(nodes)} contact nodes are collinear (spread off their common line is {s[1] / s[0]:.2e} "
+            "of their extent): the body could rotate about that line, so the deformation is not determined "
+            "(paper, Proposition 2 and Theorem 3)")
+    return nodes
+
+
+@dataclass(frozen=True)
+class ContactSolution:
+    """The deformation of a body with prescribed contact displacements.
+
+    Attributes
+    ----------
+    nodes : (m,) contact node indices
+    forces : (m, 3) contact forces F̄ exerted on the object, newtons
+    displacements : (n, 3) displacement field Δ, metres
+    strain_energy : ½ΔᵀKΔ, joules
+    """
+
+    nodes: np.ndarray
+    forces: np.ndarray
+    displacements: np.ndarray
+    strain_energy: float
+    body: "Body"
+
+    @property
+    def positions(self) -> np.ndarray:
+        """(n, 3) deformed positions p̃ = p + δ."""
+        return self.body.mesh.points + self.displacements
+
+    def equilibrium_residual(self) -> tuple[float, float]:
+        """Relative force and torque imbalance of contact forces plus gravity; see :func:`equilibrium_residual`."""
+        return equilibrium_residual(self.body, self.nodes, self.forces)
+
+
+def equilibrium_residual(body: "Body", nodes: np.ndarray, forces: np.ndarray,
+                         points: np.ndarray | None = None) -> tuple[float, float]:
+    """Force and torque imbalance of contact forces and gravity, relative to mg and mg·diameter.
+
+    Linear elasticity states equilibrium on the reference configuration, so
+    torques are taken about the centre of mass at reference positions unless
+    ``points`` is given.
+    """
+    p = body.mesh.points if points is None else points
+    g = body.gravity_loads.reshape(-1, 3)
+    c = body.center_of_mass
+    f_sum = forces.sum(axis=0) + g.sum(axis=0)
+    t_sum = np.cross(p[nodes] - c, forces).sum(axis=0) + np.cross(p - c, g).sum(axis=0)
+    w = body.weight
+    return float(np.linalg.norm(f_sum) / w), float(np.linalg.norm(t_sum) / (w * body.mesh.diameter))
+
+
+class ContactResponse:
+    """Eq. (5) for one contact index set: reduced stiffness C and gravity forces F̄₀.
+
+    Parameters
+    ----------
+    body : Body
+    nodes : (m,) int
+        Contact index set; at least three non-collinear distinct nodes.
+    backend : {"sparse", "spectral"}
+        ``"sparse"`` (default) reuses one sparse factorisation of the body
+        across contact sets; ``"spectral"`` follows the paper literally with a
+        dense eigendecomposition of K.
+
+    Notes
+    -----
+    Forces are affine in the contact displacements, ``F̄ = C Δ̄ + F̄₀``; this is
+    what makes the slip conditions (6)–(8) quadratic.  Construction costs one
+    dense factorisation of the (3m+6)-square matrix M.
+    """
+
+    def __init__(self, body: "Body", nodes: np.ndarray, backend: str = "sparse") -> None:
+        if backend not in BACKENDS:
+            raise ValueError(f"unknown backend {backend!r}; choose one of {BACKENDS}")
+        self.body = body
+        self.backend = backend
+        self.nodes = check_contact_set(body.mesh.points, nodes)
+        self.dofs = contact_dofs(self.nodes)
+        if backend == "sparse":
+            comp = body.compliance
+            self._columns = comp.node_columns(self.nodes)  # X[:, c]
+            self._null = orthonormal_modes(body.rigid_modes)
+            a = self._columns[self.dofs]
+            d_full = self._gravity_displacement
+        else:
+            spec = body.spectral
+            self._null = spec.null_space
+            a = spec.compliance_block(self.dofs)
+            d_full = spec.gravity_term
+        self._d_bar = d_full[self.dofs]
+        b = self._null[self.dofs]
+        # Scale B so both blocks of M have like magnitudes; b absorbs the scale.
+        self._scale = max(float(np.abs(np.diag(a)).max()), np.finfo(float).tiny)
+        m3 = len(self.dofs)
+        mat = np.zeros((m3 + 6, m3 + 6))
+        mat[:m3, :m3] = 0.5 * (a + a.T)
+        mat[:m3, m3:] = self._scale * b
+        mat[m3:, :m3] = self._scale * b.T
+        self._matrix = mat
+        self._rhs_rigid = -self._scale * (self._null.T @ body.gravity_loads)
+        self._lu = la.lu_factor(mat, check_finite=False)
+        piv_ratio = np.abs(np.diag(self._lu[0])).min() / np.abs(np.diag(self._lu[0])).max()
+        if not np.isfinite(piv_ratio) or piv_ratio < 1e2 * np.finfo(float).eps:
+            raise CollinearContactError(
+                f"the bordered matrix M of eq. (3) is numerically singular for this contact set (pivot ratio "
+                f"{piv_ratio:.1e}); the contacts are collinear or nearly so (Theorem 3)")
+
+    @cached_property
+    def _gravity_displacement(self) -> np.ndarray:
+        return self.body.compliance.apply(self.body.gravity_loads)
+
+    @property
+    def n_contacts(self) -> int:
+        return len(self.nodes)
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """The bordered matrix M of eq. (3) (B scaled by a constant; see module notes)."""
+        return self._matrix
+
+    def condition_number(self) -> float:
+        """2-norm condition number of M."""
+        return float(np.linalg.cond(self._matrix))
+
+    def _solve_bordered(self, rhs_top: np.ndarray, rhs_bottom: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        m3 = len(self.dofs)
+        sol = la.lu_solve(self._lu, np.concatenate([rhs_top, rhs_bottom]), check_finite=False)
+        return sol[:m3], sol[m3:] * self._scale
+
+    @cached_property
+    def reduced_stiffness(self) -> np.ndarray:
+        """C (3m×3m): the top-left block of M⁻¹ (eq. 5), symmetric with the rigid modes in its null space."""
+        m3 = len(self.dofs)
+        rhs = np.zeros((m3 + 6, m3))
+        rhs[:m3] = np.eye(m3)
+        c = la.lu_solve(self._lu, rhs, check_finite=False)[:m3]
+        return 0.5 * (c + c.T)
+
+    @cached_property
+    def gravity_forces(self) -> np.ndarray:
+        """F̄₀ (m, 3): contact forces with every contact node held at its reference position."""
+        f, _ = self._solve_bordered(-self._d_bar, self._rhs_rigid)
+        return f.reshape(-1, 3)
+
+    def _check_displacements(self, displacements: np.ndarray) -> np.ndarray:
+        d = np.asarray(displacements, dtype=float)
+        if d.shape not in ((self.n_contacts, 3), (3 * self.n_contacts,)):
+            raise ValueError(f"expected contact displacements of shape ({self.n_contacts}, 3), got {d.shape}")
+        if not np.isfinite(d).all():
+            raise ValueError("contact displacements contain NaN or infinity")
+        return d.reshape(-1)
+
+    def forces(self, displacements: np.ndarray) -> np.ndarray:
+        """Contact forces F̄ (m, 3) on the object for contact displacements Δ̄ (m, 3): eq. (5)."""
+        d = self._check_displacements(displacements)
+        f, _ = self._solve_bordered(d - self._d_bar, self._rhs_rigid)
+        return f.reshape(-1, 3)
+
+    def solve(self, displacements: np.ndarray) -> ContactSolution:
+        """Contact forces and the whole displacement field (eqs. 3–5 and 4)."""
+        d = self._check_displacements(displacements)
+        f, b = self._solve_bordered(d - self._d_bar, self._rhs_rigid)
+        if self.backend == "sparse":
+            field = self._columns @ f + self._gravity_displacement + self._null @ b
+        else:
+            field = self.body.spectral.displacement(self.dofs, f, b)
+        # Restore the prescribed values exactly (they hold to round-off anyway).
+        field[self.dofs] = d
+        energy = self.body.strain_energy(field)
+        return ContactSolution(self.nodes, f.reshape(-1, 3), field.reshape(-1, 3), energy, self.body)
+
+
+def solve_contact(body: "Body", nodes: np.ndarray, displacements: np.ndarray, backend: str = "sparse") -> ContactSolution:
+    """Deform ``body`` under gravity with contact nodes displaced by ``displacements`` (paper §II-C).
+
+    Parameters
+    ----------
+    body : Body
+    nodes : (m,) int
+        The contact index set C, m ≥ 3 non-collinear distinct nodes.
+    displacements : (m, 3) float
+        Prescribed contact displacements Δ̄ in metres.
+    backend : {"sparse", "spectral"}
+
+    Returns
+    -------
+    ContactSolution
+        Forces on the object at the contact nodes, the displacement field and
+        the strain energy.  Contact forces and gravity are in equilibrium to
+        round-off.
+
+    Raises
+    ------
+    CollinearContactError
+        If fewer than three distinct nodes are given or they are collinear.
+    """
+    return body.contact_response(nodes, backend=backend).solve(displacements)
