@@ -1,0 +1,170 @@
+import numpy as np
+import pytest
+import scipy.sparse.linalg as spla
+
+from fem_grasp import Body, CollinearContactError, TetMesh, box_mesh, solve_contact
+from fem_grasp.response import contact_dofs
+
+from _meshes import perturbed_box
+
+
+def contact_set(body):
+    """Five well-spread surface nodes: three on the bottom, two on the sides."""
+    p = body.mesh.points
+    lo, hi = body.mesh.bounds
+    target = np.array([lo, [hi[0], lo[1], lo[2]], [lo[0], hi[1], lo[2]],
+                       [hi[0], (lo[1] + hi[1]) / 2, hi[2]], [(lo[0] + hi[0]) / 2, hi[1], hi[2]]])
+    return np.array([int(np.argmin(np.sum((p - t) ** 2, axis=1))) for t in target])
+
+
+def dirichlet_reference(body, nodes, disp):
+    """The partitioned solve K_ff Δ_f = G_f − K_fc Δ̄, F̄ = (KΔ − G)_c (DESIGN.md)."""
+    k = body.stiffness.tocsr()
+    g = body.gravity_loads
+    c = contact_dofs(nodes)
+    f = np.setdiff1d(np.arange(k.shape[0]), c)
+    u = np.zeros(k.shape[0])
+    u[c] = disp.ravel()
+    u[f] = spla.spsolve(k[f][:, f].tocsc(), g[f] - k[f][:, c] @ u[c])
+    return (k @ u - g)[c].reshape(-1, 3), u.reshape(-1, 3)
+
+
+@pytest.fixture(scope="module")
+def body():
+    return Body(perturbed_box(np.random.default_rng(7)), 8e4, 0.32, weight=0.9)
+
+
+def rel(a, b):
+    return np.abs(a - b).max() / np.abs(b).max()
+
+
+def test_backends_agree_with_each_other_and_with_dirichlet_solve(body, rng):
+    nodes = contact_set(body)
+    disp = 1e-3 * rng.standard_normal((len(nodes), 3))
+    sparse = solve_contact(body, nodes, disp)
+    spectral = solve_contact(body, nodes, disp, backend="spectral")
+    f_ref, u_ref = dirichlet_reference(body, nodes, disp)
+    for sol in (sparse, spectral):
+        assert rel(sol.forces, f_ref) <= 1e-9
+        assert rel(sol.displacements, u_ref) <= 1e-9
+        np.testing.assert_array_equal(sol.displacements[nodes], disp)
+    assert rel(sparse.forces, spectral.forces) <= 1e-9
+    np.testing.assert_allclose(sparse.strain_energy, spectral.strain_energy, rtol=1e-9)
+
+
+@pytest.mark.parametrize("backend", ["sparse", "spectral"])
+def test_equilibrium_to_round_off(body, rng, backend):
+    nodes = contact_set(body)
+    for scale in (0.0, 1e-3):
+        sol = solve_contact(body, nodes, scale * rng.standard_normal((len(nodes), 3)), backend=backend)
+        force, torque = sol.equilibrium_residual()
+        assert force <= 1e-10 and torque <= 1e-10
+
+
+def test_reduced_stiffness_properties(body):
+    nodes = contact_set(body)
+    resp = body.contact_response(nodes)
+    c = resp.reduced_stiffness
+    r = body.rigid_modes[contact_dofs(nodes)]
+    assert np.abs(c - c.T).max() == 0.0
+    # Rigid motions of the contacts cost nothing (Theorem 1 on the reduced system).
+    assert np.abs(c @ r).max() <= 1e-10 * np.abs(c).max() * np.abs(r).max()
+    ev = np.linalg.eigvalsh(c)
+    assert ev.min() >= -1e-10 * ev.max()
+    assert np.sum(ev < 1e-9 * ev.max()) == 6
+    # Eq. (5): forces are affine, F̄ = C Δ̄ + F̄₀.
+    d = np.random.default_rng(1).standard_normal((len(nodes), 3)) * 1e-3
+    np.testing.assert_allclose(resp.forces(d).ravel(), c @ d.ravel() + resp.gravity_forces.ravel(),
+                               rtol=0, atol=1e-10 * np.abs(resp.forces(d)).max())
+    # Finite difference of the force map reproduces C column by column.
+    h = 1e-6
+    for j in (0, 4, 7):
+        e = np.zeros(3 * len(nodes))
+        e[j] = h
+        fd = (resp.forces((d.ravel() + e).reshape(-1, 3)) - resp.forces((d.ravel() - e).reshape(-1, 3))) / (2 * h)
+        np.testing.assert_allclose(fd.ravel(), c[:, j], rtol=1e-6, atol=1e-8 * np.abs(c).max())
+
+
+def test_spectral_reduced_stiffness_matches_sparse(body):
+    nodes = contact_set(body)
+    a = body.contact_response(nodes).reduced_stiffness
+    b = body.contact_response(nodes, backend="spectral").reduced_stiffness
+    assert rel(b, a) <= 1e-9
+
+
+def test_rigid_contact_motion_adds_rigid_field_and_no_force(body, rng):
+    nodes = contact_set(body)
+    resp = body.contact_response(nodes)
+    base = resp.solve(np.zeros((len(nodes), 3)))
+    rigid = body.rigid_modes @ (rng.standard_normal(6) * 1e-4)
+    moved = resp.solve(rigid.reshape(-1, 3)[nodes])
+    assert rel(moved.forces, base.forces) <= 1e-9
+    assert rel(moved.displacements - base.displacements, rigid.reshape(-1, 3)) <= 1e-8
+    np.testing.assert_allclose(moved.strain_energy, base.strain_energy, rtol=1e-9)
+
+
+def test_clapeyron_energy_balance(body, rng):
+    """For a linear body, 2U = Δᵀ(F + G): work of contact forces and gravity."""
+    nodes = contact_set(body)
+    disp = 1e-3 * rng.standard_normal((len(nodes), 3))
+    sol = solve_contact(body, nodes, disp)
+    work = np.sum(sol.forces * disp) + body.gravity_loads @ sol.displacements.ravel()
+    np.testing.assert_allclose(2 * sol.strain_energy, work, rtol=1e-9)
+    assert sol.strain_energy > 0
+
+
+def test_scaling_with_young_modulus(body, rng):
+    """Prescribed-displacement forces scale with E; held-contact gravity forces do not depend on E."""
+    nodes = contact_set(body)
+    disp = 1e-3 * rng.standard_normal((len(nodes), 3))
+    for factor in (1e-3, 1e7):
+        stiff = body.with_material(young=body.young * factor)
+        r0, r1 = body.contact_response(nodes), stiff.contact_response(nodes)
+        assert rel(r1.reduced_stiffness, factor * r0.reduced_stiffness) <= 1e-9
+        assert rel(r1.gravity_forces, r0.gravity_forces) <= 1e-9
+        assert rel(r1.solve(np.zeros_like(disp)).displacements, r0.solve(np.zeros_like(disp)).displacements / factor) <= 1e-9
+
+
+def test_contact_response_is_reused_for_many_solves(body, rng):
+    nodes = contact_set(body)
+    resp = body.contact_response(nodes)
+    d1, d2 = rng.standard_normal((2, len(nodes), 3)) * 1e-3
+    sol = resp.solve(d1 + d2)
+    lin = resp.forces(d1) + resp.forces(d2) - resp.gravity_forces
+    assert rel(sol.forces, lin) <= 1e-9
+
+
+def test_collinear_and_too_few_contacts_are_refused(body):
+    p = body.mesh.points
+    lo, hi = body.mesh.bounds
+    edge = np.flatnonzero((np.abs(p[:, 1] - lo[1]) < 1e-12) & (np.abs(p[:, 2] - lo[2]) < 1e-12))
+    assert len(edge) >= 3
+    with pytest.raises(CollinearContactError, match="collinear"):
+        solve_contact(body, edge, np.zeros((len(edge), 3)))
+    with pytest.raises(CollinearContactError, match="at least three non-collinear"):
+        solve_contact(body, edge[:2], np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="listed twice"):
+        solve_contact(body, np.array([0, 1, 1, 5]), np.zeros((4, 3)))
+    with pytest.raises(ValueError, match="is not a node of the mesh"):
+        solve_contact(body, np.array([0, 1, 10**6]), np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="unknown backend"):
+        body.contact_response(contact_set(body), backend="dense")
+    with pytest.raises(ValueError, match="shape"):
+        body.contact_response(contact_set(body)).solve(np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="NaN"):
+        body.contact_response(contact_set(body)).solve(np.full((5, 3), np.nan))
+
+
+def test_nearly_collinear_contacts_grow_the_condition_number():
+    mesh = TetMesh(np.array([[0.0, 0, 0], [1, 0, 0], [0.5, 1, 0], [0.5, 0.5, 1], [0.5, 0.0, 0.0]]),
+                   np.array([[0, 4, 2, 3], [4, 1, 2, 3]]))
+    body = Body(mesh, 1e5, 0.3, weight=1.0)
+    conds = []
+    for off in (1e-1, 1e-3, 1e-5):
+        pts = mesh.points.copy()
+        pts[4, 1] = off  # node 4 approaches the line through nodes 0 and 1
+        b = Body(TetMesh(pts, mesh.tets), 1e5, 0.3, weight=1.0)
+        conds.append(b.contact_response(np.array([0, 1, 4])).condition_number())
+    assert conds[0] < conds[1] < conds[2]
+    with pytest.raises(CollinearContactError):
+        body.contact_response(np.array([0, 1, 4]))  # exactly collinear
