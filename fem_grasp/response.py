@@ -112,19 +112,22 @@ class ContactSolution:
 
 def equilibrium_residual(body: "Body", nodes: np.ndarray, forces: np.ndarray,
                          points: np.ndarray | None = None) -> tuple[float, float]:
-    """Force and torque imbalance of contact forces and gravity, relative to mg and mg·diameter.
+    """Force and torque imbalance of contact forces and gravity, relative to the loads involved.
 
-    Linear elasticity states equilibrium on the reference configuration, so
-    torques are taken about the centre of mass at reference positions unless
-    ``points`` is given.
+    The force residual |Σf_k + ΣG| is divided by mg + Σ|f_k| (the sum of the
+    magnitudes being balanced, so that round-off on large squeeze forces is
+    judged against those forces), the torque residual by that times the
+    body's diameter.  Linear elasticity states equilibrium on the reference
+    configuration, so torques are taken about the centre of mass at reference
+    positions unless ``points`` is given.
     """
     p = body.mesh.points if points is None else points
     g = body.gravity_loads.reshape(-1, 3)
     c = body.center_of_mass
     f_sum = forces.sum(axis=0) + g.sum(axis=0)
     t_sum = np.cross(p[nodes] - c, forces).sum(axis=0) + np.cross(p - c, g).sum(axis=0)
-    w = body.weight
-    return float(np.linalg.norm(f_sum) / w), float(np.linalg.norm(t_sum) / (w * body.mesh.diameter))
+    scale = body.weight + float(np.linalg.norm(forces, axis=1).sum())
+    return float(np.linalg.norm(f_sum) / scale), float(np.linalg.norm(t_sum) / (scale * body.mesh.diameter))
 
 
 class ContactResponse:

@@ -1,0 +1,157 @@
+"""Tests of fem_grasp.shapes (gmsh generators) and of the committed meshes/*.vtu."""
+
+from __future__ import annotations
+
+import functools
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fem_grasp import shapes
+
+MESH_DIR = Path(__file__).resolve().parents[1] / "meshes"
+TABLE_I_VERTICES = {"tomato": 490, "orange": 600, "steam_bun": 658, "football": 875}
+
+
+@pytest.fixture
+def gmsh():
+    return pytest.importorskip("gmsh", reason="gmsh's Python module is not installed (Debian package python3-gmsh)")
+
+
+def signed_volumes(points: np.ndarray, tets: np.ndarray) -> np.ndarray:
+    e = points[tets[:, 1:]] - points[tets[:, :1]]
+    return np.einsum("ij,ij->i", e[:, 0], np.cross(e[:, 1], e[:, 2])) / 6.0
+
+
+def check_arrays(points: np.ndarray, tets: np.ndarray) -> None:
+    assert points.dtype == np.float64 and points.ndim == 2 and points.shape[1] == 3
+    assert tets.dtype == np.int64 and tets.ndim == 2 and tets.shape[1] == 4
+    # compact numbering: every vertex belongs to a tetrahedron
+    assert np.array_equal(np.unique(tets), np.arange(len(points)))
+    assert (signed_volumes(points, tets) > 0).all()
+
+
+# ---------------------------------------------------------------- without gmsh
+def test_missing_gmsh_gives_install_hint(monkeypatch):
+    monkeypatch.setitem(sys.modules, "gmsh", None)  # makes `import gmsh` raise ImportError
+    with pytest.raises(ImportError, match="python3-gmsh"):
+        shapes.ellipsoid((0.01, 0.01, 0.01), 0.005)
+
+
+def test_bad_arguments_rejected_before_meshing():
+    with pytest.raises(ValueError, match="mesh_size"):
+        shapes.ellipsoid((0.01, 0.01, 0.01), 0.0)
+    with pytest.raises(ValueError, match="height"):
+        shapes.dome(0.05, -1.0, 0.01)
+    with pytest.raises(ValueError, match="unknown paper shape"):
+        shapes.paper_shape("banana", 0.01)
+
+
+def test_paper_shapes_table():
+    assert {k: s.vertices for k, s in shapes.PAPER_SHAPES.items()} == TABLE_I_VERTICES
+    for spec in shapes.PAPER_SHAPES.values():
+        assert 50.0 < spec.density < 1200.0  # foam to water-rich fruit, kg/m³
+    a, b, c = shapes.PAPER_SHAPES["football"].dimensions
+    assert a > b == c  # long axis along x
+
+
+def _fake_builder(counts: dict[float, int] | None = None):
+    """A gmsh-free builder with n(h) = round(1e-4 / h³), or a step function."""
+
+    def build(h: float) -> tuple[np.ndarray, np.ndarray]:
+        n = round(1e-4 / h**3) if counts is None else next(v for k, v in sorted(counts.items()) if h <= k)
+        return np.zeros((n, 3)), np.zeros((1, 4), dtype=np.int64)
+
+    return build
+
+
+def test_vertex_count_search_logic():
+    calls = []
+    builder = _fake_builder()
+    points, _ = shapes.mesh_with_vertex_count(lambda h: calls.append(h) or builder(h), 5000, initial_size=0.01)
+    assert abs(len(points) - 5000) <= 250
+    assert len(calls) <= 4
+
+
+def test_vertex_count_search_reports_an_unreachable_count():
+    step = _fake_builder({0.0048: 1000, math.inf: 800})  # no size gives 900 ± 5 %
+    with pytest.raises(RuntimeError, match="closest: (800|1000) vertices"):
+        shapes.mesh_with_vertex_count(step, 900, initial_size=0.005, max_calls=8)
+
+
+# ------------------------------------------------------------------- with gmsh
+@pytest.mark.gmsh
+def test_ellipsoid_volume_and_shape(gmsh):
+    a, b, c = 0.03, 0.02, 0.015
+    points, tets = shapes.ellipsoid((a, b, c), 0.003)
+    check_arrays(points, tets)
+    exact = 4.0 / 3.0 * math.pi * a * b * c
+    volume = signed_volumes(points, tets).sum()
+    assert 0.97 * exact < volume < exact  # inscribed polyhedron of a convex body
+    r = (points[:, 0] / a) ** 2 + (points[:, 1] / b) ** 2 + (points[:, 2] / c) ** 2
+    assert r.max() <= 1.0 + 1e-6
+    np.testing.assert_allclose(points.max(axis=0), [a, b, c], rtol=0.05)
+
+
+@pytest.mark.gmsh
+def test_dome_has_flat_base(gmsh):
+    radius, height = 0.05, 0.035
+    points, tets = shapes.dome(radius, height, 0.008)
+    check_arrays(points, tets)
+    assert points[:, 2].min() == 0.0
+    assert points[:, 2].max() == pytest.approx(height, rel=1e-6)
+    base = points[points[:, 2] == 0.0]
+    assert len(base) > 10 and np.hypot(base[:, 0], base[:, 1]).max() == pytest.approx(radius, rel=1e-6)
+    exact = 2.0 / 3.0 * math.pi * radius**2 * height
+    assert 0.95 * exact < signed_volumes(points, tets).sum() < exact
+
+
+@pytest.mark.gmsh
+@pytest.mark.parametrize("initial_size", [None, 0.004])
+def test_vertex_count_targeting(gmsh, initial_size):
+    builder = functools.partial(shapes.ellipsoid, (0.03, 0.02, 0.015))
+    points, tets = shapes.mesh_with_vertex_count(builder, 700, initial_size=initial_size)
+    check_arrays(points, tets)
+    assert abs(len(points) - 700) <= 0.05 * 700
+
+
+@pytest.mark.gmsh
+def test_meshing_is_deterministic(gmsh):
+    for algorithm in ("meshadapt", "frontal-delaunay"):
+        p1, t1 = shapes.paper_shape("steam_bun", 0.009, algorithm=algorithm)
+        p2, t2 = shapes.paper_shape("steam_bun", 0.009, algorithm=algorithm)
+        assert np.array_equal(p1, p2) and np.array_equal(t1, t2)
+    m1 = shapes.paper_mesh("tomato")
+    m2 = shapes.paper_mesh("tomato")
+    assert np.array_equal(m1.points, m2.points) and np.array_equal(m1.tets, m2.tets)
+
+
+@pytest.mark.gmsh
+def test_paper_mesh_orientation(gmsh):
+    mesh = shapes.paper_mesh("football", 400)
+    lo, hi = mesh.bounds
+    extent = hi - lo
+    assert extent[0] > 1.5 * extent[1] and extent[0] > 1.5 * extent[2]  # long axis along x
+    assert abs(mesh.n_points - 400) <= 20
+
+
+# ------------------------------------------------------------ committed meshes
+@pytest.mark.parametrize("name", sorted(TABLE_I_VERTICES))
+def test_committed_mesh(name):
+    meshio = pytest.importorskip("meshio")
+    path = MESH_DIR / f"{name}.vtu"
+    assert path.exists(), f"{path} is missing; regenerate with `make meshes`"
+    m = meshio.read(path)
+    assert [c.type for c in m.cells] == ["tetra"]
+    points = np.asarray(m.points, dtype=float)
+    tets = np.asarray(m.cells[0].data, dtype=np.int64)
+    assert abs(len(points) - TABLE_I_VERTICES[name]) <= 0.05 * TABLE_I_VERTICES[name]
+    assert np.array_equal(np.unique(tets), np.arange(len(points)))
+    assert (signed_volumes(points, tets) > 0).all()
+    spec = shapes.PAPER_SHAPES[name]
+    assert signed_volumes(points, tets).sum() == pytest.approx(spec.volume, rel=0.05)
+    if spec.kind == "dome":
+        assert points[:, 2].min() == 0.0
