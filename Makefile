@@ -11,7 +11,7 @@ APT_PACKAGES := python3-dolfinx python3-gmsh python3-venv python3-pip python3-de
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 PYTEST_ARGS ?=
 
-.PHONY: setup test demo meshes spectral-vs-sparse clean-venv
+.PHONY: setup test demo meshes spectral-vs-sparse rest-table clean-venv
 
 setup: $(STAMPS)/venv
 
@@ -43,6 +43,9 @@ meshes: setup
 
 spectral-vs-sparse: setup
 	$(PY) scripts/spectral_vs_sparse.py
+
+rest-table: setup
+	$(PY) scripts/rest_table.py
 
 clean-venv:
 	rm -rf $(VENV) $(STAMPS)

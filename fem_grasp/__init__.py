@@ -5,18 +5,36 @@ and lift of a deformable body by two rigid hemispherical fingertips).  The core
 imports with numpy and scipy alone.
 """
 
+from . import friction, geometry, pose
 from .body import Body
+from .fingertip import Fingertip
+from .friction import FrictionError
+from .geometry import TablePlane
 from .mesh import MeshError, TetMesh, box_mesh
+from .pose import RestingPose, resting_pose
 from .response import CollinearContactError, ContactResponse, ContactSolution, solve_contact
+from .rest import RestCheckError, RestConvergenceError, RestState, rest
 
 __all__ = [
     "Body",
     "CollinearContactError",
     "ContactResponse",
     "ContactSolution",
+    "Fingertip",
+    "FrictionError",
     "MeshError",
+    "RestCheckError",
+    "RestConvergenceError",
+    "RestState",
+    "RestingPose",
+    "TablePlane",
     "TetMesh",
     "box_mesh",
+    "friction",
+    "geometry",
+    "pose",
+    "rest",
+    "resting_pose",
     "solve_contact",
 ]
 __version__ = "0.1.0"

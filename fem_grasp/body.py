@@ -114,6 +114,13 @@ class Body:
         """(3n, 6) t_x, t_y, t_z, r_x, r_y, r_z of Theorem 1, rotations about the centre of mass."""
         return fem.rigid_modes(self.mesh.points, self.center_of_mass)
 
+    @cached_property
+    def orthonormal_rigid_modes(self) -> np.ndarray:
+        """(3n, 6) the rigid modes orthonormalised (the paper's v_{3n−5} … v_{3n})."""
+        from .spectral import orthonormal_modes
+
+        return orthonormal_modes(self.rigid_modes)
+
     def strain_energy(self, displacements: np.ndarray) -> float:
         """U = ½ΔᵀKΔ (eq. 2) for a (n, 3) or (3n,) displacement field."""
         u = np.asarray(displacements, dtype=float).reshape(-1)

@@ -27,8 +27,6 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.linalg as la
 
-from .spectral import orthonormal_modes
-
 if TYPE_CHECKING:
     from .body import Body
 
@@ -160,7 +158,7 @@ class ContactResponse:
         if backend == "sparse":
             comp = body.compliance
             self._columns = comp.node_columns(self.nodes)  # X[:, c]
-            self._null = orthonormal_modes(body.rigid_modes)
+            self._null = body.orthonormal_rigid_modes
             a = self._columns[self.dofs]
             d_full = self._gravity_displacement
         else:
