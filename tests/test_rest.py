@@ -1,0 +1,307 @@
+"""Resting pose and resting configuration on the table (paper §III-A)."""
+
+import dataclasses
+import functools
+
+import numpy as np
+import pytest
+
+from fem_grasp import Body, TetMesh, box_mesh, objects
+from fem_grasp.pose import hull_facets, resting_pose, rotation_between, stable_facets, triangle_margin
+from fem_grasp.rest import RestCheckError, RestConvergenceError, rest
+
+#: A soft modulus that makes the sag visible (millimetres); Table I's 1e9–6e9 Pa give micrometres.
+SOFT_YOUNG = 3e4
+DOWN = np.array([0.0, 0.0, -1.0])
+
+
+@pytest.fixture(scope="module")
+def box():
+    """A 4×3×2 cm box of 1 N on a 4×3×3 grid (its bottom face has 20 nodes)."""
+    return Body(box_mesh((0, 0, 0), (0.04, 0.03, 0.02), (4, 3, 3)), young=5e4, poisson=0.3, weight=1.0)
+
+
+@functools.lru_cache(maxsize=None)
+def paper_body(name: str) -> Body:
+    """A paper object with Table I weight and ν at SOFT_YOUNG (committed mesh, else a fresh gmsh mesh)."""
+    try:
+        return objects.load(name, young=SOFT_YOUNG)
+    except FileNotFoundError:
+        shapes = pytest.importorskip("fem_grasp.shapes")
+        pytest.importorskip("gmsh")
+        row = objects.TABLE_I[name]
+        return Body(shapes.paper_mesh(name), SOFT_YOUNG, row.poisson, weight=row.weight)
+
+
+def _node(body, q):
+    """Index of the node nearest to point q."""
+    return int(np.argmin(np.linalg.norm(body.mesh.points - np.asarray(q), axis=1)))
+
+
+def _sheared_box():
+    """A parallelepiped leaning so far that its centre of mass overhangs its bottom face."""
+    m = box_mesh((0, 0, 0), (0.02, 0.02, 0.02), (2, 2, 2))
+    p = m.points.copy()
+    p[:, 0] += 1.5 * p[:, 2]
+    return Body(TetMesh(p, m.tets), 5e4, 0.3, weight=1.0)
+
+
+# --------------------------------------------------------------------- pose
+def test_rotation_between_is_the_smallest_proper_rotation(rng):
+    for _ in range(5):
+        a, b = rng.normal(size=3), rng.normal(size=3)
+        r = rotation_between(a, b)
+        np.testing.assert_allclose(r @ (a / np.linalg.norm(a)), b / np.linalg.norm(b), atol=1e-14)
+        np.testing.assert_allclose(r.T @ r, np.eye(3), atol=1e-14)
+        assert np.linalg.det(r) == pytest.approx(1.0)
+        np.testing.assert_allclose(r @ np.cross(a, b), np.cross(a, b), atol=1e-14)  # axis a × b is fixed
+    np.testing.assert_allclose(rotation_between([0, 0, 1], [0, 0, -1]) @ [0, 0, 1], [0, 0, -1], atol=1e-15)
+
+
+def test_margin_outside_is_the_distance_to_the_triangle():
+    tri_points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0.0]])
+    normal = np.array([0, 0, -1.0])
+    # Beyond vertex (1, 0): the distance is √2 though the nearest edge line is only 1 away.
+    margin, _ = triangle_margin(tri_points, [0, 1, 2], np.array([2.0, -1.0, 5.0]), normal)
+    assert margin == pytest.approx(-np.sqrt(2))
+    margin, edge = triangle_margin(tri_points, [0, 1, 2], np.array([0.2, 0.1, -3.0]), normal)
+    assert margin == pytest.approx(0.1) and edge == 0
+
+
+def test_box_hull_has_six_merged_stable_facets(box):
+    facets = hull_facets(box)
+    assert len(facets) == 6  # coplanar hull triangles merged
+    bottom = next(f for f in facets if f.normal @ DOWN > 0.999)
+    assert len(bottom.nodes) == 20 and len(bottom.polygon) == 4
+    assert bottom.area == pytest.approx(0.04 * 0.03)
+    assert bottom.margin == pytest.approx(0.015)  # half the short side
+    assert len(stable_facets(box)) == 6
+
+
+def test_pose_of_an_upright_box_is_the_identity(box):
+    pose = resting_pose(box, table_z=0.1)
+    np.testing.assert_allclose(pose.rotation, np.eye(3), atol=1e-15)
+    np.testing.assert_allclose(pose.body.mesh.points, box.mesh.points + [0, 0, 0.1], atol=1e-15)
+    assert np.all(box.mesh.points[pose.triangle, 2] == 0)
+    assert pose.margin > 0.005  # a well-spread triangle of bottom nodes around the centre
+
+
+def test_tilted_box_comes_back_to_its_bottom_face(box):
+    tilt = rotation_between(DOWN, [0.3, 0.2, -1.0])
+    state = rest(box.transformed(tilt), 0.3, table_z=-0.05)
+    state.check()
+    np.testing.assert_allclose(state.pose.rotation @ tilt, np.eye(3), atol=1e-12)
+    assert np.all(box.mesh.points[state.contact_nodes, 2] == 0)  # all on the original bottom face
+    assert state.body.mesh.points[:, 2].min() == pytest.approx(-0.05, abs=1e-15)
+
+
+def test_down_direction_selects_the_facet(box):
+    pose = resting_pose(box, down=[1.0, 0.0, 0.0])  # the face x = 0.04 goes down
+    assert np.all(box.mesh.points[pose.triangle, 0] == pytest.approx(0.04))
+    np.testing.assert_allclose(pose.rotation @ [1.0, 0, 0], DOWN, atol=1e-15)
+    assert pose.body.mesh.points[:, 2].min() == pytest.approx(0.0, abs=1e-15)
+
+
+def test_overhanging_body_rests_on_another_stable_facet():
+    body = _sheared_box()
+    bottom = next(f for f in hull_facets(body) if f.normal @ DOWN > 0.999)
+    assert bottom.margin < 0  # it would tip over its bottom face
+    state = rest(body, 0.3)
+    state.check()
+    n = state.pose.facet.normal
+    assert n @ DOWN < 0.999 and state.pose.margin > 0
+    posed = state.body
+    margin, _ = triangle_margin(posed.mesh.points, state.support_triangle, posed.center_of_mass, DOWN)
+    assert margin == pytest.approx(state.pose.margin, rel=1e-9)
+    assert posed.mesh.points[:, 2].min() >= -1e-15
+
+
+def test_named_tipping_triangle_raises(box):
+    corner = [_node(box, q) for q in ([0, 0, 0], [0.01, 0, 0], [0, 0.01, 0])]
+    # The centre of mass projects to (0.02, 0.015): 0.025/√2 = 0.01768 m from this corner triangle.
+    with pytest.raises(ValueError, match=r"would tip.*0\.01768 m outside"):
+        rest(box, 0.3, support=corner)
+    side = [_node(box, q) for q in ([0, 0, 0], [0.04, 0, 0], [0.02, 0.01, 0.02 / 3])]
+    with pytest.raises(ValueError, match="supporting plane"):
+        resting_pose(box, support=side)
+    with pytest.raises(ValueError, match="collinear"):
+        resting_pose(box, support=corner[:2] + [_node(box, [0.02, 0, 0])])
+    with pytest.raises(ValueError, match="three distinct"):
+        resting_pose(box, support=[0, 0, 1])
+
+
+def test_named_stable_triangle_is_used(box):
+    tri = [_node(box, q) for q in ([0, 0, 0], [0.04, 0, 0], [0.02, 0.03, 0])]
+    state = rest(box, 0.3, support=tri)
+    np.testing.assert_array_equal(state.support_triangle, tri)
+    assert state.history[0].contacts == 3
+    state.check()
+
+
+# --------------------------------------------------------------------- rest
+@pytest.mark.parametrize("mu", [0.0, 0.3, 10.0])
+def test_box_rests_on_its_whole_bottom_face(box, mu):
+    state = rest(box, mu)
+    figures = state.check()
+    assert figures["ok"] and figures["force_residual"] < 1e-10 and figures["torque_residual"] < 1e-10
+    assert set(state.contact_nodes) == set(np.flatnonzero(box.mesh.points[:, 2] == 0))
+    np.testing.assert_allclose(state.normal_forces.sum(), box.weight, rtol=1e-12)
+    assert 1e-5 < state.max_sag < 1e-3
+    assert state.iterations == len(state.history) and state.wall_time > 0
+    assert state.history[-1].new_node is None
+    if mu == 0.0:
+        assert state.sliding.all() and figures["max_stick_cone_violation"] is None
+        assert figures["max_slide_cone_error"] < 1e-10  # no friction at all
+        mass = -box.gravity_loads.reshape(-1, 3)[:, 2]
+        np.testing.assert_allclose(mass @ state.displacements[:, :2], 0, atol=1e-12 * state.max_sag * mass.sum())
+    if mu == 10.0:
+        assert not state.sliding.any() and sum(h.sliding for h in state.history) == 0
+        assert figures["max_slide_cone_error"] is None and figures["max_stick_cone_violation"] < -5
+
+
+def test_rest_backends_agree(box):
+    small = Body(box_mesh((0, 0, 0), (0.03, 0.02, 0.02), (3, 2, 2)), 5e4, 0.3, weight=1.0)
+    a = rest(small, 0.3)
+    b = rest(small, 0.3, backend="spectral")
+    np.testing.assert_array_equal(a.contact_nodes, b.contact_nodes)
+    np.testing.assert_allclose(a.contact_forces, b.contact_forces, atol=1e-9 * small.weight)
+    np.testing.assert_allclose(a.positions, b.positions, atol=1e-9 * small.mesh.diameter)
+
+
+def test_check_flags_violations(box):
+    state = rest(box, 0.3)
+    bad = state.contact_forces.copy()
+    bad[0, 0] += 0.5  # breaks the cone and equilibrium
+    broken = dataclasses.replace(state, contact_forces=bad)
+    figures = broken.check(raise_on_failure=False)
+    assert not figures["ok"] and len(figures["failures"]) == 2
+    with pytest.raises(RestCheckError, match="equilibrium"):
+        broken.check()
+    sunk = dataclasses.replace(state, positions=state.positions - [0, 0, 1e-6])
+    with pytest.raises(RestCheckError, match="below the table"):
+        sunk.check()
+
+
+def test_iteration_budget_and_arguments(box):
+    with pytest.raises(RestConvergenceError, match="did not settle in 2 iterations"):
+        rest(box, 0.3, max_iterations=2)
+    with pytest.raises(ValueError, match="mu_table"):
+        rest(box, -0.1)
+
+
+@pytest.mark.parametrize("name", objects.NAMES)
+def test_paper_objects_rest_with_table_one_friction(name):
+    row = objects.TABLE_I[name]
+    body = paper_body(name)
+    for mu in (row.friction, 0.0, 10.0):
+        state = rest(body, mu)
+        figures = state.check()
+        assert figures["ok"], figures
+        assert state.n_contacts >= 3 and state.max_sag > 1e-5  # visible sag at SOFT_YOUNG
+        np.testing.assert_allclose(state.normal_forces.sum(), row.weight, rtol=1e-10)
+        if mu == 10.0:
+            assert not state.sliding.any()
+
+
+def test_tilted_tomato_comes_to_rest_on_a_stable_facet(rng):
+    body = paper_body("tomato")
+    q = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+    tilt = q * np.sign(np.linalg.det(q))
+    state = rest(body.transformed(tilt), objects.TABLE_I["tomato"].friction)
+    state.check()
+    posed = state.body
+    margin, _ = triangle_margin(posed.mesh.points, state.support_triangle, posed.center_of_mass, DOWN)
+    assert margin > 0
+    np.testing.assert_allclose(posed.mesh.points[state.support_triangle, 2], 0, atol=1e-12)
+    assert posed.mesh.points[:, 2].min() > -1e-9 * posed.mesh.diameter
+
+
+def test_frictionless_rest_matches_a_direct_sliding_support_solve(box):
+    """μ = 0: every bottom node sits on the table and slides freely, which is the classical roller support.
+
+    Solve it independently: K Δ = G with the bottom nodes' z held at 0, x and y free, and the three
+    horizontal rigid motions fixed by Lagrange multipliers on the same gauge as :func:`rest`
+    (mass-weighted mean horizontal displacement and mean spin about the vertical through the
+    centre of mass both zero).
+    """
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    state = rest(box, 0.0)
+    p = box.mesh.points
+    n = box.n_nodes
+    bottom = np.flatnonzero(p[:, 2] == 0)
+    fixed = 3 * bottom + 2
+    free = np.setdiff1d(np.arange(3 * n), fixed)
+    mass = -box.gravity_loads.reshape(-1, 3)[:, 2]
+    r = p - box.center_of_mass
+    gauge = np.zeros((3, 3 * n))
+    gauge[0, 0::3] = mass
+    gauge[1, 1::3] = mass
+    gauge[2, 0::3], gauge[2, 1::3] = -mass * r[:, 1], mass * r[:, 0]
+    k = box.stiffness.tocsr()[free][:, free]
+    a = sp.csr_matrix(gauge[:, free])
+    mat = sp.bmat([[k, a.T], [a, None]]).tocsc()
+    sol = spla.spsolve(mat, np.concatenate([box.gravity_loads[free], np.zeros(3)]))
+    field = np.zeros(3 * n)
+    field[free] = sol[:len(free)]
+    np.testing.assert_allclose(state.displacements.ravel(), field, atol=1e-9 * np.abs(field).max())
+    reactions = (box.stiffness @ field - box.gravity_loads).reshape(-1, 3)
+    order = np.argsort(state.contact_nodes)
+    np.testing.assert_allclose(state.contact_forces[order], reactions[np.sort(state.contact_nodes)],
+                               atol=1e-9 * box.weight)
+
+
+def test_history_accounts_for_every_contact(box):
+    state = rest(box, 0.3)
+    added = [k for h in state.history for k in h.new_nodes]
+    released = [k for h in state.history for k in h.released]
+    assert state.history[0].contacts == 3
+    assert len(state.contact_nodes) == 3 + len(added) - len(released)
+    assert set(state.contact_nodes) <= set(state.support_triangle) | set(added)
+    lam = [h.load_factor for h in state.history]
+    assert lam == sorted(lam) and lam[-1] == 1.0  # gravity rises event by event
+    assert all(h.max_penetration <= 1e-9 * box.mesh.diameter for h in state.history)  # the ramp never overshoots
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.3])
+def test_paper_literal_iteration_without_load_ramp(box, mu):
+    """Gravity applied at once (the paper's procedure): the contacts land one by one, deepest first."""
+    state = rest(box, mu, load_ramp=False)
+    state.check()
+    assert set(state.contact_nodes) == set(np.flatnonzero(box.mesh.points[:, 2] == 0))
+    depths = [h.max_penetration for h in state.history]
+    assert depths[0] > 1e-4 and depths[-1] <= 1e-9 * box.mesh.diameter
+    assert all(len(h.new_nodes) <= 1 for h in state.history)
+    if mu == 0.0:  # frictionless: the resting state is unique, whatever the path
+        np.testing.assert_allclose(state.displacements, rest(box, mu).displacements, atol=1e-12)
+
+
+def test_soft_objects_in_random_orientations_rock_onto_a_new_support(rng):
+    """Small hull facets of a soft tomato: the support rocks (contacts released, event B) as it settles."""
+    body = paper_body("tomato").with_material(young=1e4)
+    released = 0
+    for _ in range(3):
+        q = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        for mu in (0.32, 0.05):
+            state = rest(body.transformed(q * np.sign(np.linalg.det(q))), mu)
+            assert state.check()["ok"]
+            released += sum(len(h.released) for h in state.history)
+    assert released > 0
+
+
+def test_rest_table_script_reports_the_tomato():
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parent.parent / "scripts" / "rest_table.py"
+    spec = importlib.util.spec_from_file_location("rest_table", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    try:
+        rows = module.rows(1e4, ["tomato"])
+    except FileNotFoundError:
+        pytest.skip("paper meshes not generated")
+    assert rows[0]["contacts"] >= 3 and rows[0]["sag_mm"] > 1 and rows[0]["residual"] < 1e-10
+    table = module.format_table(rows)
+    assert table.splitlines()[2].startswith(f"| tomato | {rows[0]['nodes']} |")
