@@ -168,3 +168,22 @@ def test_nearly_collinear_contacts_grow_the_condition_number():
     assert conds[0] < conds[1] < conds[2]
     with pytest.raises(CollinearContactError):
         body.contact_response(np.array([0, 1, 4]))  # exactly collinear
+
+
+def test_numerically_collinear_contacts_are_refused_not_silently_wrong(caplog):
+    """cond(M) grows as 1/θ²: logged above WARN_CONDITION, refused above MAX_CONDITION."""
+    mesh = TetMesh(np.array([[0.0, 0, 0], [1, 0, 0], [0.5, 1, 0], [0.5, 0.5, 1], [0.5, 0.0, 0.0]]),
+                   np.array([[0, 4, 2, 3], [4, 1, 2, 3]]))
+
+    def response(off):
+        pts = mesh.points.copy()
+        pts[4, 1] = off  # node 4 approaches the line through nodes 0 and 1
+        return Body(TetMesh(pts, mesh.tets), 1e5, 0.3, weight=1.0).contact_response(np.array([0, 1, 4]))
+
+    conds = [response(off).condition_estimate for off in (1e-2, 1e-3, 1e-4)]
+    np.testing.assert_allclose(np.diff(np.log10(conds)), 2.0, atol=0.1)
+    assert "nearly collinear" not in caplog.text
+    response(1e-5)
+    assert "nearly collinear" in caplog.text
+    with pytest.raises(CollinearContactError, match="numerically singular"):
+        response(1e-6)
