@@ -11,7 +11,7 @@ APT_PACKAGES := python3-dolfinx python3-gmsh python3-venv python3-pip python3-de
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 PYTEST_ARGS ?=
 
-.PHONY: setup test demo meshes spectral-vs-sparse rest-table clean-venv
+.PHONY: setup test demo verify verify-quick meshes spectral-vs-sparse rest-table clean-venv
 
 setup: $(STAMPS)/venv
 
@@ -37,6 +37,13 @@ test: setup
 
 demo: setup
 	$(PY) examples/demo.py --out out
+
+# Cross-checks against dolfinx, convergence, Hertz, stability; writes verification/out/report.html.
+verify: setup
+	$(PY) -m verification.run
+
+verify-quick: setup
+	$(PY) -m verification.run --quick
 
 meshes: setup
 	$(PY) scripts/make_meshes.py
