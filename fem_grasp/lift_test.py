@@ -1,0 +1,194 @@
+"""The lift test: liftable weight w(ρ) tracked during the squeeze (paper §III-B, Algorithm 1 step 4).
+
+"Imagine we hypothetically increase the weight of the object from zero.
+Beyond certain value w, one finger will slide on the object."  The test
+removes the table from the current squeeze configuration — only the finger
+contacts 𝕀 ∪ 𝕁 hold the object, at their current contact displacements —
+and asks whether the fingers hold a hypothetical weight w.
+
+Hanging at a trial weight (:func:`hang`)
+----------------------------------------
+The finger configuration is held at the trial weight (gravity load factor
+λ = w / mg) and settled in place, as the resting iteration of §III-A does on
+the table: tensile contacts are released (B), contacts outside their cones
+slide back onto them through the slip system of eqs. (7)–(8) (C), sliding
+contacts whose slip would run with their friction stick (D), nodes that come
+to penetrate a fingertip are added (A), until the configuration is
+consistent.  The slips start from the squeeze state's own stick/slip flags.
+The weight **is held** when this settles and each finger keeps at least one
+sticking contact; it is **not held** when every contact of one finger
+slides (the object slides on that finger), when the slip system has no root
+(gross slip), or when too few contacts remain to fix the body (Theorem 3).
+
+Incremental tracking (:class:`LiftTest`)
+---------------------------------------
+w(0) = 0.  After each squeeze increment l the weights w(ρ_{l−1}) + h,
+w(ρ_{l−1}) + 2h, … are tested until one is not held, at w(ρ_{l−1}) + kh, and
+w(ρ_l) = w(ρ_{l−1}) + (k−1)h (the paper's rule).  The paper assumes w grows
+with ρ; when even w(ρ_{l−1}) is no longer held (the contact configuration
+changed), we step down by h until a weight is held — a documented
+extension.  The test passes once w(ρ_l) ≥ mg.  The step h defaults to mg/20.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from .response import CollinearContactError, check_contact_set
+from .tracking import FINGER1, FINGER2, ContactState, Tracker, TrackingError
+
+__all__ = ["HangResult", "LiftTest", "hang", "hanging_state"]
+
+log = logging.getLogger(__name__)
+
+#: Default lift-test step h as a fraction of the object's weight.
+DEFAULT_STEP_FRACTION = 0.05
+
+
+@dataclass(frozen=True)
+class HangResult:
+    """Outcome of :func:`hang` at one trial weight.
+
+    Attributes
+    ----------
+    weight : trial weight w, newtons
+    held : whether the fingers hold it
+    reason : why not (empty when held)
+    state : the settled finger-only configuration (None when it could not be computed)
+    """
+
+    weight: float
+    held: bool
+    reason: str
+    state: ContactState | None
+
+
+def hanging_state(tracker: Tracker, state: ContactState) -> HangResult:
+    """The finger contacts of ``state`` without the table, at zero weight, settled (see module notes)."""
+    if tracker.table is not None:
+        raise ValueError("the lift test needs a tracker without a table")
+    fingers = state.owner != 2
+    nodes = state.nodes[fingers]
+    if fingers.sum() < 3:
+        return HangResult(0.0, False, "fewer than three finger contacts cannot fix the body", None)
+    try:
+        check_contact_set(tracker.points, nodes)
+    except CollinearContactError:
+        return HangResult(0.0, False, "the finger contacts are collinear: the body could turn about them", None)
+    try:
+        start = tracker.make_state(phase="lift test", squeeze_depth=state.squeeze_depth,
+                                   lift_height=state.lift_height, load=0.0, centers=state.centers, nodes=nodes,
+                                   owner=state.owner[fingers], disp=state.disp[fingers],
+                                   sliding=state.sliding[fingers], slip=state.slip[fingers])
+        # Slip directions of the contacts that already slide come from the squeeze forces.
+        start = replace(start, forces=np.where(start.sliding[:, None], state.forces[fingers], start.forces))
+        settled, _ = tracker.settle(start, np.zeros((2, 3)), phase="lift test", param="lift_height",
+                                    by_amount=True)
+    except TrackingError as exc:
+        return HangResult(0.0, False, f"the fingers cannot hold it: {exc}", None)
+    return _verdict(0.0, settled)
+
+
+def hang(tracker: Tracker, start: ContactState, weight: float, *, max_depth: int = 6) -> HangResult:
+    """Raise the weight of a hanging configuration ``start`` to ``weight`` and settle; held or not.
+
+    ``start`` is a settled finger-only configuration (:func:`hanging_state`
+    or an earlier :func:`hang`).  The weight is applied at once and the
+    configuration settled; if the slip system has no root for that jump, the
+    load step is halved (up to ``max_depth`` times) and applied in two
+    stages, each of which must be held.
+    """
+    load = weight / tracker.body.weight
+    try:
+        begin = tracker.make_state(phase="lift test", squeeze_depth=start.squeeze_depth,
+                                   lift_height=start.lift_height, load=load, centers=start.centers,
+                                   nodes=start.nodes, owner=start.owner, disp=start.disp,
+                                   sliding=start.sliding, slip=start.slip)
+        begin = replace(begin, forces=np.where(begin.sliding[:, None], start.forces, begin.forces))
+        settled, _ = tracker.settle(begin, np.zeros((2, 3)), phase="lift test", param="lift_height",
+                                    by_amount=True)
+    except TrackingError as exc:
+        if max_depth <= 0:
+            return HangResult(weight, False, f"the fingers cannot hold it: {exc}", None)
+        mid = hang(tracker, start, 0.5 * (start.load * tracker.body.weight + weight), max_depth=max_depth - 1)
+        if not mid.held:
+            return mid
+        return hang(tracker, mid.state, weight, max_depth=max_depth - 1)
+    return _verdict(weight, settled)
+
+
+def _verdict(weight: float, settled: ContactState) -> HangResult:
+    for f in (FINGER1, FINGER2):
+        on = settled.owner == f
+        if not on.any():
+            return HangResult(weight, False, f"finger {f + 1} lost contact", settled)
+        if settled.sliding[on].all():
+            return HangResult(weight, False, f"every contact of finger {f + 1} slides", settled)
+    return HangResult(weight, True, "", settled)
+
+
+@dataclass
+class LiftTest:
+    """Incremental liftable-weight tracker of §III-B (module notes).
+
+    Parameters
+    ----------
+    tracker : Tracker without a table
+    weight : the object's real weight mg, newtons
+    step : h, newtons (default mg/20)
+    """
+
+    tracker: Tracker
+    weight: float
+    step: float | None = None
+    liftable: float = 0.0
+    tests: int = 0
+
+    def __post_init__(self) -> None:
+        if self.step is None:
+            self.step = DEFAULT_STEP_FRACTION * self.weight
+        if not self.step > 0:
+            raise ValueError(f"the lift-test step must be positive, got {self.step!r}")
+
+    def update(self, state: ContactState) -> float:
+        """w(ρ_l) from the squeeze state at ρ_l and w(ρ_{l−1}); returns it.
+
+        The finger configuration is hung at zero weight, then the weights
+        w + h, w + 2h, … (w = w(ρ_{l−1})) are applied in turn, each starting
+        from the previous hanging configuration.
+        """
+        h = self.step
+        w = self.liftable
+        self.tests += 1
+        base = hanging_state(self.tracker, state)
+        if not base.held:
+            self.liftable = 0.0
+            return 0.0
+        self.tests += 1
+        res = hang(self.tracker, base.state, w + h)
+        if res.held:
+            k = 2
+            while w + (k - 1) * h < self.weight:
+                self.tests += 1
+                nxt = hang(self.tracker, res.state, w + k * h)
+                if not nxt.held:
+                    break
+                res = nxt
+                k += 1
+            w = w + (k - 1) * h
+        else:
+            # The paper assumes w grows with ρ; if even w(ρ_{l−1}) is no longer held, step down by h.
+            while w > 0:
+                w = max(w - h, 0.0)
+                self.tests += 1
+                if w == 0.0 or hang(self.tracker, base.state, w).held:
+                    break
+        self.liftable = w
+        return w
+
+    @property
+    def passed(self) -> bool:
+        return self.liftable >= self.weight * (1.0 - 1e-12)

@@ -1,0 +1,539 @@
+"""Algorithm 1 end to end: two-finger pickup of a soft 3D object (paper §III).
+
+:func:`pickup` runs
+
+1. the force-closure test of the initial placement (:mod:`fem_grasp.closure`);
+2. the resting configuration on the table (:func:`fem_grasp.rest.rest`, §III-A);
+3.–4. the squeeze with the lift test after every increment
+   (:mod:`fem_grasp.squeeze`, :mod:`fem_grasp.lift_test`, §III-B/C);
+5. the lift (:mod:`fem_grasp.lift`);
+6. failure when the squeeze reaches its maximum depth,
+
+and returns a :class:`PickupResult` with the whole story: events, snapshots
+at every event, liftable-weight history, forces, timings, and the rigid-body
+comparison of Table III (:mod:`fem_grasp.rigid`).  Failures (no force
+closure, gross slip, too little friction, …) are results, not exceptions.
+
+Default scene (the paper's §IV, where it is silent our choice)
+-------------------------------------------------------------
+* squeeze directions d̂₁ = (0, 0.974, −0.227), d̂₂ = (0, −0.974, −0.227),
+  ratio s = 1; fingertip radius :data:`fem_grasp.fingertip.DEFAULT_RADIUS`;
+* μ_ℱ = μ_𝒫 = :data:`DEFAULT_FRICTION` unless given (``mu_table`` defaults to
+  ``mu_finger``, the paper has one μ per object);
+* finger contacts p_i, p_j (:func:`default_finger_contacts`): the surface
+  nodes extreme along ∓ĥ, ĥ the horizontal part of d̂₁, at the height of the
+  centre of mass; if there a fingertip tangent to the resting object would
+  come within ``R/10`` of the table, or the placement is not force closure,
+  the nearest height (searched in steps of 2.5 % of the object's height,
+  alternately below and above) where neither happens;
+* maximum squeeze depth: 40 % of the object's width along ĥ;
+* squeeze increment: 1/20 of the depth ρ* = mg / (μ_ℱ k₀) at which a
+  finger of the initial (point) contact stiffness k₀ would press hard enough
+  to hold the weight by friction — so the increments adapt to E — kept
+  between 0.1 % and 2 % of the maximum depth (the contact patch grows with
+  the geometry, whatever E);
+* lift-test step h = mg/20; lift increment equal to the squeeze increment,
+  maximum lift height equal to the maximum squeeze depth.
+
+Checks (:meth:`Snapshot.check`)
+-------------------------------
+On every snapshot, with F_s = mg + max |f_k| and L the mesh diameter:
+equilibrium of contact forces and gravity (force and torque) ≤ 1e-9
+relative (:func:`fem_grasp.response.equilibrium_residual`); no surface node
+inside a fingertip or below the table by more than 1e-9 L, and every contact
+node on its obstacle to 1e-9 L; normal forces ≥ −1e-9 F_s; sticking contacts
+``|f_t| − μ f·n̂ ≤ 1e-8 f·n̂ + 2e-7 F_s`` (2e-7 F_s covers contacts carrying
+less than the force floor 1e-7 F_s of :mod:`fem_grasp.tracking`, whose
+stick/slip state is not assessed); sliding contacts on their cone,
+``| |f_t| − μ f·n̂ | ≤ 1e-8 f·n̂ + 1e-9 F_s``.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from . import placement
+from .body import Body
+from .closure import ClosureResult, placement_closure, surface_normals_at
+from .fingertip import DEFAULT_RADIUS
+from .geometry import TablePlane
+from .lift import lift as run_lift
+from .lift_test import LiftTest
+from .placement import PAPER_SQUEEZE_DIRECTIONS
+from .response import equilibrium_residual
+from .rest import RestState, rest
+from .rigid import RigidGrasp, rigid_grasp
+from .squeeze import initial_state, squeeze
+from .tracking import FINGER1, FINGER2, OBSTACLES, TABLE, ContactEvent, ContactState, Tracker, TrackingError
+
+__all__ = ["DEFAULT_FRICTION", "PickupCheckError", "PickupResult", "Snapshot", "default_finger_contacts",
+           "pickup"]
+
+log = logging.getLogger(__name__)
+
+#: Friction coefficient used when none is given.
+DEFAULT_FRICTION = 0.5
+#: Tolerances of :meth:`Snapshot.check` (module notes).
+CHECK_TOLERANCES: dict[str, float] = {
+    "equilibrium": 1e-9,
+    "penetration": 1e-9,  # × diameter
+    "contact_gap": 1e-9,  # × diameter
+    "tensile": 1e-9,  # × F_s
+    "cone_stick": 1e-8,  # × f·n̂
+    "stick_floor": 2e-7,  # × F_s
+    "cone_slide": 1e-8,  # × f·n̂
+    "slide_floor": 1e-9,  # × F_s
+}
+
+
+class PickupCheckError(AssertionError):
+    """A snapshot fails one of its contact-law or equilibrium checks."""
+
+
+# ================================================================ snapshots
+@dataclass(frozen=True)
+class Snapshot:
+    """The object and its contacts at one moment of the pickup.
+
+    Attributes
+    ----------
+    label : "initial", "event", "lift start", "lift-off", "final", …
+    phase : "squeeze" or "lift"
+    squeeze_depth, lift_height : metres
+    positions : (n, 3) deformed node positions, in the frame of the posed body
+    finger_centers : (2, 3) fingertip centres
+    finger_radius : metres
+    contact_nodes : {"finger1", "finger2", "table"} → (k,) node indices
+    contact_forces : same keys → (k, 3) forces on the object, newtons
+    sliding : same keys → (k,) bool
+    events : the events that produced this snapshot
+    """
+
+    label: str
+    phase: str
+    squeeze_depth: float
+    lift_height: float
+    positions: np.ndarray
+    finger_centers: np.ndarray
+    finger_radius: float
+    contact_nodes: dict[str, np.ndarray]
+    contact_forces: dict[str, np.ndarray]
+    sliding: dict[str, np.ndarray]
+    events: tuple[ContactEvent, ...] = ()
+
+    @classmethod
+    def from_state(cls, state: ContactState, radius: float, label: str,
+                   events: Sequence[ContactEvent] = ()) -> "Snapshot":
+        nodes, forces, sliding = {}, {}, {}
+        for code, name in enumerate(OBSTACLES):
+            on = state.owner == code
+            nodes[name] = state.nodes[on].copy()
+            forces[name] = state.forces[on].copy()
+            sliding[name] = state.sliding[on].copy()
+        return cls(label, state.phase, state.squeeze_depth, state.lift_height, state.positions.copy(),
+                   state.centers.copy(), radius, nodes, forces, sliding, tuple(events))
+
+    @property
+    def all_nodes(self) -> np.ndarray:
+        return np.concatenate([self.contact_nodes[k] for k in OBSTACLES])
+
+    @property
+    def all_forces(self) -> np.ndarray:
+        return np.concatenate([self.contact_forces[k] for k in OBSTACLES])
+
+    def normals(self, table: TablePlane) -> dict[str, np.ndarray]:
+        """Inward normals n̂ at the contacts of each body."""
+        out = {}
+        for f, name in ((FINGER1, "finger1"), (FINGER2, "finger2")):
+            d = self.positions[self.contact_nodes[name]] - self.finger_centers[f]
+            out[name] = d / np.linalg.norm(d, axis=1, keepdims=True) if len(d) else np.zeros((0, 3))
+        out["table"] = np.broadcast_to(table.up, (len(self.contact_nodes["table"]), 3)).copy()
+        return out
+
+    def finger_normal_force(self, table: TablePlane) -> float:
+        """Σ f·n̂ over both fingers' contacts, newtons."""
+        nrm = self.normals(table)
+        return float(sum(np.einsum("ki,ki->k", self.contact_forces[k], nrm[k]).sum() for k in ("finger1", "finger2")))
+
+    def check(self, body: Body, table: TablePlane, mu_finger: float, mu_table: float,
+              tolerances: dict[str, float] | None = None, raise_on_failure: bool = True) -> dict[str, Any]:
+        """Verify equilibrium, non-penetration and Coulomb's law (module notes); return the figures."""
+        tol = dict(CHECK_TOLERANCES)
+        tol.update(tolerances or {})
+        diam = body.mesh.diameter
+        forces = self.all_forces
+        f_res, t_res = equilibrium_residual(body, self.all_nodes, forces)
+        fs = body.weight + float(np.abs(forces).max(initial=0.0))
+        surf = body.mesh.surface_nodes
+        p = self.positions[surf]
+        own = {int(k): name for name in OBSTACLES for k in self.contact_nodes[name]}
+        pen = 0.0
+        for f, name in ((FINGER1, "finger1"), (FINGER2, "finger2")):
+            gap = np.linalg.norm(p - self.finger_centers[f], axis=1) - self.finger_radius
+            mask = np.array([own.get(int(k)) != name for k in surf])
+            if mask.any():
+                pen = max(pen, float(-gap[mask].min()))
+        gap_t = table.signed_distance(p)
+        mask = np.array([own.get(int(k)) != "table" for k in surf])
+        if mask.any():
+            pen = max(pen, float(-gap_t[mask].min()))
+        contact_gap = 0.0
+        nrm = self.normals(table)
+        worst = {"tensile": 0.0, "stick": -np.inf, "slide": 0.0}
+        for f, name in enumerate(OBSTACLES):
+            k = self.contact_nodes[name]
+            if not len(k):
+                continue
+            q = self.positions[k]
+            g = (np.linalg.norm(q - self.finger_centers[f], axis=1) - self.finger_radius if name != "table"
+                 else table.signed_distance(q))
+            contact_gap = max(contact_gap, float(np.abs(g).max()))
+            fv = self.contact_forces[name]
+            fn = np.einsum("ki,ki->k", fv, nrm[name])
+            ft = np.linalg.norm(fv - fn[:, None] * nrm[name], axis=1)
+            mu = mu_table if name == "table" else mu_finger
+            worst["tensile"] = max(worst["tensile"], float((-fn).max()) / fs)
+            sl = self.sliding[name]
+            excess = ft - mu * fn
+            if (~sl).any():
+                worst["stick"] = max(worst["stick"], float(((excess - tol["cone_stick"] * np.maximum(fn, 0))
+                                                            / fs)[~sl].max()))
+            if sl.any():
+                worst["slide"] = max(worst["slide"], float(((np.abs(excess) - tol["cone_slide"] * np.maximum(fn, 0))
+                                                            / fs)[sl].max()))
+        figures: dict[str, Any] = {
+            "label": self.label, "squeeze_depth": self.squeeze_depth, "lift_height": self.lift_height,
+            "force_residual": f_res, "torque_residual": t_res, "max_penetration": pen,
+            "max_contact_gap": contact_gap, "max_tensile": worst["tensile"],
+            "max_stick_excess": worst["stick"], "max_slide_error": worst["slide"],
+        }
+        failures = []
+        if f_res > tol["equilibrium"] or t_res > tol["equilibrium"]:
+            failures.append(f"equilibrium residuals {f_res:.3g} (force), {t_res:.3g} (torque)")
+        if pen > tol["penetration"] * diam:
+            failures.append(f"a node penetrates an obstacle by {pen:.3g} m")
+        if contact_gap > tol["contact_gap"] * diam:
+            failures.append(f"a contact node is {contact_gap:.3g} m off its obstacle")
+        if worst["tensile"] > tol["tensile"]:
+            failures.append(f"a contact pulls ({worst['tensile']:.3g} F_s)")
+        if worst["stick"] > tol["stick_floor"]:
+            failures.append(f"a sticking contact is outside its cone by {worst['stick']:.3g} F_s")
+        if worst["slide"] > tol["slide_floor"]:
+            failures.append(f"a sliding contact is off its cone by {worst['slide']:.3g} F_s")
+        figures["ok"] = not failures
+        figures["failures"] = failures
+        if failures and raise_on_failure:
+            raise PickupCheckError(f"snapshot '{self.label}' at ρ = {self.squeeze_depth:.6g} m, lift "
+                                   f"{self.lift_height:.6g} m fails its checks: " + "; ".join(failures))
+        return figures
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "label": self.label, "phase": self.phase, "squeeze_depth": self.squeeze_depth,
+            "lift_height": self.lift_height, "finger_radius": self.finger_radius,
+            "finger_centers": self.finger_centers.tolist(), "positions": self.positions.tolist(),
+            "contact_nodes": {k: v.tolist() for k, v in self.contact_nodes.items()},
+            "contact_forces": {k: v.tolist() for k, v in self.contact_forces.items()},
+            "sliding": {k: v.tolist() for k, v in self.sliding.items()},
+            "events": [e.to_dict() for e in self.events],
+        }
+
+
+# =================================================================== result
+@dataclass
+class PickupResult:
+    """Everything :func:`pickup` found out.
+
+    Attributes
+    ----------
+    success : the object was lifted off the table
+    reason : why not (empty on success)
+    body : the posed body (frame of every position)
+    rest : the resting state
+    finger_nodes : (p_i, p_j)
+    closure : force-closure test of step 1
+    mu_finger, mu_table, finger_radius, directions, ratio : the scene
+    squeeze_depth : ρ when the lift started (or where the squeeze stopped), metres
+    liftable : [(ρ, w(ρ))] history of the lift test
+    events : every event (squeeze and lift), in order
+    snapshots : initial state, every event, lift start, final
+    final : the last snapshot (lift-off on success)
+    finger_normal_force : total finger normal force Σ f·n̂ in the final snapshot, newtons
+    rigid : the rigid comparison (Table III) for the same shape and contacts
+    timings : wall time per phase, seconds
+    """
+
+    success: bool
+    reason: str
+    body: Body
+    rest: RestState | None
+    finger_nodes: tuple[int, int]
+    closure: ClosureResult | None
+    mu_finger: float
+    mu_table: float
+    finger_radius: float
+    directions: tuple[np.ndarray, np.ndarray]
+    ratio: float
+    squeeze_depth: float = 0.0
+    liftable: list[tuple[float, float]] = field(default_factory=list)
+    events: list[ContactEvent] = field(default_factory=list)
+    snapshots: list[Snapshot] = field(default_factory=list)
+    final: Snapshot | None = None
+    finger_normal_force: float = 0.0
+    rigid: RigidGrasp | None = None
+    timings: dict[str, float] = field(default_factory=dict)
+    max_squeeze: float = 0.0
+    step: float = 0.0
+
+    @property
+    def table(self) -> TablePlane:
+        return TablePlane(self.rest.table_z if self.rest is not None else 0.0)
+
+    @property
+    def n_final_contacts(self) -> int:
+        """Contact nodes in the final configuration (Table II's first figure)."""
+        return 0 if self.final is None else len(self.final.all_nodes)
+
+    def event_counts(self) -> dict[str, int]:
+        counts = {k: 0 for k in "ABCD"}
+        for e in self.events:
+            counts[e.kind] += 1
+        return counts
+
+    def check(self, raise_on_failure: bool = True) -> list[dict[str, Any]]:
+        """Run :meth:`Snapshot.check` on every snapshot (and ``final``); return their figures."""
+        out = []
+        snaps = list(self.snapshots)
+        if self.final is not None and (not snaps or snaps[-1] is not self.final):
+            snaps.append(self.final)
+        for s in snaps:
+            out.append(s.check(self.body, self.table, self.mu_finger, self.mu_table,
+                               raise_on_failure=raise_on_failure))
+        return out
+
+    def to_dict(self) -> dict[str, Any]:
+        rigid = None
+        if self.rigid is not None:
+            rigid = {"feasible": self.rigid.feasible, "total_normal_force": self.rigid.total_normal_force,
+                     "forces": np.nan_to_num(self.rigid.forces).tolist(), "reason": self.rigid.reason}
+        return {
+            "success": self.success, "reason": self.reason, "finger_nodes": list(self.finger_nodes),
+            "mu_finger": self.mu_finger, "mu_table": self.mu_table, "finger_radius": self.finger_radius,
+            "directions": [np.asarray(d).tolist() for d in self.directions], "ratio": self.ratio,
+            "weight": self.body.weight, "young": self.body.young, "poisson": self.body.poisson,
+            "squeeze_depth": self.squeeze_depth, "max_squeeze": self.max_squeeze, "step": self.step,
+            "closure": None if self.closure is None else {"closed": self.closure.closed,
+                                                          "margin": self.closure.margin,
+                                                          "quality": self.closure.quality,
+                                                          "reason": self.closure.reason},
+            "liftable": [[float(r), float(w)] for r, w in self.liftable],
+            "events": [e.to_dict() for e in self.events],
+            "event_counts": self.event_counts(),
+            "finger_normal_force": self.finger_normal_force, "n_final_contacts": self.n_final_contacts,
+            "rigid": rigid, "timings": self.timings,
+            "reference_points": self.body.mesh.points.tolist(),
+            "tets": self.body.mesh.tets.tolist(),
+            "snapshots": [s.to_dict() for s in self.snapshots],
+            "final": None if self.final is None else self.final.to_dict(),
+        }
+
+    def to_json(self, path: str | Path | None = None, indent: int | None = None) -> str:
+        """The whole result as JSON; written to ``path`` when given."""
+        text = json.dumps(self.to_dict(), indent=indent, allow_nan=True)
+        if path is not None:
+            Path(path).write_text(text)
+        return text
+
+
+# ================================================================ placement
+def default_finger_contacts(rest_state: RestState, direction: np.ndarray, mu_finger: float, mu_table: float,
+                            radius: float) -> tuple[tuple[int, int], ClosureResult]:
+    """Initial finger contacts by the rule of the module notes; returns them and their closure test.
+
+    Raises ``ValueError`` if no height gives a placement that clears the
+    table and is force closure.
+    """
+    body = rest_state.body
+    mesh = body.mesh
+    pos = rest_state.positions
+    out = surface_normals_at(mesh, pos)
+    z = pos[mesh.surface_nodes, 2]
+    z0, z1 = float(z.min()), float(z.max())
+    height = z1 - z0
+    com = float(body.center_of_mass[2])
+    table_z = rest_state.table_z
+    tried: set[tuple[int, int]] = set()
+    last: ClosureResult | None = None
+    for k in range(0, 81):
+        h = com + (-1) ** k * ((k + 1) // 2) * 0.025 * height
+        if not z0 < h < z1:
+            continue
+        try:
+            ij = placement.finger_contact_nodes(mesh, h, direction)
+        except ValueError:
+            continue
+        if ij in tried:
+            continue
+        tried.add(ij)
+        centers = pos[list(ij)] + radius * out[list(ij)]
+        if (centers[:, 2] - radius - table_z).min() < 0.1 * radius:
+            continue
+        closure = placement_closure(body, pos, ij, rest_state.support_triangle, mu_finger, mu_table)
+        last = closure
+        if closure.closed:
+            return ij, closure
+    raise ValueError("no finger placement along the squeeze direction both clears the table and is force closure"
+                     + (f" (last tried: {last.reason})" if last is not None else ""))
+
+
+def _initial_stiffness(tracker: Tracker, state: ContactState, velocities: np.ndarray) -> float:
+    """k₀: rate of the normal force at the initial contact of finger 1 per unit ρ, N/m."""
+    resp = tracker.response(state.nodes)
+    vel = np.zeros((state.n_contacts, 3))
+    for f in (FINGER1, FINGER2):
+        vel[state.owner == f] = velocities[f]
+    rate = (resp.reduced_stiffness @ vel.reshape(-1)).reshape(-1, 3)
+    j = int(np.flatnonzero(state.owner == FINGER1)[0])
+    return float(max(rate[j] @ state.normals[j], np.linalg.norm(rate[j]) * 1e-3))
+
+
+# =================================================================== pickup
+def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None = None,
+           finger_radius: float = DEFAULT_RADIUS, contacts: tuple[int, int] | None = None,
+           directions: tuple[np.ndarray, np.ndarray] = PAPER_SQUEEZE_DIRECTIONS, ratio: float = 1.0,
+           max_squeeze: float | None = None, step: float | None = None, backend: str = "sparse",
+           rest_state: RestState | None = None, lift_test_step: float | None = None,
+           max_lift: float | None = None) -> PickupResult:
+    """Run Algorithm 1: will two hemispherical fingers pick ``body`` up from the table?
+
+    Parameters
+    ----------
+    body : Body
+        The object, in any orientation (it is posed on the table by
+        :func:`fem_grasp.rest.rest`; ``result.body`` is the posed body).
+    mu_finger, mu_table : friction coefficients μ_ℱ, μ_𝒫 (module notes for defaults)
+    finger_radius : fingertip radius R, metres
+    contacts : (p_i, p_j), node indices of the posed body; default rule in the module notes
+    directions : squeeze directions (d̂₁, d̂₂)
+    ratio : s ≥ 0: ℱ₂ moves s ρ d̂₂ while ℱ₁ moves ρ d̂₁
+    max_squeeze, step : maximum squeeze depth and squeeze increment, metres (module notes)
+    backend : "sparse" or "spectral" (:class:`~fem_grasp.response.ContactResponse`)
+    rest_state : a resting state of ``body`` computed before (skips step 2)
+    lift_test_step : h of the lift test, newtons (default mg/20)
+    max_lift : maximum lift height, metres
+
+    Returns
+    -------
+    PickupResult
+        ``success`` and ``reason``; see its attributes.  Failures are results.
+    """
+    t_start = time.perf_counter()
+    mu_f = DEFAULT_FRICTION if mu_finger is None else float(mu_finger)
+    mu_t = mu_f if mu_table is None else float(mu_table)
+    for name, mu in (("mu_finger", mu_f), ("mu_table", mu_t)):
+        if not np.isfinite(mu) or mu < 0:
+            raise ValueError(f"{name} must be a finite friction coefficient ≥ 0, got {mu!r}")
+    if not ratio >= 0:
+        raise ValueError(f"the squeeze ratio s must be ≥ 0, got {ratio!r}")
+    d1, d2 = (np.asarray(d, float) / np.linalg.norm(d) for d in directions)
+    timings: dict[str, float] = {}
+
+    # Step 2 (computed first: step 1 needs the resting shape).
+    t0 = time.perf_counter()
+    rs = rest_state if rest_state is not None else rest(body, mu_t, backend=backend)
+    timings["rest"] = time.perf_counter() - t0
+    posed = rs.body
+    table = rs.table
+    result = PickupResult(False, "", posed, rs, (-1, -1), None, mu_f, mu_t, float(finger_radius), (d1, d2),
+                          float(ratio), timings=timings)
+
+    # Step 1: force closure of p_i, p_j and the support-triangle centre.
+    t0 = time.perf_counter()
+    if contacts is None:
+        try:
+            ij, closure = default_finger_contacts(rs, d1, mu_f, mu_t, finger_radius)
+        except ValueError as exc:
+            result.reason = f"no initial finger placement: {exc}"
+            timings["closure"] = time.perf_counter() - t0
+            timings["total"] = time.perf_counter() - t_start
+            return result
+    else:
+        ij = (int(contacts[0]), int(contacts[1]))
+        closure = placement_closure(posed, rs.positions, ij, rs.support_triangle, mu_f, mu_t)
+    result.finger_nodes = ij
+    result.closure = closure
+    timings["closure"] = time.perf_counter() - t0
+    com = (posed.mesh.volumes @ rs.positions[posed.mesh.tets].mean(axis=1)) / posed.mesh.volume
+    out = surface_normals_at(posed.mesh, rs.positions)
+    result.rigid = rigid_grasp(rs.positions[list(ij)], -out[list(ij)], com, posed.weight, mu_f)
+    if not closure.closed:
+        result.reason = f"the initial placement is not force closure (Algorithm 1 step 1): {closure.reason}"
+        timings["total"] = time.perf_counter() - t_start
+        return result
+
+    # Steps 3-4: squeeze with the lift test.
+    t0 = time.perf_counter()
+    tracker = Tracker(posed, radius=finger_radius, mu_finger=mu_f, mu_table=mu_t, table=table, backend=backend)
+    hanging = Tracker(posed, radius=finger_radius, mu_finger=mu_f, mu_table=mu_t, table=None, backend=backend)
+    velocities = np.stack([d1, ratio * d2])
+
+    def snap(st: ContactState, label: str, events: Sequence[ContactEvent] = ()) -> None:
+        result.snapshots.append(Snapshot.from_state(st, finger_radius, label, events))
+
+    try:
+        state = initial_state(tracker, rs, ij)
+        state, ev0 = tracker.settle(state, velocities, phase="squeeze")
+    except (TrackingError, ValueError) as exc:
+        result.reason = f"the fingers cannot be placed: {exc}"
+        timings["total"] = time.perf_counter() - t_start
+        return result
+    result.events.extend(ev0)
+    snap(state, "initial", ev0)
+    width = float(np.ptp(rs.positions @ np.array([d1[0], d1[1], 0.0]) / max(np.hypot(d1[0], d1[1]), 1e-300)))
+    if max_squeeze is None:
+        max_squeeze = 0.4 * width
+    if step is None:
+        k0 = _initial_stiffness(tracker, state, velocities)
+        rho_star = posed.weight / (max(mu_f, 1e-3) * k0)
+        step = min(0.02 * max_squeeze, max(rho_star / 20.0, 1e-3 * max_squeeze))
+    result.max_squeeze = float(max_squeeze)
+    result.step = float(step)
+    lt = LiftTest(hanging, posed.weight, lift_test_step)
+    sq = squeeze(tracker, state, (d1, d2), ratio, lt, max_squeeze=max_squeeze, step=step,
+                 on_event=lambda st, ev: snap(st, "event", ev))
+    result.events.extend(sq.events)
+    result.liftable = sq.liftable
+    result.squeeze_depth = sq.state.squeeze_depth
+    timings["lift_test"] = sq.lift_test_time
+    timings["squeeze"] = time.perf_counter() - t0 - sq.lift_test_time
+    if not sq.passed:
+        result.reason = sq.reason
+        result.final = Snapshot.from_state(sq.state, finger_radius, "final")
+        result.finger_normal_force = result.final.finger_normal_force(table)
+        timings["total"] = time.perf_counter() - t_start
+        return result
+
+    # Step 5: lift.
+    t0 = time.perf_counter()
+    snap(sq.state, "lift start")
+    lf = run_lift(tracker, sq.state, max_height=max_squeeze if max_lift is None else max_lift, step=step,
+                  on_event=lambda st, ev: snap(st, "event", ev))
+    timings["lift"] = time.perf_counter() - t0
+    result.events.extend(lf.events)
+    result.success = lf.success
+    result.reason = lf.reason
+    result.final = Snapshot.from_state(lf.state, finger_radius, "lift-off" if lf.success else "final")
+    result.snapshots.append(result.final)
+    result.finger_normal_force = result.final.finger_normal_force(table)
+    timings["total"] = time.perf_counter() - t_start
+    log.info("pickup %s: ρ = %.4g m, %d events, %d final contacts, finger normal force %.4g N, %.2f s",
+             "succeeded" if result.success else f"failed ({result.reason})", result.squeeze_depth,
+             len(result.events), result.n_final_contacts, result.finger_normal_force, timings["total"])
+    return result

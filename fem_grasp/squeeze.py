@@ -1,0 +1,140 @@
+"""Squeezing the object on the table (paper §III-C, Algorithm 1 step 3).
+
+Fingertip ℱ₁ translates by ρ d̂₁ and ℱ₂ by s ρ d̂₂ while ρ, the squeeze depth,
+grows from 0.  The contact index sets 𝕀, 𝕁, 𝕂 and the sliding set ℙ change
+only at events A–D, tracked by :class:`~fem_grasp.tracking.Tracker` (which
+holds the paper's machinery: eqs. (5)–(8), homotopy, event location).  After
+every increment ``step`` in ρ (events inside an increment split it but do not
+repeat the test) the lift test of §III-B updates the liftable weight w(ρ)
+(Algorithm 1 step 4); the squeeze stops when the test passes or ρ reaches
+``max_squeeze`` (step 6).
+
+The initial state (:func:`initial_state`) is the resting state of §III-A with
+the fingertips placed tangent to the deformed surface at p_i and p_j: the
+centre of ℱ₁ is p̃_i + R n̂_out(p̃_i), n̂_out the area-weighted outward vertex
+normal of the deformed surface.  The finger nodes join the contact set with
+zero force (they only touch).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from .closure import surface_normals_at
+from .lift_test import LiftTest
+from .rest import RestState
+from .tracking import FINGER1, FINGER2, TABLE, ContactEvent, ContactState, Tracker, TrackingError
+
+__all__ = ["SqueezeOutcome", "initial_state", "squeeze"]
+
+log = logging.getLogger(__name__)
+
+
+def initial_state(tracker: Tracker, rest_state: RestState, finger_nodes: tuple[int, int]) -> ContactState:
+    """The resting configuration with both fingertips touching at p_i, p_j (ρ = 0)."""
+    i, j = (int(k) for k in finger_nodes)
+    positions = rest_state.positions
+    out = surface_normals_at(rest_state.body.mesh, positions)
+    for k in (i, j):
+        if not np.linalg.norm(out[k]) > 0:
+            raise ValueError(f"finger contact node {k} is not a surface node")
+    if i in set(rest_state.contact_nodes.tolist()) or j in set(rest_state.contact_nodes.tolist()):
+        raise ValueError("a finger contact node already touches the table")
+    centers = np.stack([positions[i] + tracker.radius * out[i], positions[j] + tracker.radius * out[j]])
+    nodes = np.concatenate([rest_state.contact_nodes, [i, j]])
+    owner = np.concatenate([np.full(rest_state.n_contacts, TABLE), [FINGER1, FINGER2]])
+    disp = np.vstack([rest_state.contact_displacements, rest_state.displacements[[i, j]]])
+    sliding = np.concatenate([rest_state.sliding, [False, False]])
+    return tracker.make_state(phase="squeeze", squeeze_depth=0.0, lift_height=0.0, load=1.0, centers=centers,
+                              nodes=nodes, owner=owner, disp=disp, sliding=sliding)
+
+
+@dataclass
+class SqueezeOutcome:
+    """Result of :func:`squeeze`.
+
+    Attributes
+    ----------
+    state : the last state (at lift-off if ``passed``)
+    events : every event of the squeeze, in order
+    passed : the lift test passed
+    reason : why the squeeze stopped without passing (empty if passed)
+    liftable : [(ρ, w(ρ))] after every increment
+    lift_test_time : seconds spent in the lift test
+    """
+
+    state: ContactState
+    events: list[ContactEvent] = field(default_factory=list)
+    passed: bool = False
+    reason: str = ""
+    liftable: list[tuple[float, float]] = field(default_factory=list)
+    lift_test_time: float = 0.0
+
+
+def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray, np.ndarray], ratio: float,
+            lift_test: LiftTest, *, max_squeeze: float, step: float,
+            on_event: Callable[[ContactState, list[ContactEvent]], None] | None = None) -> SqueezeOutcome:
+    """Squeeze from ``state`` (at ρ = 0) until the lift test passes or ρ = ``max_squeeze``.
+
+    Parameters
+    ----------
+    tracker : Tracker with the table
+    state : the initial state (:func:`initial_state`), settled
+    directions : unit squeeze directions (d̂₁, d̂₂)
+    ratio : s ≥ 0, ℱ₂ moves s ρ d̂₂
+    lift_test : the liftable-weight tracker (§III-B)
+    max_squeeze : ρ beyond which the pickup is abandoned (Algorithm 1 step 6)
+    step : the increment in ρ between lift tests
+    on_event : called with the state after every event
+    """
+    d1, d2 = (np.asarray(d, float) / np.linalg.norm(d) for d in directions)
+    velocities = np.stack([d1, ratio * d2])
+    out = SqueezeOutcome(state)
+
+    next_test = [step]
+
+    def after_step(st: ContactState, events: list[ContactEvent]) -> bool:
+        # The lift test runs once per increment of ``step`` in ρ (events split increments; the test is
+        # not repeated after each of them).
+        if st.squeeze_depth < next_test[0] * (1.0 - 1e-9) and st.squeeze_depth < max_squeeze * (1.0 - 1e-9):
+            return False
+        next_test[0] = st.squeeze_depth + step
+        t0 = time.perf_counter()
+        w = lift_test.update(st)
+        out.lift_test_time += time.perf_counter() - t0
+        out.liftable.append((st.squeeze_depth, w))
+        log.debug("ρ = %.6g m: liftable weight %.4g N (%d finger contacts)", st.squeeze_depth, w,
+                  int((st.owner != TABLE).sum()))
+        return lift_test.passed
+
+    def record(st: ContactState, events: list[ContactEvent]) -> None:
+        out.events.extend(events)
+        if on_event is not None:
+            on_event(st, events)
+
+    last = [state]
+
+    def after(st: ContactState, events: list[ContactEvent]) -> bool:
+        last[0] = st
+        return after_step(st, events)
+
+    from .tracking import run
+
+    try:
+        final, _, stopped = run(tracker, state, velocities, stop=max_squeeze, step=step, param="squeeze_depth",
+                                phase="squeeze", after_step=after, on_event=record)
+    except TrackingError as exc:
+        out.state = last[0]
+        out.reason = f"squeeze failed at ρ = {last[0].squeeze_depth:.4g} m: {exc}"
+        return out
+    out.state = final
+    out.passed = stopped
+    if not stopped:
+        out.reason = (f"the lift test did not pass by the maximum squeeze depth ρ = {max_squeeze:.4g} m "
+                      f"(liftable weight {lift_test.liftable:.4g} N < weight {lift_test.weight:.4g} N)")
+    return out

@@ -1,0 +1,1007 @@
+"""Event-driven quasi-static contact tracking (paper §III-C, events A–D, eqs. 5–8).
+
+The squeeze, the lift and (with the load as parameter) the lift test are all
+the same computation: a parameter t (squeeze depth ρ, lift height, …) moves
+the two fingertips ℱ₁, ℱ₂ with constant velocities v₁, v₂ (per unit t) while
+the contact configuration — which nodes touch ℱ₁, ℱ₂ and the table 𝒫 (the
+index sets 𝕀, 𝕁, 𝕂) and which of them slide (ℙ) — stays fixed between
+*events*:
+
+* **A** contact establishment: a free surface node would penetrate ℱ₁, ℱ₂ or 𝒫;
+* **B** contact break: the normal force at a contact becomes tensile;
+* **C** stick-to-slip: the force at a sticking contact leaves its friction cone;
+* **D** slip-to-stick: the slip rate d(slip)/dt of a sliding contact reaches zero.
+
+Within one configuration the contact forces are affine in the contact
+displacements, F̄ = C Δ̄ + λ F̄₀ (eq. 5, :class:`~fem_grasp.response.ContactResponse`,
+λ the gravity load factor), so one increment t → t + Δt is:
+
+1. *held* prediction: every finger contact moves with its finger by Δt v_f
+   (the sliding ones too, before they slip), table contacts stay;
+2. every sliding node slides back onto its cone: a table node by −d_k t̂_k in
+   the plane (eq. 6), a finger node on the great circle of its fingertip,
+   q_k = O + c_k r_k + s_k (N̂_k × r_k) with c_k² + s_k² = 1 (eqs. 7–8), r_k
+   the node's position relative to the centre O before the increment; the
+   coupled quadratic system (:class:`MixedSlipSystem`) is solved by Newton's
+   method from the held state, with the Newton-homotopy continuation of
+   :mod:`fem_grasp.homotopy` (paper footnote 2) as fallback.
+
+The event tests are evaluated at the end of every increment; when one fires,
+the event's t is located by a safeguarded secant (Illinois) iteration on the
+continuous event functions — the "Newton polish" of §III-C — and the
+configuration is updated there.  Several events at the same t (symmetric
+bodies give pairs) are applied together, and cascades (a release that makes
+a neighbour tensile) are settled at the same t.
+
+Modelling choices (the paper is silent or vague here)
+-----------------------------------------------------
+* **Slip directions are re-anchored every increment**: the great circle
+  (axis N̂_k ∝ n̂_k × f_k⊥) and the table direction t̂_k are taken from the
+  held (trial) force of each increment — the paper's "force out of the
+  cone", as in a return mapping — not frozen for the whole period between
+  two events.  With small increments this follows Coulomb's law
+  (friction opposite to the slip) as the friction turns, and reduces to the
+  paper's rule when it does not.
+* **The cone of a sliding finger node uses the normal at its new position**
+  q_k, n̂_k = (q_k − O)/R, not the one before the slip, so that the sliding
+  contacts lie on their cones exactly (eq. 7 with n̂ evaluated at q_k).
+* The slip rate of event D is the derivative of the slip along its
+  direction, from the implicit-function theorem on the slip system at the
+  current t (exact for the linearised system, no finite differences).
+* Fingertips are whole spheres (only the half facing the object is ever
+  touched) and contact is node-to-surface, as in the paper.
+* A node that touches a second obstacle while in contact with another (e.g.
+  pinched between a finger and the table) is not modelled: tracking stops
+  with :class:`TrackingError`.
+
+Tolerances
+----------
+With F_s = mg + max |f_k| (the force scale of the state) and L the mesh
+diameter, an event fires when a free node is deeper than ``1e-14 L``
+(A), a normal force is below ``−1e-11 F_s`` (B), a sticking contact has
+``|f_t| − μ f·n̂ > 1e-9 f·n̂ + 1e-7 F_s`` (C; contacts carrying almost no
+force are exempt), or a slip rate is below −1e-9 (D).  A sliding contact whose normal force
+falls below the force floor ``1e-7 F_s`` also sticks (recorded as D): near
+the apex of its cone its slip is not resolved by double precision.  Event
+parameters are located to ``1e-13 L`` in t.
+"""
+
+from __future__ import annotations
+
+import logging
+import warnings
+from dataclasses import dataclass, field, replace
+from typing import Callable, Sequence
+
+import numpy as np
+import scipy.linalg as la
+
+from . import homotopy
+from .body import Body
+from .geometry import TablePlane, tangent_basis
+from .response import CollinearContactError, ContactResponse, check_contact_set
+
+__all__ = ["FINGER1", "FINGER2", "TABLE", "OBSTACLES", "ContactState", "ContactEvent", "MixedSlipSystem",
+           "SlipFailure", "Tracker", "TrackingError"]
+
+log = logging.getLogger(__name__)
+
+FINGER1, FINGER2, TABLE = 0, 1, 2
+#: Names of the contact bodies, indexed by the ``owner`` codes above.
+OBSTACLES = ("finger1", "finger2", "table")
+
+#: Event thresholds (see module notes).
+TOL_PENETRATION = 1e-14  # × diameter
+TOL_TENSILE = 1e-11  # × force scale
+TOL_CONE = 1e-9  # × f·n̂
+TOL_FORCE_FLOOR = 1e-7  # × force scale: contacts carrying less are 'just touching'
+TOL_RATE = 1e-9  # slip per unit parameter
+#: Event localisation tolerance in t, × diameter.
+TOL_LOCATE = 1e-13
+
+
+class TrackingError(RuntimeError):
+    """The quasi-static tracking cannot go on (no slip solution, lost support, pinched node, …)."""
+
+
+class SlipFailure(RuntimeError):
+    """A slip system has no admissible root near the held state."""
+
+
+# ======================================================================= state
+@dataclass(frozen=True)
+class ContactState:
+    """The object's contact configuration and deformation at one parameter value.
+
+    Attributes
+    ----------
+    phase : "squeeze", "lift" or "rest"
+    squeeze_depth : ρ, metres
+    lift_height : upward finger translation, metres
+    load : gravity load factor λ (1: the real weight)
+    centers : (2, 3) fingertip centres O₁, O₂
+    nodes : (m,) contact nodes (𝕀 ∪ 𝕁 ∪ 𝕂)
+    owner : (m,) 0 (finger 1), 1 (finger 2) or 2 (table) for each contact
+    disp : (m, 3) prescribed contact displacements Δ̄
+    sliding : (m,) whether each contact slides (ℙ)
+    forces : (m, 3) contact forces on the object, newtons
+    normals : (m, 3) inward unit normals n̂ at the contacts
+    positions : (n, 3) deformed node positions p̃
+    slip : (m,) slip accumulated by each contact since it was established, metres
+    """
+
+    phase: str
+    squeeze_depth: float
+    lift_height: float
+    load: float
+    centers: np.ndarray
+    nodes: np.ndarray
+    owner: np.ndarray
+    disp: np.ndarray
+    sliding: np.ndarray
+    forces: np.ndarray
+    normals: np.ndarray
+    positions: np.ndarray
+    slip: np.ndarray
+
+    @property
+    def n_contacts(self) -> int:
+        return len(self.nodes)
+
+    def on(self, owner: int) -> np.ndarray:
+        """Boolean mask of the contacts on one obstacle (FINGER1, FINGER2 or TABLE)."""
+        return self.owner == owner
+
+    @property
+    def normal_forces(self) -> np.ndarray:
+        """(m,) f·n̂ at each contact."""
+        return np.einsum("ki,ki->k", self.forces, self.normals)
+
+    @property
+    def tangential_forces(self) -> np.ndarray:
+        """(m,) |f − (f·n̂)n̂| at each contact."""
+        return np.linalg.norm(self.forces - self.normal_forces[:, None] * self.normals, axis=1)
+
+
+@dataclass(frozen=True)
+class ContactEvent:
+    """One event of the tracking (paper §III-C).
+
+    Attributes
+    ----------
+    phase : "squeeze" or "lift"
+    kind : "A", "B", "C" or "D"
+    node : mesh node index
+    contact : "finger1", "finger2" or "table"
+    squeeze_depth, lift_height : where it happened, metres
+    """
+
+    phase: str
+    kind: str
+    node: int
+    contact: str
+    squeeze_depth: float
+    lift_height: float
+
+    def to_dict(self) -> dict:
+        return {"phase": self.phase, "kind": self.kind, "node": int(self.node), "contact": self.contact,
+                "squeeze_depth": float(self.squeeze_depth), "lift_height": float(self.lift_height)}
+
+
+# ================================================================ slip system
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Row-wise cross product of two (k, 3) arrays (np.cross without its overhead)."""
+    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
+
+
+class MixedSlipSystem:
+    """The coupled slip system of eqs. (6)–(8) for one increment.
+
+    Each sliding node k moves by δ_k, affine in its own unknowns, and the
+    contact forces are affine in all of them, ``F(x) = F_held + C δ(x)``
+    (eq. 5).  Two forms are built:
+
+    * **great circle** (``free=False``, the paper's): a table node moves by
+      δ_k = −d_k t̂_k (unknown d_k); a fingertip node moves on the great
+      circle through it whose plane holds its normal and its tangential
+      force, q_k = O + c_k r_k + s_k (N̂_k × r_k) (unknowns c_k, s_k).
+      Equations: (6) or (7) at every sliding node, (8) c_k² + s_k² = 1.
+    * **free direction** (``free=True``, Coulomb's law with maximum
+      dissipation): a table node moves by δ_k = a_k ê₁ + b_k ê₂; a fingertip
+      node to q_k = O + c_k r_k + u_k (ê₁ × r_k) + v_k (ê₂ × r_k) — the great
+      circle with an unknown axis N̂_k ∝ (u_k ê₁ + v_k ê₂) — with
+      c_k² + u_k² + v_k² = 1 (eq. 8).  The extra equation per node,
+      n̂_k · (f_k × δ_k) = 0, makes the friction parallel to the slip.  Used
+      when the great-circle system has no root near the held state: a node
+      that must slide far (e.g. one that starts to slide just after it
+      touched) can acquire a friction component across a frozen direction
+      that no slip along it removes.
+
+    The cone of a fingertip node uses the normal at its new position,
+    n̂_k = (q_k − O)/R; the table normal is ẑ.  r_k = p̃_k − O is the node's
+    position relative to the fingertip centre before the increment.
+
+    Parameters
+    ----------
+    stiffness : (3m, 3m) reduced stiffness C
+    held_forces : (m, 3) forces of the held prediction
+    force_rate : (m, 3) dF_held/dt (for the slip rates of event D)
+    sliding : (p,) positions of the sliding nodes in the contact set
+    kinds : (p,) TABLE or a finger code per sliding node
+    mu : (p,) friction coefficients
+    directions : (p, 3) unit tangential force directions t̂_k of the held prediction
+    radii_vectors : (p, 3) finger: r_k (|r_k| = R); ignored for table nodes
+    up : (3,) the table's normal
+    radius : fingertip radius R
+    free : bool, the free-direction form
+    """
+
+    def __init__(self, stiffness: np.ndarray, held_forces: np.ndarray, force_rate: np.ndarray,
+                 sliding: np.ndarray, kinds: np.ndarray, mu: np.ndarray, directions: np.ndarray,
+                 radii_vectors: np.ndarray, up: np.ndarray, radius: float, free: bool = False) -> None:
+        self.c = stiffness
+        self.fh = held_forces
+        self.df = force_rate
+        self.sliding = np.asarray(sliding, dtype=np.int64)
+        self.kinds = np.asarray(kinds, dtype=np.int64)
+        self.mu = np.asarray(mu, dtype=float)
+        self.t_held = np.asarray(directions, dtype=float)
+        self.radius = float(radius)
+        self.free = bool(free)
+        m = len(held_forces)
+        p = len(self.sliding)
+        self.finger = self.kinds != TABLE
+        self.cols: list[np.ndarray] = []
+        self.e_loc: list[np.ndarray] = []  # (3, k_j): δ_j = e_loc x[cols] + e0_j
+        self.e0 = np.zeros((p, 3))
+        self.n0 = np.broadcast_to(np.asarray(up, float), (p, 3)).copy()
+        self.kappa = np.where(self.finger, 1.0 / self.radius, 0.0)
+        x0: list[float] = []
+        n = 0
+        for j in range(p):
+            t = self.t_held[j]
+            if self.finger[j]:
+                r = np.asarray(radii_vectors[j], dtype=float)
+                nrm = r / self.radius
+                self.n0[j] = nrm
+                if free:
+                    e1, e2 = tangent_basis(nrm)
+                    cols_e = np.stack([r, np.cross(e1, r), np.cross(e2, r)], axis=1)
+                else:
+                    axis = np.cross(nrm, t)
+                    axis /= np.linalg.norm(axis)
+                    cols_e = np.stack([r, np.cross(axis, r)], axis=1)
+                self.e0[j] = -r
+                start = [1.0] + [0.0] * (cols_e.shape[1] - 1)
+            else:
+                if free:
+                    e1, e2 = tangent_basis(self.n0[j])
+                    cols_e = np.stack([e1, e2], axis=1)
+                else:
+                    cols_e = -t[:, None]
+                start = [0.0] * cols_e.shape[1]
+            k = cols_e.shape[1]
+            self.cols.append(np.arange(n, n + k))
+            self.e_loc.append(cols_e)
+            x0 += start
+            n += k
+        self.n = n
+        self.x0 = np.asarray(x0, dtype=float)
+        e = np.zeros((3 * m, n))
+        self.d_map = np.zeros((p, 3, n))  # ∂δ_j/∂x
+        for j, k in enumerate(self.sliding):
+            e[3 * k:3 * k + 3, self.cols[j]] = self.e_loc[j]
+            self.d_map[j][:, self.cols[j]] = self.e_loc[j]
+        e_off = np.zeros(3 * m)
+        for j, k in enumerate(self.sliding):
+            e_off[3 * k:3 * k + 3] = self.e0[j]
+        self.e = e
+        self.e_off = e_off
+        self.g = stiffness @ e  # dF/dx
+        self.g_sl = self.g.reshape(m, 3, n)[self.sliding]  # (p, 3, N)
+        self.base = held_forces.reshape(-1) + stiffness @ e_off
+        # Scales: distance unknowns by the slip that changes the force by its own size; the
+        # dimensionless fingertip unknowns by one.
+        fscale = float(np.abs(held_forces).max()) if held_forces.size else 1.0
+        self.own = np.maximum(np.linalg.norm(held_forces[self.sliding], axis=1), 1e-12 * max(fscale, 1e-300))
+        self.xscale = np.ones(n)
+        gnorm = np.linalg.norm(self.g, axis=0)
+        for j in range(p):
+            if not self.finger[j]:
+                c = self.cols[j]
+                self.xscale[c] = np.where(gnorm[c] > 0, self.own[j] / np.where(gnorm[c] > 0, gnorm[c], 1.0), 1.0)
+        self.sphere_rows = np.flatnonzero(self.finger)
+        self.align_rows = np.arange(p) if free else np.zeros(0, dtype=np.int64)
+        n_sph, n_al = len(self.sphere_rows), len(self.align_rows)
+        if p + n_sph + n_al != n:
+            raise ValueError("the slip system is not square")
+        typical = np.array([self.own[j] * (self.radius if self.finger[j] else float(np.mean(self.xscale[self.cols[j]])))
+                            for j in self.align_rows])
+        self.row_scale = np.concatenate([1.0 / self.own**2, np.ones(n_sph), 1.0 / np.maximum(typical, 1e-300)])
+        # Round-off in a force is ~ε·max|F|: a lightly loaded node's normalised rows are only
+        # resolved to that relative to its own force.
+        eps = np.finfo(float).eps
+        self.row_noise = np.concatenate([10.0 * eps * fscale / self.own, np.zeros(n_sph),
+                                         10.0 * eps * fscale / self.own[self.align_rows]])
+        # Dense per-node layouts for fast evaluation (all fingertip nodes of one system have the same
+        # number of unknowns; index n points at a padding zero).
+        self.loc_idx = np.full((p, 3), n, dtype=np.int64)
+        self.loc_e = np.zeros((p, 3, 3))
+        for j in range(p):
+            k = len(self.cols[j])
+            self.loc_idx[j, :k] = self.cols[j]
+            self.loc_e[j, :, :k] = self.e_loc[j]
+        self.sph_idx = (np.stack([self.cols[j] for j in self.sphere_rows]) if n_sph
+                        else np.zeros((0, 2), dtype=np.int64))
+        self.g_sl2 = self.g_sl.reshape(3 * p, n)
+        self.base_sl = self.base.reshape(-1, 3)[self.sliding].reshape(-1)
+
+    # --------------------------------------------------------------- maps
+    def forces(self, x: np.ndarray) -> np.ndarray:
+        return (self.base + self.g @ x).reshape(-1, 3)
+
+    def displacements(self, x: np.ndarray) -> np.ndarray:
+        """(m, 3) change of the contact displacements from the held prediction."""
+        return (self.e @ x + self.e_off).reshape(-1, 3)
+
+    def slips(self, x: np.ndarray) -> np.ndarray:
+        """(p, 3) δ_k of the sliding nodes."""
+        xe = np.append(x, 0.0)[self.loc_idx]  # (p, 3)
+        return np.einsum("kij,kj->ki", self.loc_e, xe) + self.e0
+
+    def _sliding_forces(self, x: np.ndarray) -> np.ndarray:
+        return (self.base_sl + self.g_sl2 @ x).reshape(-1, 3)
+
+    def normals(self, x: np.ndarray) -> np.ndarray:
+        """(p, 3) normals at the sliding nodes (fingertip: at q_k)."""
+        return self.n0 + self.kappa[:, None] * self.slips(x)  # fingertip: (r + δ)/R
+
+    @np.errstate(over="ignore", invalid="ignore")
+    def residual(self, x: np.ndarray) -> np.ndarray:
+        f = self._sliding_forces(x)
+        d = self.slips(x)
+        n = self.n0 + self.kappa[:, None] * d
+        fn = (f * n).sum(axis=1)
+        cone = (1.0 + self.mu**2) * fn**2 - (f * f).sum(axis=1)
+        sphere = (x[self.sph_idx] ** 2).sum(axis=1) - 1.0
+        if len(self.align_rows):
+            align = (n * _cross(f, d)).sum(axis=1)
+        else:
+            align = np.zeros(0)
+        return np.concatenate([cone, sphere, align])
+
+    @np.errstate(over="ignore", invalid="ignore")
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        f = self._sliding_forces(x)
+        d = self.slips(x)
+        n = self.n0 + self.kappa[:, None] * d
+        fn = (f * n).sum(axis=1)
+        g = self.g_sl
+        dn = self.kappa[:, None, None] * self.d_map
+        rows = (2.0 * (1.0 + self.mu**2) * fn)[:, None] * (np.einsum("ki,kij->kj", n, g)
+                                                           + np.einsum("ki,kij->kj", f, dn))
+        rows -= 2.0 * np.einsum("ki,kij->kj", f, g)
+        sphere = np.zeros((len(self.sphere_rows), self.n))
+        if len(self.sphere_rows):
+            np.put_along_axis(sphere, self.sph_idx, 2.0 * x[self.sph_idx], axis=1)
+        out = [rows, sphere]
+        if len(self.align_rows):
+            # ∂[n·(f×δ)] = ∂n·(f×δ) + ∂f·(δ×n) + ∂δ·(n×f)
+            align = (np.einsum("kij,ki->kj", dn, _cross(f, d)) + np.einsum("kij,ki->kj", g, _cross(d, n))
+                     + np.einsum("kij,ki->kj", self.d_map, _cross(n, f)))
+            out.append(align)
+        return np.vstack(out)
+
+    def residual_rate(self, x: np.ndarray) -> np.ndarray:
+        """∂residual/∂t at fixed x (held forces move at ``force_rate``)."""
+        f = self._sliding_forces(x)
+        n = self.normals(x)
+        df = self.df[self.sliding]
+        fn = np.einsum("ki,ki->k", f, n)
+        cone = 2.0 * (1.0 + self.mu**2) * fn * np.einsum("ki,ki->k", n, df) - 2.0 * np.einsum("ki,ki->k", f, df)
+        out = [cone, np.zeros(len(self.sphere_rows))]
+        if len(self.align_rows):
+            d = self.slips(x)
+            out.append(np.einsum("ki,ki->k", df, _cross(d, n)))
+        return np.concatenate(out)
+
+    def _friction_directions(self, x: np.ndarray) -> np.ndarray:
+        f = self.forces(x)[self.sliding]
+        n = self.normals(x)
+        ft = f - np.einsum("ki,ki->k", f, n)[:, None] * n
+        norm = np.linalg.norm(ft, axis=1, keepdims=True)
+        return np.where(norm > 0, ft / np.where(norm > 0, norm, 1.0), self.t_held)
+
+    def amounts(self, x: np.ndarray) -> np.ndarray:
+        """(p,) slip of each sliding node against its friction in this increment, −t̂_k·δ_k, metres."""
+        return -np.einsum("ki,ki->k", self._friction_directions(x), self.slips(x))
+
+    def rates(self, x: np.ndarray) -> np.ndarray:
+        """(p,) d(slip)/dt = −t̂_k·dδ_k/dt by the implicit-function theorem; NaN if the Jacobian is singular."""
+        if not len(self.sliding):
+            return np.zeros(0)
+        jac = self.jacobian(x) * self.row_scale[:, None]
+        rhs = -self.residual_rate(x) * self.row_scale
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", la.LinAlgWarning)
+                lu = la.lu_factor(jac, check_finite=True)
+            if np.abs(np.diag(lu[0])).min() <= 1e-14 * np.abs(np.diag(lu[0])).max():
+                raise la.LinAlgError("singular")
+            dx = la.lu_solve(lu, rhs)
+        except (la.LinAlgError, ValueError):
+            return np.full(len(self.sliding), np.nan)
+        return -np.einsum("ki,ki->k", self._friction_directions(x), np.einsum("kij,j->ki", self.d_map, dx))
+
+    def admissible(self, x: np.ndarray) -> bool:
+        """No compressive sliding contact has its friction reversed (the far root through the cone's axis).
+
+        A sliding contact whose normal force has become tensile is left to the
+        event test B (its root continues through the cone's apex).
+        """
+        f = self.forces(x)[self.sliding]
+        n = self.normals(x)
+        fn = np.einsum("ki,ki->k", f, n)
+        ft = f - fn[:, None] * n
+        along = np.einsum("ki,ki->k", ft, self.t_held)
+        return bool(np.all((fn <= 0) | (along >= -1e-6 * np.linalg.norm(ft, axis=1))))
+
+    @np.errstate(over="ignore", invalid="ignore")
+    def _newton(self, fun: Callable, jac: Callable, y: np.ndarray, tol: float, max_iter: int = 60) -> np.ndarray | None:
+        """Damped Newton's method (backtracking on ‖P‖).
+
+        Converged when every row |P_j| ≤ max(tol, noise_j) (rows of lightly
+        loaded nodes are only resolved to round-off), or when the step
+        stalls within 10 times that.
+        """
+        y = y.copy()
+        lim = np.maximum(tol, self.row_noise)
+        r = fun(y)
+        for _ in range(max_iter):
+            if not np.isfinite(r).all():
+                return None
+            if np.all(np.abs(r) <= lim):
+                return y
+            try:
+                step = np.linalg.solve(jac(y), -r)
+                if not np.isfinite(step).all():
+                    return None
+            except np.linalg.LinAlgError:
+                return None
+            norm = float(np.linalg.norm(r))
+            lam = 1.0
+            for _ in range(12):
+                y_new = y + lam * step
+                r_new = fun(y_new)
+                if np.isfinite(r_new).all() and np.linalg.norm(r_new) < (1.0 - 1e-4 * lam) * norm:
+                    break
+                lam *= 0.5
+            else:
+                y_new, r_new = y + step, fun(y + step)  # no decrease: take the full step (round-off regime)
+            stalled = np.linalg.norm(y_new - y) <= 1e-14 * (1.0 + np.linalg.norm(y_new))
+            y, r = y_new, r_new
+            if stalled:
+                break
+        return y if np.isfinite(r).all() and np.all(np.abs(r) <= 10.0 * lim) else None
+
+    def solve(self, tol: float = 1e-12, methods: Sequence[str] = ("newton", "homotopy")) -> np.ndarray:
+        """The root continuously connected to the held state; raises :class:`SlipFailure`.
+
+        ``"newton"``: damped Newton's method from the held state;
+        ``"homotopy"``: the Newton-homotopy continuation
+        ``H(y, t) = P(y) − (1−t)² P(y₀)`` of paper footnote 2
+        (:func:`fem_grasp.homotopy.track`), whose path shrinks every cone
+        residual from its held value to zero.
+        """
+        if self.n == 0:
+            return np.zeros(0)
+        scale = self.xscale
+        rs = self.row_scale
+
+        def fun(y: np.ndarray) -> np.ndarray:
+            return rs * self.residual(y * scale)
+
+        def jac(y: np.ndarray) -> np.ndarray:
+            return rs[:, None] * self.jacobian(y * scale) * scale[None, :]
+
+        y0 = self.x0 / scale
+        attempts: list[str] = []
+        y = None
+        if "newton" in methods:
+            y = self._newton(fun, jac, y0, tol)
+            if y is not None:
+                x = y * scale
+                if self.admissible(x):
+                    return x
+                attempts.append("Newton reached a non-physical root")
+            else:
+                attempts.append("Newton did not converge")
+        if "homotopy" in methods:
+            p0 = fun(y0)
+            try:
+                res = homotopy.track(fun, jac, y0, start=lambda y: fun(y) - p0, start_jac=jac, tol=1e-8,
+                                     initial_step=0.25, max_step=1.0, max_steps=200, min_step=1e-6)
+                y = self._newton(fun, jac, np.asarray(res.x, dtype=float), tol)
+                if y is not None and self.admissible(y * scale):
+                    return y * scale
+                attempts.append("homotopy reached a non-physical root")
+            except homotopy.HomotopyError as exc:
+                attempts.append(f"homotopy: {exc}")
+        r = np.abs(fun(y0 if y is None else y))
+        worst = int(np.argmax(r))
+        j = worst if worst < len(self.sliding) else (
+            int(self.sphere_rows[worst - len(self.sliding)]) if worst < len(self.sliding) + len(self.sphere_rows)
+            else int(self.align_rows[worst - len(self.sliding) - len(self.sphere_rows)]))
+        raise SlipFailure(f"no admissible slip for {len(self.sliding)} sliding node(s) "
+                          f"({'free' if self.free else 'great-circle'} form; worst row {worst} at contact "
+                          f"{int(self.sliding[j])}, held force {self.own[j]:.3g} N): " + "; ".join(attempts))
+
+
+# ==================================================================== tracker
+@dataclass
+class _Trial:
+    """The state reached from a base state by one increment, with its slip data."""
+
+    state: ContactState
+    amounts: np.ndarray  # (m,) slip in this increment (0 for sticking contacts)
+    rates: np.ndarray  # (m,) slip rates (0 for sticking contacts)
+    values: dict = field(default_factory=dict)  # event kind -> (array of values, array of ids)
+
+
+class Tracker:
+    """Event-driven tracking of the contact configuration as the fingers move (module notes).
+
+    Parameters
+    ----------
+    body : Body
+        The posed body (reference positions in the table frame, gravity −z).
+    radius : fingertip radius R, metres
+    mu_finger, mu_table : friction coefficients μ_ℱ, μ_𝒫 (> 0)
+    table : TablePlane or None
+        The supporting plane (None: no table, the object hangs from the fingers).
+    backend : "sparse" or "spectral" (see :class:`~fem_grasp.response.ContactResponse`)
+    """
+
+    def __init__(self, body: Body, *, radius: float, mu_finger: float, mu_table: float,
+                 table: TablePlane | None, backend: str = "sparse") -> None:
+        if not (mu_finger > 0 and mu_table > 0):
+            raise ValueError("event tracking needs positive friction coefficients (μ = 0 has no slip direction)")
+        self.body = body
+        self.radius = float(radius)
+        self.mu = np.array([mu_finger, mu_finger, mu_table], dtype=float)
+        self.table = table
+        self.backend = backend
+        self.points = body.mesh.points
+        self.surface = body.mesh.surface_nodes
+        self.diameter = body.mesh.diameter
+        self.up = table.up if table is not None else np.array([0.0, 0.0, 1.0])
+        self._responses: dict[tuple[int, ...], ContactResponse] = {}
+        self._zero_fields: dict[tuple[int, ...], np.ndarray] = {}
+        self.solves = 0
+
+    # ------------------------------------------------------------ responses
+    def response(self, nodes: np.ndarray) -> ContactResponse:
+        key = tuple(int(k) for k in nodes)
+        resp = self._responses.get(key)
+        if resp is None:
+            try:
+                resp = self.body.contact_response(np.asarray(key, dtype=np.int64), backend=self.backend)
+            except CollinearContactError as exc:
+                raise TrackingError(f"the object is no longer held: {exc}") from None
+            if len(self._responses) >= 16:
+                self._responses.pop(next(iter(self._responses)))
+            self._responses[key] = resp
+        return resp
+
+    def field(self, nodes: np.ndarray, disp: np.ndarray, load: float) -> np.ndarray:
+        """(n, 3) displacement field for prescribed contact displacements at gravity factor λ (eq. 4)."""
+        resp = self.response(nodes)
+        full = resp.solve(disp).displacements
+        if load == 1.0:
+            return full
+        key = tuple(int(k) for k in nodes)
+        zero = self._zero_fields.get(key)
+        if zero is None:
+            zero = resp.solve(np.zeros_like(disp)).displacements
+            if len(self._zero_fields) >= 16:
+                self._zero_fields.pop(next(iter(self._zero_fields)))
+            self._zero_fields[key] = zero
+        return full - (1.0 - load) * zero
+
+    def normals(self, owner: np.ndarray, positions: np.ndarray, centers: np.ndarray) -> np.ndarray:
+        """(m, 3) inward normals of contacts at ``positions`` (m, 3)."""
+        out = np.broadcast_to(self.up, positions.shape).copy()
+        for f in (FINGER1, FINGER2):
+            sel = owner == f
+            if sel.any():
+                d = positions[sel] - centers[f]
+                out[sel] = d / np.linalg.norm(d, axis=1, keepdims=True)
+        return out
+
+    # --------------------------------------------------------------- states
+    def make_state(self, *, phase: str, squeeze_depth: float, lift_height: float, load: float,
+                   centers: np.ndarray, nodes: np.ndarray, owner: np.ndarray, disp: np.ndarray,
+                   sliding: np.ndarray, slip: np.ndarray | None = None) -> ContactState:
+        """A state with every contact held at ``disp`` (no slip solve): forces and field from eq. (5), (4)."""
+        nodes = np.asarray(nodes, dtype=np.int64)
+        resp = self.response(nodes)
+        forces = (resp.reduced_stiffness @ np.asarray(disp, float).reshape(-1)).reshape(-1, 3) \
+            + load * resp.gravity_forces
+        field = self.field(nodes, disp, load)
+        positions = self.points + field
+        normals = self.normals(np.asarray(owner), positions[nodes], centers)
+        return ContactState(phase, float(squeeze_depth), float(lift_height), float(load), np.array(centers, float),
+                            nodes, np.asarray(owner, dtype=np.int64), np.array(disp, float),
+                            np.asarray(sliding, dtype=bool), forces, normals, positions,
+                            np.zeros(len(nodes)) if slip is None else np.asarray(slip, float))
+
+    def trial(self, base: ContactState, dt: float, velocities: np.ndarray, load_rate: float = 0.0,
+              param: str = "squeeze_depth") -> _Trial:
+        """The state after an increment dt of the parameter with the configuration of ``base`` held fixed.
+
+        Raises :class:`SlipFailure` when the slip system has no admissible root.
+        """
+        self.solves += 1
+        resp = self.response(base.nodes)
+        c = resp.reduced_stiffness
+        f0 = resp.gravity_forces
+        m = base.n_contacts
+        vel = np.zeros((m, 3))
+        for f in (FINGER1, FINGER2):
+            vel[base.owner == f] = velocities[f]
+        disp_h = base.disp + dt * vel
+        centers = base.centers + dt * np.asarray(velocities, float)
+        if param == "load":  # the gravity load factor itself is the parameter
+            load_rate = 1.0
+        load = base.load + dt * load_rate
+        fh = (c @ disp_h.reshape(-1)).reshape(-1, 3) + load * f0
+        dfh = (c @ vel.reshape(-1)).reshape(-1, 3) + load_rate * f0
+        sl = np.flatnonzero(base.sliding)
+        kinds = base.owner[sl]
+        n_b = base.normals[sl]
+        # Slip directions from the held (trial) force, as in a return mapping; the base force if that has
+        # no tangential part.  For a node sliding steadily the two agree to O(dt).
+        t_hat = np.zeros((len(sl), 3))
+        for src in (base.forces[sl], fh[sl]):
+            ft = src - np.einsum("ki,ki->k", src, n_b)[:, None] * n_b
+            ftn = np.linalg.norm(ft, axis=1)
+            ok = ftn > 1e-12 * max(float(np.abs(src).max(initial=0.0)), 1e-300)
+            t_hat[ok] = ft[ok] / ftn[ok, None]
+        if np.any(np.linalg.norm(t_hat, axis=1) == 0):
+            raise SlipFailure("a sliding contact has no tangential force, so no slip direction")
+        r = np.zeros((len(sl), 3))
+        fing = kinds != TABLE
+        if fing.any():
+            p_b = self.points[base.nodes[sl[fing]]] + base.disp[sl[fing]]
+            r[fing] = p_b - base.centers[kinds[fing]]
+            r[fing] *= self.radius / np.linalg.norm(r[fing], axis=1, keepdims=True)
+        errors = []
+        systems = {}
+        x = None
+        # Great-circle form (the paper's) first, the free-direction form if it has no root; Newton on
+        # both before the (costlier) homotopy continuation on both.
+        for method in ("newton", "homotopy"):
+            for free in (False, True):
+                if free not in systems:
+                    systems[free] = MixedSlipSystem(c, fh, dfh, sl, kinds, self.mu[kinds], t_hat, r, self.up,
+                                                    self.radius, free)
+                try:
+                    x = systems[free].solve(methods=(method,))
+                    system = systems[free]
+                    break
+                except SlipFailure as exc:
+                    errors.append(str(exc))
+            if x is not None:
+                break
+        else:
+            raise SlipFailure("; ".join(errors))
+        rates_s = system.rates(x)
+        if not np.isfinite(rates_s).all():
+            raise SlipFailure("the slip system is singular (a limit of friction is reached)")
+        disp = disp_h + system.displacements(x)
+        forces = system.forces(x)
+        positions = self.points + self.field(base.nodes, disp, load)
+        normals = self.normals(base.owner, positions[base.nodes], centers)
+        amounts = np.zeros(m)
+        rates = np.zeros(m)
+        amounts[sl] = system.amounts(x)
+        rates[sl] = rates_s
+        kw = {} if param == "load" else {param: getattr(base, param) + dt}
+        state = replace(base, load=load, centers=centers, disp=disp, forces=forces, normals=normals,
+                        positions=positions, slip=base.slip + np.abs(amounts), **kw)
+        return _Trial(state, amounts, rates)
+
+    # --------------------------------------------------------------- events
+    def obstacle_gaps(self, positions: np.ndarray, centers: np.ndarray) -> np.ndarray:
+        """(s, 3) signed distance of each surface node from ℱ₁, ℱ₂ and 𝒫 (inf for no table)."""
+        p = positions[self.surface]
+        gaps = np.full((len(p), 3), np.inf)
+        for f in (FINGER1, FINGER2):
+            gaps[:, f] = np.linalg.norm(p - centers[f], axis=1) - self.radius
+        if self.table is not None:
+            gaps[:, TABLE] = self.table.signed_distance(p)
+        return gaps
+
+    def force_scale(self, state: ContactState) -> float:
+        return self.body.weight * max(state.load, 0.0) + float(np.abs(state.forces).max(initial=0.0))
+
+    def event_values(self, trial: _Trial, fscale: float, by_amount: bool = False
+                     ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Normalised event functions (> 0: the event fires) with their ids.
+
+        With ``by_amount`` event D tests the slip of the increment (negative:
+        the node moved with its friction, so it sticks — the return-mapping
+        rule of a one-shot settle) instead of the slip rate.
+
+        A: ids are (surface position, obstacle) pairs encoded as 3·s + obstacle;
+        B, C, D: positions in the contact set.
+        """
+        st = trial.state
+        gaps = self.obstacle_gaps(st.positions, st.centers)
+        pos = {int(k): j for j, k in enumerate(st.nodes)}
+        for k, o in zip(st.nodes, st.owner):
+            s = int(np.searchsorted(self.surface, k))
+            if s < len(self.surface) and self.surface[s] == k:
+                gaps[s, o] = np.inf  # its own obstacle
+        a_val = (-gaps / self.diameter - TOL_PENETRATION).reshape(-1)
+        a_ids = np.arange(a_val.size)
+        fn = st.normal_forces
+        ft = st.tangential_forces
+        b_val = -fn / fscale - TOL_TENSILE
+        mu = self.mu[st.owner]
+        c_val = np.where(st.sliding, -np.inf, (ft - mu * fn - TOL_CONE * np.maximum(fn, 0.0)) / fscale
+                         - TOL_FORCE_FLOOR)
+        slip_test = -trial.amounts / self.diameter - 1e-12 if by_amount else -trial.rates - TOL_RATE
+        d_val = np.where(st.sliding, np.maximum(slip_test, TOL_FORCE_FLOOR - fn / fscale), -np.inf)
+        del pos
+        ids = np.arange(st.n_contacts)
+        return {"A": (a_val, a_ids), "B": (b_val, ids), "C": (c_val, ids), "D": (d_val, ids)}
+
+    @staticmethod
+    def _gmax(values: dict) -> float:
+        return max((float(v.max()) if v.size else -np.inf) for v, _ in values.values())
+
+    # ------------------------------------------------------------- stepping
+    def advance(self, base: ContactState, dt: float, velocities: np.ndarray, *, load_rate: float = 0.0,
+                param: str = "squeeze_depth", phase: str | None = None,
+                min_step: float | None = None) -> tuple[ContactState, list[ContactEvent]]:
+        """Advance by ``dt`` or up to the first event (applied, with its cascade).
+
+        Returns the new state and the events applied (empty if ``dt`` was
+        completed without event).  The slip increment is halved when its
+        system has no root, down to ``min_step``; then :class:`TrackingError`.
+        """
+        phase = phase or base.phase
+        min_step = 1e-9 * self.diameter if min_step is None else min_step
+        fscale = self.force_scale(base)
+        h = dt
+        while True:
+            try:
+                trial = self.trial(base, h, velocities, load_rate, param)
+                break
+            except SlipFailure as exc:
+                h *= 0.5
+                if h < min_step:
+                    try:
+                        t0 = self.trial(base, 0.0, velocities, load_rate, param)
+                        t0.values = self.event_values(t0, fscale)
+                    except SlipFailure:
+                        t0 = None
+                    return self._turning_point(t0, exc, velocities, phase, load_rate, param)
+        trial.values = self.event_values(trial, fscale)
+        if self._gmax(trial.values) <= 0.0:
+            return trial.state, []
+        # Locate the first event in (0, h] (Illinois regula falsi on the max of the event functions).
+        tol = TOL_LOCATE * self.diameter
+        lo, g_lo = 0.0, None
+        try:
+            t0 = self.trial(base, 0.0, velocities, load_rate, param)
+            t0.values = self.event_values(t0, fscale)
+            g_lo = self._gmax(t0.values)
+        except SlipFailure:
+            g_lo = None
+        if g_lo is not None and g_lo > 0:
+            hi_trial, hi = t0, 0.0
+        else:
+            lo_trial = t0 if g_lo is not None else None
+            g_lo = -1.0 if g_lo is None else g_lo
+            hi, g_hi, hi_trial = h, self._gmax(trial.values), trial
+            side = 0
+            while hi - lo > tol:
+                mid = hi - g_hi * (hi - lo) / (g_hi - g_lo) if g_hi > g_lo else 0.5 * (lo + hi)
+                if not (lo < mid < hi) or (hi - lo) < 1e3 * tol:
+                    mid = 0.5 * (lo + hi)
+                try:
+                    tr = self.trial(base, mid, velocities, load_rate, param)
+                except SlipFailure:
+                    hi, hi_trial = mid, None
+                    g_hi = 1.0
+                    continue
+                tr.values = self.event_values(tr, fscale)
+                g = self._gmax(tr.values)
+                if g > 0:
+                    hi, g_hi, hi_trial = mid, g, tr
+                    if side == 1:
+                        g_lo *= 0.5
+                    side = 1
+                else:
+                    lo, g_lo, lo_trial = mid, g, tr
+                    if side == -1:
+                        g_hi *= 0.5
+                    side = -1
+            if hi_trial is None:
+                try:
+                    hi_trial = self.trial(base, hi, velocities, load_rate, param)
+                    hi_trial.values = self.event_values(hi_trial, fscale)
+                except SlipFailure as exc:
+                    # The slip system loses its root at ``hi`` (a turning point) before any event fired.
+                    return self._turning_point(lo_trial, exc, velocities, phase, load_rate, param)
+        state, events = self._apply(hi_trial, phase)
+        state, more = self.settle(state, velocities, phase=phase, load_rate=load_rate, param=param)
+        return state, events + more
+
+    def _turning_point(self, trial: _Trial | None, exc: Exception, velocities: np.ndarray, phase: str,
+                       load_rate: float, param: str) -> tuple[ContactState, list[ContactEvent]]:
+        """Handle a turning point of the slip system: its root disappears as the parameter grows.
+
+        The sliding set cannot be kept beyond it.  Events that fire at the
+        last solvable state are applied; otherwise the sliding node whose slip
+        rate is lowest (the first to stop, as its rate runs to −∞) sticks
+        (event D).  If every slip rate is positive the sliding runs away —
+        gross slip — and :class:`TrackingError` is raised.
+        """
+        if trial is None:
+            raise TrackingError(f"no quasi-static equilibrium: the slip system has no solution ({exc})")
+        if self._gmax(trial.values) <= 0:
+            rates = np.where(trial.state.sliding, trial.rates, np.inf)
+            j = int(np.argmin(rates))
+            if not (trial.state.sliding.any() and rates[j] < 0):
+                raise TrackingError(
+                    f"no quasi-static equilibrium beyond {param} = {getattr(trial.state, param):.6g}: every slip "
+                    f"rate grows without bound (gross slip); {exc}")
+            vals = {k: (np.full_like(v, -np.inf), i) for k, (v, i) in trial.values.items()}
+            d = vals["D"][0]
+            d[j] = 1.0
+            trial.values = vals
+            log.debug("turning point of the slip system: node %d sticks", trial.state.nodes[j])
+        state, events = self._apply(trial, phase)
+        state, more = self.settle(state, velocities, phase=phase, load_rate=load_rate, param=param)
+        return state, events + more
+
+    def settle(self, state: ContactState, velocities: np.ndarray, *, phase: str, load_rate: float = 0.0,
+               param: str = "squeeze_depth", max_cascade: int = 200,
+               by_amount: bool = False) -> tuple[ContactState, list[ContactEvent]]:
+        """Re-solve at the same parameter after a configuration change; apply cascading events."""
+        events: list[ContactEvent] = []
+        toggles: dict[int, int] = {}
+        for _ in range(max_cascade):
+            try:
+                tr = self.trial(state, 0.0, velocities, load_rate, param)
+            except SlipFailure as exc:
+                raise TrackingError(f"no slip solution after a change of contact configuration: {exc}") from None
+            tr.values = self.event_values(tr, self.force_scale(tr.state), by_amount)
+            if self._gmax(tr.values) <= 0.0:
+                return tr.state, events
+            state, ev = self._apply(tr, phase)
+            events += ev
+            for e in ev:
+                if e.kind in "CD":
+                    toggles[e.node] = toggles.get(e.node, 0) + 1
+                    if toggles[e.node] > 3:
+                        raise TrackingError(
+                            f"friction limit at {param} = {getattr(state, param):.6g}: node {e.node} ({e.contact}) "
+                            "leaves its friction cone when it sticks, yet its slip rate is negative when it "
+                            "slides — no quasi-static stick/slip state exists (the grip is lost)")
+        raise TrackingError(f"contact events keep cascading at {param} = {getattr(state, param):.6g} "
+                            f"({max_cascade} rounds): the configuration chatters")
+
+    def _apply(self, trial: _Trial, phase: str) -> tuple[ContactState, list[ContactEvent]]:
+        """Apply every event that fires at the trial state; return the new (unsettled) state."""
+        st = trial.state
+        vals = trial.values
+        nodes = list(st.nodes)
+        owner = list(st.owner)
+        disp = list(st.disp)
+        sliding = list(st.sliding)
+        slip = list(st.slip)
+        events: list[ContactEvent] = []
+
+        def record(kind: str, node: int, o: int) -> None:
+            events.append(ContactEvent(phase, kind, int(node), OBSTACLES[o], st.squeeze_depth, st.lift_height))
+
+        c_val, _ = vals["C"]
+        d_val, _ = vals["D"]
+        # Stick/slip changes are made one node at a time (the most negative slip rate first, else the
+        # force furthest outside its cone): the sliding set is a complementarity problem, and changing
+        # several coupled nodes at once can cycle.  The cascade of :meth:`settle` makes the others.
+        if (d_val > 0).any():
+            j = int(np.argmax(d_val))
+            sliding[j] = False
+            record("D", st.nodes[j], st.owner[j])
+        elif (c_val > 0).any():
+            j = int(np.argmax(c_val))
+            sliding[j] = True
+            record("C", st.nodes[j], st.owner[j])
+        b_val, _ = vals["B"]
+        remove = set(int(j) for j in np.flatnonzero(b_val > 0))
+        for j in sorted(remove):
+            record("B", st.nodes[j], st.owner[j])
+        a_val, _ = vals["A"]
+        new = np.flatnonzero(a_val > 0)
+        in_contact = set(int(k) for k in st.nodes)
+        added: list[tuple[int, int, np.ndarray]] = []
+        for code in new:
+            s, o = divmod(int(code), 3)
+            k = int(self.surface[s])
+            if k in in_contact:
+                raise TrackingError(f"node {k} touches {OBSTACLES[o]} while in contact with "
+                                    f"{OBSTACLES[owner[nodes.index(k)]]}: pinched nodes are not modelled")
+            if any(k == a[0] for a in added):
+                continue
+            p = st.positions[k]
+            if o == TABLE:
+                q = self.table.project(p[None, :])[0]
+            else:
+                d = p - st.centers[o]
+                q = st.centers[o] + self.radius * d / np.linalg.norm(d)
+            added.append((k, o, q - self.points[k]))
+            record("A", k, o)
+        keep = [j for j in range(len(nodes)) if j not in remove]
+        nodes = [nodes[j] for j in keep] + [a[0] for a in added]
+        owner = [owner[j] for j in keep] + [a[1] for a in added]
+        disp = [disp[j] for j in keep] + [a[2] for a in added]
+        sliding = [sliding[j] for j in keep] + [False] * len(added)
+        slip = [slip[j] for j in keep] + [0.0] * len(added)
+        forces = [st.forces[j] for j in keep] + [np.zeros(3)] * len(added)
+        normals = [st.normals[j] for j in keep] + [np.zeros(3)] * len(added)
+        for ev in events:
+            log.debug("event %s: node %d, %s, ρ = %.6g, lift = %.6g", ev.kind, ev.node, ev.contact,
+                      ev.squeeze_depth, ev.lift_height)
+        try:
+            check_contact_set(self.points, np.asarray(nodes, dtype=np.int64))
+        except CollinearContactError as exc:
+            raise TrackingError(f"the object is no longer held after events "
+                                f"{[(e.kind, e.node, e.contact) for e in events]}: {exc}") from None
+        new_state = replace(st, nodes=np.asarray(nodes, dtype=np.int64), owner=np.asarray(owner, dtype=np.int64),
+                            disp=np.asarray(disp, float).reshape(-1, 3), sliding=np.asarray(sliding, bool),
+                            slip=np.asarray(slip, float), forces=np.asarray(forces, float).reshape(-1, 3),
+                            normals=np.asarray(normals, float).reshape(-1, 3))
+        # Normals of the added contacts (forces are recomputed by the settling solve).
+        own = np.asarray(owner, dtype=np.int64)
+        p_c = self.points[new_state.nodes] + new_state.disp
+        new_state = replace(new_state, normals=self.normals(own, p_c, st.centers))
+        return new_state, events
+
+
+def run(tracker: Tracker, state: ContactState, velocities: np.ndarray, *, stop: float, step: float,
+        param: str = "squeeze_depth", phase: str | None = None,
+        after_step: Callable[[ContactState, list[ContactEvent]], bool] | None = None,
+        on_event: Callable[[ContactState, list[ContactEvent]], None] | None = None,
+        max_events: int = 5000) -> tuple[ContactState, list[ContactEvent], bool]:
+    """Advance ``state`` until the parameter reaches ``stop`` or ``after_step`` returns True.
+
+    ``after_step(state, events)`` is called after every increment (events of
+    that increment, possibly none); ``on_event`` after every event.  Returns
+    the final state, all events and whether ``after_step`` stopped the run.
+    """
+    events: list[ContactEvent] = []
+    n_events = 0
+    while getattr(state, param) < stop - 1e-15 * max(1.0, abs(stop)):
+        dt = min(step, stop - getattr(state, param))
+        state, ev = tracker.advance(state, dt, velocities, param=param, phase=phase)
+        if ev:
+            events += ev
+            n_events += 1
+            if on_event is not None:
+                on_event(state, ev)
+            if n_events > max_events:
+                raise TrackingError(f"more than {max_events} events: the tracking is not progressing")
+        if after_step is not None and after_step(state, ev):
+            return state, events, True
+    return state, events, False
+
+
+def sequence_nodes(state: ContactState, owner: int) -> Sequence[int]:
+    """Mesh indices of the contacts on one obstacle."""
+    return [int(k) for k in state.nodes[state.owner == owner]]
