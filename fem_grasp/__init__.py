@@ -38,3 +38,12 @@ __all__ = [
     "solve_contact",
 ]
 __version__ = "0.1.0"
+
+# Algorithm 1 (issue #5): force closure, squeeze, lift test, lift, pickup, rigid comparison.
+from .closure import ClosureResult, force_closure  # noqa: E402
+from .pickup import PickupResult, Snapshot, pickup  # noqa: E402
+from .rigid import RigidGrasp, rigid_grasp  # noqa: E402
+from .tracking import ContactEvent, ContactState, TrackingError  # noqa: E402
+
+__all__ += ["ClosureResult", "ContactEvent", "ContactState", "PickupResult", "RigidGrasp", "Snapshot",
+            "TrackingError", "force_closure", "pickup", "rigid_grasp"]

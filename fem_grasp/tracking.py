@@ -57,12 +57,14 @@ Modelling choices (the paper is silent or vague here)
 Tolerances
 ----------
 With F_s = mg + max |f_k| (the force scale of the state) and L the mesh
-diameter, an event fires when a free node is deeper than ``1e-14 L``
+diameter, an event fires when a free node is deeper than ``1e-10 L``
 (A), a normal force is below ``−1e-11 F_s`` (B), a sticking contact has
 ``|f_t| − μ f·n̂ > 1e-9 f·n̂ + 1e-7 F_s`` (C; contacts carrying almost no
 force are exempt), or a slip rate is below −1e-9 (D).  A sliding contact whose normal force
-falls below the force floor ``1e-7 F_s`` also sticks (recorded as D): near
-the apex of its cone its slip is not resolved by double precision.  Event
+falls below a tenth of the force floor, ``1e-8 F_s``, also sticks (recorded
+as D): near the apex of its cone its slip is poorly resolved (the factor ten
+is a hysteresis that keeps a lightly loaded node from chattering between C
+and D).  Event
 parameters are located to ``1e-13 L`` in t.
 """
 
@@ -91,7 +93,7 @@ FINGER1, FINGER2, TABLE = 0, 1, 2
 OBSTACLES = ("finger1", "finger2", "table")
 
 #: Event thresholds (see module notes).
-TOL_PENETRATION = 1e-14  # × diameter
+TOL_PENETRATION = 1e-10  # × diameter
 TOL_TENSILE = 1e-11  # × force scale
 TOL_CONE = 1e-9  # × f·n̂
 TOL_FORCE_FLOOR = 1e-7  # × force scale: contacts carrying less are 'just touching'
@@ -448,7 +450,7 @@ class MixedSlipSystem:
         return bool(np.all((fn <= 0) | (along >= -1e-6 * np.linalg.norm(ft, axis=1))))
 
     @np.errstate(over="ignore", invalid="ignore")
-    def _newton(self, fun: Callable, jac: Callable, y: np.ndarray, tol: float, max_iter: int = 60) -> np.ndarray | None:
+    def _newton(self, fun: Callable, jac: Callable, y: np.ndarray, tol: float, max_iter: int = 40) -> np.ndarray | None:
         """Damped Newton's method (backtracking on ‖P‖).
 
         Converged when every row |P_j| ≤ max(tol, noise_j) (rows of lightly
@@ -458,18 +460,25 @@ class MixedSlipSystem:
         y = y.copy()
         lim = np.maximum(tol, self.row_noise)
         r = fun(y)
+        best, since = np.inf, 0
         for _ in range(max_iter):
             if not np.isfinite(r).all():
                 return None
             if np.all(np.abs(r) <= lim):
                 return y
+            norm = float(np.linalg.norm(r))
+            if norm < 0.9 * best:
+                best, since = norm, 0
+            else:
+                since += 1
+                if since >= 6:  # no progress: no root near here (fail fast, the caller falls back)
+                    break
             try:
                 step = np.linalg.solve(jac(y), -r)
                 if not np.isfinite(step).all():
                     return None
             except np.linalg.LinAlgError:
                 return None
-            norm = float(np.linalg.norm(r))
             lam = 1.0
             for _ in range(12):
                 y_new = y + lam * step
@@ -753,7 +762,7 @@ class Tracker:
         c_val = np.where(st.sliding, -np.inf, (ft - mu * fn - TOL_CONE * np.maximum(fn, 0.0)) / fscale
                          - TOL_FORCE_FLOOR)
         slip_test = -trial.amounts / self.diameter - 1e-12 if by_amount else -trial.rates - TOL_RATE
-        d_val = np.where(st.sliding, np.maximum(slip_test, TOL_FORCE_FLOOR - fn / fscale), -np.inf)
+        d_val = np.where(st.sliding, np.maximum(slip_test, 0.1 * TOL_FORCE_FLOOR - fn / fscale), -np.inf)
         del pos
         ids = np.arange(st.n_contacts)
         return {"A": (a_val, a_ids), "B": (b_val, ids), "C": (c_val, ids), "D": (d_val, ids)}
@@ -846,28 +855,35 @@ class Tracker:
         """Handle a turning point of the slip system: its root disappears as the parameter grows.
 
         The sliding set cannot be kept beyond it.  Events that fire at the
-        last solvable state are applied; otherwise the sliding node whose slip
-        rate is lowest (the first to stop, as its rate runs to −∞) sticks
-        (event D).  If every slip rate is positive the sliding runs away —
-        gross slip — and :class:`TrackingError` is raised.
+        last solvable state are applied.  Otherwise one sliding node must
+        stick (event D): the candidates are tried in order of increasing slip
+        rate, and the first whose sticking lets the parameter advance again
+        is taken.  If none does, the sliding runs away — gross slip — and
+        :class:`TrackingError` is raised.
         """
         if trial is None:
             raise TrackingError(f"no quasi-static equilibrium: the slip system has no solution ({exc})")
-        if self._gmax(trial.values) <= 0:
-            rates = np.where(trial.state.sliding, trial.rates, np.inf)
-            j = int(np.argmin(rates))
-            if not (trial.state.sliding.any() and rates[j] < 0):
-                raise TrackingError(
-                    f"no quasi-static equilibrium beyond {param} = {getattr(trial.state, param):.6g}: every slip "
-                    f"rate grows without bound (gross slip); {exc}")
+        if self._gmax(trial.values) > 0:
+            state, events = self._apply(trial, phase)
+            state, more = self.settle(state, velocities, phase=phase, load_rate=load_rate, param=param)
+            return state, events + more
+        st = trial.state
+        rates = np.where(st.sliding, trial.rates, np.inf)
+        probe = max(1e-6 * self.diameter, 1e-3 * abs(getattr(st, param)))
+        for j in np.argsort(rates)[: int(st.sliding.sum())]:
             vals = {k: (np.full_like(v, -np.inf), i) for k, (v, i) in trial.values.items()}
-            d = vals["D"][0]
-            d[j] = 1.0
-            trial.values = vals
-            log.debug("turning point of the slip system: node %d sticks", trial.state.nodes[j])
-        state, events = self._apply(trial, phase)
-        state, more = self.settle(state, velocities, phase=phase, load_rate=load_rate, param=param)
-        return state, events + more
+            vals["D"][0][j] = 1.0
+            cand = _Trial(st, trial.amounts, trial.rates, vals)
+            try:
+                state, events = self._apply(cand, phase)
+                state, more = self.settle(state, velocities, phase=phase, load_rate=load_rate, param=param)
+                self.trial(state, probe, velocities, load_rate, param)
+            except (TrackingError, SlipFailure):
+                continue
+            log.debug("turning point of the slip system: node %d sticks", st.nodes[j])
+            return state, events + more
+        raise TrackingError(f"no quasi-static equilibrium beyond {param} = {getattr(st, param):.6g}: the sliding "
+                            f"runs away whichever sliding node sticks (gross slip); {exc}")
 
     def settle(self, state: ContactState, velocities: np.ndarray, *, phase: str, load_rate: float = 0.0,
                param: str = "squeeze_depth", max_cascade: int = 200,

@@ -1,0 +1,253 @@
+"""Algorithm 1 end to end: squeeze, lift test and lift (paper §III-B, §III-C).
+
+The scenarios use a 3×4×3 cm box on a 3×3×3 grid (64 nodes) squeezed by 2 cm
+fingertips at the centres of its y-faces: small enough for a full pickup in a
+few seconds, with every kind of event.  Every scenario's result is checked
+(:meth:`PickupResult.check`), failures included.
+"""
+
+import json
+
+import numpy as np
+import pytest
+
+from fem_grasp import Body, box_mesh
+from fem_grasp.fingertip import Fingertip
+from fem_grasp.lift_test import hang, hanging_state
+from fem_grasp.pickup import PickupResult, pickup
+from fem_grasp.rest import rest
+from fem_grasp.tracking import FINGER1, TABLE, MixedSlipSystem, Tracker
+
+RADIUS = 0.02
+WEIGHT = 0.3
+
+
+def _box(young=2e4):
+    return Body(box_mesh((-0.015, -0.02, 0.0), (0.015, 0.02, 0.03), (3, 3, 3)), young, 0.3, weight=WEIGHT)
+
+
+def _face_centres(rest_state):
+    p = rest_state.body.mesh.points
+    c = rest_state.body.center_of_mass
+
+    def node(q):
+        return int(np.argmin(np.linalg.norm(p - q, axis=1)))
+
+    return node(c + [0, -0.02, 0]), node(c + [0, 0.02, 0])
+
+
+def _pickup(mu_finger, mu_table=None, backend="sparse", **kw) -> PickupResult:
+    body = _box()
+    rs = rest(body, mu_finger if mu_table is None else mu_table, backend=backend)
+    return pickup(body, mu_finger=mu_finger, mu_table=mu_table, contacts=_face_centres(rs), rest_state=rs,
+                  finger_radius=RADIUS, backend=backend, **kw)
+
+
+@pytest.fixture(scope="module")
+def lifted() -> PickupResult:
+    return _pickup(0.5)
+
+
+@pytest.fixture(scope="module")
+def lifted_spectral() -> PickupResult:
+    return _pickup(0.5, backend="spectral")
+
+
+# ------------------------------------------------------------ the success
+def test_box_is_picked_up_and_every_snapshot_obeys_the_contact_laws(lifted):
+    assert lifted.success, lifted.reason
+    figures = lifted.check()  # raises on any violation
+    assert len(figures) == len(lifted.snapshots) >= 10
+    assert max(f["force_residual"] for f in figures) < 1e-9
+    assert max(f["torque_residual"] for f in figures) < 1e-9
+    # Lift-off: no table contact left, the fingers carry the weight.
+    final = lifted.final
+    assert final.label == "lift-off" and len(final.contact_nodes["table"]) == 0
+    np.testing.assert_allclose(final.all_forces.sum(axis=0), [0, 0, WEIGHT], atol=1e-9 * WEIGHT)
+    assert lifted.finger_normal_force > 0 and lifted.n_final_contacts >= 3
+
+
+def test_every_event_type_occurs_and_events_are_ordered(lifted):
+    counts = lifted.event_counts()
+    assert all(counts[k] > 0 for k in "ABCD"), counts
+    squeeze = [e for e in lifted.events if e.phase == "squeeze"]
+    lift = [e for e in lifted.events if e.phase == "lift"]
+    assert squeeze and lift and lifted.events == squeeze + lift
+    assert np.all(np.diff([e.squeeze_depth for e in squeeze]) >= 0)
+    assert np.all(np.diff([e.lift_height for e in lift]) >= 0)
+    assert all(e.lift_height == 0 for e in squeeze)
+    assert all(e.squeeze_depth == pytest.approx(lifted.squeeze_depth) for e in lift)
+    # Table contacts break during the lift (event B), fingers establish contacts during the squeeze (A).
+    assert any(e.kind == "B" and e.contact == "table" for e in lift)
+    assert any(e.kind == "A" and e.contact.startswith("finger") for e in squeeze)
+
+
+def test_liftable_weight_reaches_the_weight_when_the_lift_starts(lifted):
+    rho, w = np.array(lifted.liftable).T
+    assert np.all(np.diff(rho) > 0)
+    assert w[-1] >= WEIGHT and np.all(w[:-1] < WEIGHT)
+    assert rho[-1] == pytest.approx(lifted.squeeze_depth)
+    # The tests use steps h = mg/20 from the previous value (§III-B).
+    np.testing.assert_allclose(w / (WEIGHT / 20), np.round(w / (WEIGHT / 20)), atol=1e-9)
+
+
+def test_snapshots_report_the_scene(lifted):
+    n = lifted.body.n_nodes
+    for s in lifted.snapshots:
+        assert s.positions.shape == (n, 3) and s.finger_centers.shape == (2, 3)
+        assert s.finger_radius == RADIUS
+        assert set(s.contact_nodes) == {"finger1", "finger2", "table"}
+        for k in s.contact_nodes:
+            assert s.contact_forces[k].shape == (len(s.contact_nodes[k]), 3)
+            assert s.sliding[k].shape == (len(s.contact_nodes[k]),)
+    # Finger 1 moved by ρ d̂1 during the squeeze and by the lift height upward.
+    first, last = lifted.snapshots[0], lifted.final
+    d1 = lifted.directions[0]
+    expected = first.finger_centers[0] + lifted.squeeze_depth * d1 + [0, 0, last.lift_height]
+    np.testing.assert_allclose(last.finger_centers[0], expected, atol=1e-12)
+    assert set(lifted.timings) >= {"rest", "closure", "squeeze", "lift_test", "lift", "total"}
+
+
+def test_result_to_json(lifted, tmp_path):
+    path = tmp_path / "pickup.json"
+    text = lifted.to_json(path)
+    data = json.loads(path.read_text())
+    assert data == json.loads(text)
+    assert data["success"] is True and len(data["snapshots"]) == len(lifted.snapshots)
+    assert data["final"]["contact_nodes"]["table"] == []
+    assert data["event_counts"] == lifted.event_counts()
+    assert np.asarray(data["snapshots"][0]["positions"]).shape == (lifted.body.n_nodes, 3)
+
+
+def test_rigid_comparison_is_reported(lifted):
+    # Table III: the rigid body with the same shape and contacts, two frictional point contacts.
+    assert lifted.rigid.feasible
+    assert lifted.rigid.total_normal_force == pytest.approx(WEIGHT / 0.5, rel=0.05)  # flat faces: mg/μ
+
+
+def test_sparse_and_spectral_backends_agree_on_a_full_pickup(lifted, lifted_spectral):
+    a, b = lifted, lifted_spectral
+    assert b.success and b.check()
+    assert [(e.kind, e.node, e.contact) for e in a.events] == [(e.kind, e.node, e.contact) for e in b.events]
+    assert a.squeeze_depth == pytest.approx(b.squeeze_depth, rel=1e-9)
+    np.testing.assert_allclose(a.final.all_forces, b.final.all_forces, atol=1e-8 * WEIGHT)
+    np.testing.assert_allclose(a.final.positions, b.final.positions, atol=1e-10)
+
+
+# ------------------------------------------------------------- the failures
+def test_too_little_friction_fails_by_slip_on_a_finger():
+    res = _pickup(0.2)
+    assert not res.success
+    assert "slides" in res.reason
+    res.check()
+    assert len(res.snapshots) > 1
+
+
+def test_bad_placement_fails_by_force_closure():
+    res = _pickup(0.5, mu_table=0.0)  # a frictionless table cannot twist the box about the finger axis
+    assert not res.success and "force closure" in res.reason
+    assert res.closure is not None and not res.closure.closed
+    assert res.snapshots == [] and res.events == []
+    res.check()
+    # Both fingers on the same face: not force closure either.
+    body = _box()
+    rs = rest(body, 0.5)
+    i, _ = _face_centres(rs)
+    p = rs.body.mesh.points
+    same = int(np.argmin(np.linalg.norm(p - (p[i] + [0.01, 0, 0]), axis=1)))
+    res = pickup(body, mu_finger=0.5, contacts=(i, same), rest_state=rs, finger_radius=RADIUS)
+    assert not res.success and "force closure" in res.reason
+    res.check()
+
+
+def test_squeeze_depth_limit_is_a_failure():
+    res = _pickup(0.5, max_squeeze=0.002)
+    assert not res.success and "maximum squeeze depth" in res.reason
+    assert res.squeeze_depth == pytest.approx(0.002)
+    res.check()
+
+
+# --------------------------------------------------------- the lift test
+def test_lift_test_holds_light_weights_and_not_heavy_ones(lifted):
+    body = lifted.body
+    tracker = Tracker(body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=None)
+    squeeze = Tracker(body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=lifted.table)
+    s = next(s for s in lifted.snapshots if s.label == "lift start")  # the state when the lift starts
+    nodes, owner, disp = [], [], []
+    for code, name in enumerate(("finger1", "finger2", "table")):
+        nodes += list(s.contact_nodes[name])
+        owner += [code] * len(s.contact_nodes[name])
+        disp += list(s.positions[s.contact_nodes[name]] - body.mesh.points[s.contact_nodes[name]])
+    sliding = np.concatenate([s.sliding[k] for k in ("finger1", "finger2", "table")])
+    state = squeeze.make_state(phase="squeeze", squeeze_depth=s.squeeze_depth, lift_height=0.0, load=1.0,
+                               centers=s.finger_centers, nodes=np.array(nodes), owner=np.array(owner),
+                               disp=np.array(disp), sliding=sliding)
+    state = squeeze.settle(state, np.zeros((2, 3)), phase="squeeze")[0]
+    base = hanging_state(tracker, state)
+    assert base.held and not (base.state.owner == TABLE).any()
+    np.testing.assert_allclose(base.state.forces.sum(axis=0), 0, atol=1e-12)  # no weight yet
+    light = hang(tracker, base.state, WEIGHT)
+    assert light.held
+    np.testing.assert_allclose(light.state.forces.sum(axis=0), [0, 0, WEIGHT], atol=1e-10)
+    heavy = hang(tracker, base.state, 100 * WEIGHT)
+    assert not heavy.held and heavy.reason
+
+
+# ------------------------------------------------------- slip system units
+def _fd(fun, x, h=1e-7):
+    cols = []
+    for j in range(len(x)):
+        e = np.zeros_like(x)
+        e[j] = h
+        cols.append((fun(x + e) - fun(x - e)) / (2 * h))
+    return np.stack(cols, axis=1)
+
+
+@pytest.mark.parametrize("free", [False, True])
+def test_slip_system_jacobian_matches_finite_differences(rng, free):
+    m = 4
+    a = rng.normal(size=(3 * m, 3 * m))
+    c = 100.0 * (a @ a.T / (3 * m) + np.eye(3 * m))
+    fh = rng.normal(size=(m, 3)) + [0, 0, 3.0]
+    df = rng.normal(size=(m, 3))
+    radius = 0.01
+    tip = Fingertip(np.zeros(3), radius)
+    r = tip.project(rng.normal(size=(1, 3)))[0]
+    n = r / radius
+    ft = fh[1] - (fh[1] @ n) * n
+    t_hat = np.array([[1.0, 0.0, 0.0], ft / np.linalg.norm(ft)])
+    system = MixedSlipSystem(c, fh, df, np.array([0, 1]), np.array([TABLE, FINGER1]), np.array([0.4, 0.3]),
+                             t_hat, np.stack([np.zeros(3), r]), np.array([0.0, 0.0, 1.0]), radius, free)
+    x = system.x0 + 1e-3 * rng.normal(size=system.n)
+    np.testing.assert_allclose(system.jacobian(x), _fd(system.residual, x, 1e-8), rtol=1e-5, atol=1e-6)
+    # The rate of the residual at fixed x: the held forces move at ``df``.
+    shifted = MixedSlipSystem(c, fh + 1e-6 * df, df, np.array([0, 1]), np.array([TABLE, FINGER1]),
+                              np.array([0.4, 0.3]), t_hat, np.stack([np.zeros(3), r]), np.array([0.0, 0.0, 1.0]),
+                              radius, free)
+    np.testing.assert_allclose((shifted.residual(x) - system.residual(x)) / 1e-6, system.residual_rate(x),
+                               rtol=1e-5, atol=1e-6)
+
+
+def test_fingertip_slip_lands_on_the_cone_and_the_sphere(rng):
+    m = 3
+    a = rng.normal(size=(3 * m, 3 * m))
+    c = 100.0 * (a @ a.T / (3 * m) + np.eye(3 * m))
+    radius = 0.01
+    r = np.array([0.0, -radius, 0.0])  # node on the sphere, inward normal −y... pointing from O to the node
+    n = r / radius
+    fh = np.zeros((m, 3))
+    fh[0] = 1.0 * n + 0.6 * np.array([0.0, 0.0, 1.0])  # outside a μ = 0.3 cone
+    fh[1:] = [0, 0, 1.0]
+    df = np.zeros((m, 3))
+    t = np.array([0.0, 0.0, 1.0])
+    system = MixedSlipSystem(c, fh, df, np.array([0]), np.array([FINGER1]), np.array([0.3]), t[None, :],
+                             r[None, :], np.array([0.0, 0.0, 1.0]), radius)
+    x = system.solve()
+    q_rel = r + system.slips(x)[0]
+    assert np.linalg.norm(q_rel) == pytest.approx(radius, rel=1e-12)  # eq. (8): on the sphere
+    f = system.forces(x)[0]
+    nq = q_rel / radius
+    fn = f @ nq
+    assert np.linalg.norm(f - fn * nq) == pytest.approx(0.3 * fn, rel=1e-9)  # eq. (7): on the cone
+    assert system.amounts(x)[0] > 0  # it slid against its friction (θ < 0)
+    assert (q_rel - r) @ t < 0  # opposite to the tangential force
