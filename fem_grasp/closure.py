@@ -44,6 +44,7 @@ from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, QhullError
 
 from .geometry import tangent_basis
+from .mesh import vertex_normals
 
 __all__ = ["ClosureResult", "cone_generators", "contact_wrenches", "force_closure", "surface_normals_at",
            "placement_closure"]
@@ -198,14 +199,7 @@ def surface_normals_at(mesh, positions: np.ndarray) -> np.ndarray:
 
     Zero for interior nodes.
     """
-    f = mesh.surface_faces
-    p = np.asarray(positions, dtype=float)
-    area_normals = 0.5 * np.cross(p[f[:, 1]] - p[f[:, 0]], p[f[:, 2]] - p[f[:, 0]])
-    nodal = np.zeros_like(p)
-    for k in range(3):
-        np.add.at(nodal, f[:, k], area_normals)
-    norm = np.linalg.norm(nodal, axis=1, keepdims=True)
-    return np.divide(nodal, norm, out=np.zeros_like(nodal), where=norm > 0)
+    return vertex_normals(positions, mesh.surface_faces)
 
 
 def placement_closure(body, positions: np.ndarray, finger_nodes: tuple[int, int], support_triangle: np.ndarray,

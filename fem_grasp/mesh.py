@@ -90,6 +90,17 @@ def _validate(points: Any, tets: Any) -> tuple[np.ndarray, np.ndarray, int]:
     return points, tets, n_neg
 
 
+def vertex_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
+    """(n, 3) area-weighted unit normals at the vertices of triangles ``faces``; zero off the faces."""
+    p = np.asarray(points, dtype=float)
+    area_normals = 0.5 * np.cross(p[faces[:, 1]] - p[faces[:, 0]], p[faces[:, 2]] - p[faces[:, 0]])
+    nodal = np.zeros_like(p)
+    for k in range(3):
+        np.add.at(nodal, faces[:, k], area_normals)
+    norm = np.linalg.norm(nodal, axis=1, keepdims=True)
+    return np.divide(nodal, norm, out=np.zeros_like(nodal), where=norm > 0)
+
+
 # Faces of a tetrahedron (v0,v1,v2,v3) ordered so their normals point outward
 # for a positively oriented tetrahedron.
 _TET_FACES = np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]])
@@ -166,14 +177,7 @@ class TetMesh:
     @cached_property
     def surface_normals(self) -> np.ndarray:
         """(n, 3) outward unit normal at each vertex (area-weighted; zero off the surface)."""
-        f = self.surface_faces
-        p = self.points
-        area_normals = 0.5 * np.cross(p[f[:, 1]] - p[f[:, 0]], p[f[:, 2]] - p[f[:, 0]])
-        nodal = np.zeros_like(p)
-        for k in range(3):
-            np.add.at(nodal, f[:, k], area_normals)
-        norm = np.linalg.norm(nodal, axis=1, keepdims=True)
-        return np.divide(nodal, norm, out=np.zeros_like(nodal), where=norm > 0)
+        return vertex_normals(self.points, self.surface_faces)
 
     @property
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
