@@ -54,5 +54,10 @@ spectral-vs-sparse: setup
 rest-table: setup
 	$(PY) scripts/rest_table.py
 
+.PHONY: paper
+# Our figures beside the paper's Tables II and III (python -m fem_grasp.paper; several minutes).
+paper: setup
+	$(PY) -m fem_grasp.paper
+
 clean-venv:
 	rm -rf $(VENV) $(STAMPS)

@@ -33,7 +33,9 @@ Default scene (the paper's §IV, where it is silent our choice)
   between 0.1 % and 2 % of the maximum depth (the contact patch grows with
   the geometry, whatever E);
 * lift-test step h = mg/20; lift increment equal to the squeeze increment,
-  maximum lift height equal to the maximum squeeze depth.
+  maximum lift height equal to the object's height (a soft object stays on
+  the table while its contacts with the fingers stretch: at E = 1e4 Pa the
+  paper's objects need centimetres of lift to let go).
 
 Checks (:meth:`Snapshot.check`)
 -------------------------------
@@ -410,7 +412,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
            directions: tuple[np.ndarray, np.ndarray] = PAPER_SQUEEZE_DIRECTIONS, ratio: float = 1.0,
            max_squeeze: float | None = None, step: float | None = None, backend: str = "sparse",
            rest_state: RestState | None = None, lift_test_step: float | None = None,
-           max_lift: float | None = None) -> PickupResult:
+           max_lift: float | None = None, lift: bool = True) -> PickupResult:
     """Run Algorithm 1: will two hemispherical fingers pick ``body`` up from the table?
 
     Parameters
@@ -427,7 +429,9 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
     backend : "sparse" or "spectral" (:class:`~fem_grasp.response.ContactResponse`)
     rest_state : a resting state of ``body`` computed before (skips step 2)
     lift_test_step : h of the lift test, newtons (default mg/20)
-    max_lift : maximum lift height, metres
+    max_lift : maximum lift height, metres (default: the object's height)
+    lift : run step 5; with False the run stops when the lift test passes
+        (``success`` stays False and ``reason`` says the lift was not run)
 
     Returns
     -------
@@ -523,7 +527,15 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
     # Step 5: lift.
     t0 = time.perf_counter()
     snap(sq.state, "lift start")
-    lf = run_lift(tracker, sq.state, max_height=max_squeeze if max_lift is None else max_lift, step=step,
+    if not lift:
+        result.reason = "the lift test passed; the lift was not run (lift=False)"
+        result.final = result.snapshots[-1]
+        result.finger_normal_force = result.final.finger_normal_force(table)
+        timings["total"] = time.perf_counter() - t_start
+        return result
+    if max_lift is None:
+        max_lift = float(np.ptp(rs.positions[:, 2]))
+    lf = run_lift(tracker, sq.state, max_height=max_lift, step=step,
                   on_event=lambda st, ev: snap(st, "event", ev))
     timings["lift"] = time.perf_counter() - t0
     result.events.extend(lf.events)

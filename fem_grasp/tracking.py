@@ -588,6 +588,8 @@ class Tracker:
         self._responses: dict[tuple[int, ...], ContactResponse] = {}
         self._zero_fields: dict[tuple[int, ...], np.ndarray] = {}
         self.solves = 0
+        #: Slip forms tried in order: False = great circle (the paper's), True = free direction.
+        self.forms: tuple[bool, ...] = (False, True)
 
     # ------------------------------------------------------------ responses
     def response(self, nodes: np.ndarray) -> ContactResponse:
@@ -691,7 +693,7 @@ class Tracker:
         # Great-circle form (the paper's) first, the free-direction form if it has no root; Newton on
         # both before the (costlier) homotopy continuation on both.
         for method in ("newton", "homotopy"):
-            for free in (False, True):
+            for free in self.forms:
                 if free not in systems:
                     systems[free] = MixedSlipSystem(c, fh, dfh, sl, kinds, self.mu[kinds], t_hat, r, self.up,
                                                     self.radius, free)
@@ -1003,12 +1005,27 @@ def run(tracker: Tracker, state: ContactState, velocities: np.ndarray, *, stop: 
     """
     events: list[ContactEvent] = []
     n_events = 0
+    toggles: dict[int, list[float]] = {}
+    window = 1e-6 * tracker.diameter
     while getattr(state, param) < stop - 1e-15 * max(1.0, abs(stop)):
         dt = min(step, stop - getattr(state, param))
         state, ev = tracker.advance(state, dt, velocities, param=param, phase=phase)
         if ev:
             events += ev
             n_events += 1
+            # A node switching between stick and slip again and again with no progress in the parameter
+            # has no consistent quasi-static state (sticking, its force leaves the cone; sliding, its slip
+            # rate is negative): friction cannot hold the configuration.
+            now = getattr(state, param)
+            for e in ev:
+                if e.kind in "CD":
+                    hist = [t for t in toggles.get(e.node, []) if now - t <= window] + [now]
+                    toggles[e.node] = hist
+                    if len(hist) > 8:
+                        raise TrackingError(
+                            f"friction limit at {param} = {now:.6g}: node {e.node} ({e.contact}) switches between "
+                            "stick and slip without progress — sticking, its force leaves the cone; sliding, its "
+                            "slip rate is negative — so no quasi-static stick/slip state exists")
             if on_event is not None:
                 on_event(state, ev)
             if n_events > max_events:
