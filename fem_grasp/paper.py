@@ -34,7 +34,6 @@ from typing import Any, Sequence
 
 from . import objects
 from .pickup import PickupResult, pickup
-from .rest import rest
 
 __all__ = ["effective_modulus", "format_tables", "main", "run_object"]
 

@@ -73,7 +73,7 @@ from .response import equilibrium_residual
 from .rest import RestState, rest
 from .rigid import RigidGrasp, rigid_grasp
 from .squeeze import initial_state, squeeze
-from .tracking import FINGER1, FINGER2, OBSTACLES, TABLE, ContactEvent, ContactState, Tracker, TrackingError
+from .tracking import FINGER1, FINGER2, OBSTACLES, ContactEvent, ContactState, Tracker, TrackingError
 
 __all__ = ["DEFAULT_FRICTION", "PickupCheckError", "PickupResult", "Snapshot", "default_finger_contacts",
            "pickup"]

@@ -28,7 +28,7 @@ import numpy as np
 from .closure import surface_normals_at
 from .lift_test import LiftTest
 from .rest import RestState
-from .tracking import FINGER1, FINGER2, TABLE, ContactEvent, ContactState, Tracker, TrackingError
+from .tracking import FINGER1, FINGER2, TABLE, ContactEvent, ContactState, Tracker, TrackingError, run
 
 __all__ = ["SqueezeOutcome", "initial_state", "squeeze"]
 
@@ -122,8 +122,6 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
     def after(st: ContactState, events: list[ContactEvent]) -> bool:
         last[0] = st
         return after_step(st, events)
-
-    from .tracking import run
 
     try:
         final, _, stopped = run(tracker, state, velocities, stop=max_squeeze, step=step, param="squeeze_depth",

@@ -750,7 +750,6 @@ class Tracker:
         """
         st = trial.state
         gaps = self.obstacle_gaps(st.positions, st.centers)
-        pos = {int(k): j for j, k in enumerate(st.nodes)}
         for k, o in zip(st.nodes, st.owner):
             s = int(np.searchsorted(self.surface, k))
             if s < len(self.surface) and self.surface[s] == k:
@@ -765,7 +764,6 @@ class Tracker:
                          - TOL_FORCE_FLOOR)
         slip_test = -trial.amounts / self.diameter - 1e-12 if by_amount else -trial.rates - TOL_RATE
         d_val = np.where(st.sliding, np.maximum(slip_test, 0.1 * TOL_FORCE_FLOOR - fn / fscale), -np.inf)
-        del pos
         ids = np.arange(st.n_contacts)
         return {"A": (a_val, a_ids), "B": (b_val, ids), "C": (c_val, ids), "D": (d_val, ids)}
 
@@ -1034,7 +1032,3 @@ def run(tracker: Tracker, state: ContactState, velocities: np.ndarray, *, stop: 
             return state, events, True
     return state, events, False
 
-
-def sequence_nodes(state: ContactState, owner: int) -> Sequence[int]:
-    """Mesh indices of the contacts on one obstacle."""
-    return [int(k) for k in state.nodes[state.owner == owner]]

@@ -262,3 +262,25 @@ def test_paper_tables_format():
     text = paper.format_tables([{"name": "tomato", "table_one": bad, "effective": ok}])
     assert "| tomato | (11, 18, 1.86) | fails (every contact of finger 1 slides) | (11, 17.5, 3.2) | 1e+04 |" in text
     assert "| tomato | 2.68 | 2.96 | 2.5 | 2.9 |" in text
+
+
+@pytest.mark.parametrize("free", [False, True])
+def test_slip_rates_of_event_d_match_finite_differences(free):
+    # Event D watches d(slip)/dρ from the implicit-function theorem; compare with the slips themselves.
+    from fem_grasp.placement import PAPER_SQUEEZE_DIRECTIONS
+    from fem_grasp.squeeze import initial_state
+    from fem_grasp.tracking import run
+
+    body = _box()
+    rs = rest(body, 0.5)
+    tracker = Tracker(rs.body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)
+    vel = np.stack(PAPER_SQUEEZE_DIRECTIONS)
+    state, _ = tracker.settle(initial_state(tracker, rs, _face_centres(rs)), vel, phase="squeeze")
+    state, _, _ = run(tracker, state, vel, stop=0.003, step=1e-4)
+    assert state.sliding.sum() >= 3
+    tracker.forms = (free,)
+    t0 = tracker.trial(state, 0.0, vel)
+    t1 = tracker.trial(state, 1e-8, vel)
+    sl = state.sliding
+    np.testing.assert_allclose((t1.amounts - t0.amounts)[sl] / 1e-8, t0.rates[sl], rtol=0,
+                               atol=1e-4 * np.abs(t0.rates[sl]).max())
