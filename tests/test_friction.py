@@ -2,7 +2,7 @@
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from fem_grasp import Body, box_mesh, friction
@@ -42,6 +42,7 @@ def test_cone_quantities_by_hand():
 
 
 @settings(max_examples=60, deadline=None)
+@example([0.0, 0.0, 7.3], 2.7e-9, [0.0, 0.0, 1.0])  # once flaky: force on the normal, μ ~ 1e-9
 @given(st.lists(st.floats(-10, 10), min_size=3, max_size=3), st.floats(0, 3),
        st.lists(st.floats(-1, 1), min_size=3, max_size=3).filter(lambda v: np.linalg.norm(v) > 0.1))
 def test_cone_residual_and_violation_agree(force, mu, normal):
@@ -53,7 +54,8 @@ def test_cone_residual_and_violation_agree(force, mu, normal):
     # Eq. (6) rewritten: (1+μ²)(f·n)² − f·f = μ²(f·n)² − |f_t|².
     ft = np.linalg.norm(friction.tangential_component(f, n))
     assert res == pytest.approx(mu**2 * fn**2 - ft**2, abs=1e-9 * (1 + f @ f))
-    if fn > 0 and abs(viol) > 1e-9 * (1 + abs(fn)):
+    # res = (1+μ²)(f·n)² − f·f cancels to round-off ~ε f·f; compare signs only above it.
+    if fn > 0 and abs(viol) > 1e-9 * (1 + abs(fn)) and abs(res) > 1e-12 * (1 + f @ f):
         assert (viol < 0) == (res > 0)
         assert bool(friction.in_cone(f, n, mu)) == (viol < 0)
 
