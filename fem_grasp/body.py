@@ -10,6 +10,7 @@ import scipy.sparse as sp
 
 from . import fem
 from .mesh import TetMesh
+from .validation import MaterialError, check_material, check_positive
 
 if TYPE_CHECKING:
     from .compliance import Compliance
@@ -34,7 +35,15 @@ class Body:
     density : float, optional
         Mass density in kg/m³.
     gravity : float
-        Gravitational acceleration g in m/s² (the paper uses 9.8).
+        Gravitational acceleration g in m/s² (the paper uses 9.8).  Gravity
+        always acts along −z.
+
+    Raises
+    ------
+    MaterialError
+        (a ``ValueError``) for E ≤ 0, ν ∉ (−1, ½), a weight, density or g
+        that is not a positive finite number, non-numbers, or both/neither
+        of weight and density.
 
     Notes
     -----
@@ -46,17 +55,16 @@ class Body:
                  density: float | None = None, gravity: float = fem.STANDARD_GRAVITY) -> None:
         if not isinstance(mesh, TetMesh):
             raise TypeError(f"mesh must be a TetMesh, got {type(mesh).__name__}")
+        young, poisson = check_material(young, poisson)
         fem.check_material(young, poisson)
-        if not np.isfinite(gravity) or gravity <= 0:
-            raise ValueError(f"gravity must be a positive acceleration in m/s², got {gravity!r}")
+        gravity = check_positive(gravity, "gravity", "m/s² (an acceleration)")
         if (weight is None) == (density is None):
-            raise ValueError("give exactly one of weight (N) or density (kg/m³)")
+            raise MaterialError("give exactly one of weight (N) or density (kg/m³)")
         if weight is not None:
-            if not np.isfinite(weight) or weight <= 0:
-                raise ValueError(f"weight must be a positive force in newtons, got {weight!r}")
+            weight = check_positive(weight, "weight", "newtons (a force)")
             density = weight / (gravity * mesh.volume)
-        elif not np.isfinite(density) or density <= 0:
-            raise ValueError(f"density must be positive (kg/m³), got {density!r}")
+        else:
+            density = check_positive(density, "density", "kg/m³")
         self.mesh = mesh
         self.young = float(young)
         self.poisson = float(poisson)

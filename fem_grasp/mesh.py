@@ -38,9 +38,16 @@ def _first(mask: np.ndarray) -> int:
     return int(np.flatnonzero(mask)[0])
 
 
+def _as_array(value: Any, name: str) -> np.ndarray:
+    try:
+        return np.asarray(value)
+    except (ValueError, TypeError) as exc:  # ragged nested lists and the like
+        raise MeshError(f"{name} cannot be read as a rectangular array: {exc}") from None
+
+
 def _validate(points: Any, tets: Any) -> tuple[np.ndarray, np.ndarray, int]:
-    points = np.asarray(points)
-    tets = np.asarray(tets)
+    points = _as_array(points, "points")
+    tets = _as_array(tets, "tets")
     if points.ndim != 2 or points.shape[1] != 3:
         raise MeshError(f"points must have shape (n, 3), got {points.shape}")
     if tets.ndim != 2 or tets.shape[1] != 4:
@@ -87,7 +94,115 @@ def _validate(points: Any, tets: Any) -> tuple[np.ndarray, np.ndarray, int]:
         tets = tets.copy()
         tets[neg] = tets[neg][:, [0, 2, 1, 3]]
         log.info("reoriented %d inverted tetrahedra (first: tet %d)", n_neg, _first(neg))
+    _check_topology(points, tets, neg)
     return points, tets, n_neg
+
+
+def _face_keys(tri: np.ndarray, n: int) -> np.ndarray:
+    """One integer per unordered vertex triple (or pair, for (k, 2) input)."""
+    s = np.sort(tri, axis=1)
+    if n ** s.shape[1] < 2**62:
+        key = s[:, 0]
+        for j in range(1, s.shape[1]):
+            key = key * n + s[:, j]
+        return key
+    return np.unique(s, axis=0, return_inverse=True)[1].reshape(-1)
+
+
+def _check_topology(points: np.ndarray, tets: np.ndarray, inverted: np.ndarray) -> None:
+    """Refuse meshes that are not one solid: see :class:`TetMesh` (Raises)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n, t = len(points), len(tets)
+    used = np.zeros(n, dtype=bool)
+    used[tets.ravel()] = True
+    if not used.all():
+        raise MeshError(f"{int((~used).sum())} point(s) are not a vertex of any tet (unreferenced; they would have no "
+                        f"stiffness); first is point {_first(~used)} — drop them (TetMesh.from_meshio does)")
+
+    faces = tets[:, _TET_FACES].reshape(-1, 3)  # outward for positively oriented tets
+    owner = np.repeat(np.arange(t), 4)
+    keys = _face_keys(faces, n)
+    order = np.argsort(keys, kind="stable")
+    ks = keys[order]
+    start = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]])
+    counts = np.diff(np.r_[start, len(ks)])
+    if (counts > 2).any():
+        g = int(np.argmax(counts > 2))
+        f = order[start[g]: start[g] + counts[g]]
+        raise MeshError(f"{int((counts > 2).sum())} triangle(s) are shared by more than two tets (non-manifold); "
+                        f"first is face {tuple(int(v) for v in np.sort(faces[f[0]]))}, shared by tets "
+                        f"{sorted(int(k) for k in owner[f])}")
+    # Interior faces: the two tets must lie on opposite sides, i.e. list the face with opposite orientations.
+    pair = start[counts == 2]
+    fa, fb = order[pair], order[pair + 1]
+
+    def parity(tri: np.ndarray) -> np.ndarray:
+        return ((tri[:, 0] > tri[:, 1]).astype(int) + (tri[:, 0] > tri[:, 2]) + (tri[:, 1] > tri[:, 2])) % 2
+
+    same = parity(faces[fa]) == parity(faces[fb])
+    if same.any():
+        k = _first(same)
+        a, b = sorted((int(owner[fa[k]]), int(owner[fb[k]])))
+        given = [i for i in (a, b) if inverted[i]]
+        note = (f"; tet {given[0]} was given with negative volume (inverted), and reorienting it does not undo the "
+                "fold" if given else "")
+        raise MeshError(f"{int(same.sum())} pair(s) of tets overlap (a folded or inverted element); first: tets {a} "
+                        f"and {b} share face {tuple(int(v) for v in np.sort(faces[fa[k]]))} and lie on the same "
+                        f"side of it{note}")
+    # One solid: tets connected through shared faces.
+    adj = coo_matrix((np.ones(len(fa)), (owner[fa], owner[fb])), shape=(t, t))
+    n_pieces, label = connected_components(adj, directed=False)
+    if n_pieces > 1:
+        # Pieces that share vertices touch only at a vertex or an edge: a hinge with no stiffness.
+        vert_label = np.full(n, -1)
+        vert_label[tets.ravel()] = np.repeat(label, 4)
+        shared = np.flatnonzero(vert_label[tets.ravel()] != np.repeat(label, 4))
+        other = _first(label != label[0])
+        if shared.size:
+            v = int(tets.ravel()[shared[0]])
+            touching = sorted({int(k) for k in np.flatnonzero((tets == v).any(axis=1))})
+            raise MeshError(f"the tets form {n_pieces} pieces joined only at vertices or edges (non-manifold: the "
+                            f"joint is a hinge with no stiffness); first joint is vertex {v}, shared by tets "
+                            f"{touching}")
+        raise MeshError(f"the mesh is disconnected: {n_pieces} separate pieces (tet 0 and tet {other} are in "
+                        "different pieces); mesh one object at a time")
+    # The boundary surface must be a 2-manifold: every surface edge in two surface faces ...
+    surf = faces[np.sort(order[start[counts == 1]])]
+    edges = surf[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    ekeys = _face_keys(edges, n)
+    uniq, e_inv, e_counts = np.unique(ekeys, return_inverse=True, return_counts=True)
+    if (e_counts != 2).any():
+        bad = e_counts[e_inv] != 2
+        e = np.sort(edges[_first(bad)])
+        raise MeshError(f"{int((e_counts != 2).sum())} surface edge(s) are not shared by exactly two surface "
+                        f"triangles (non-manifold: the body touches itself along an edge); first is edge "
+                        f"({int(e[0])}, {int(e[1])}), in {int(e_counts[e_inv[_first(bad)]])} surface triangles")
+    # ... and the surface triangles around every surface vertex form a single fan (no pinched vertex).
+    f_of = np.repeat(np.arange(len(surf)), 3)  # incidence (face, corner) numbered 3·face + corner
+    order_e = np.argsort(e_inv, kind="stable")
+    ea, eb = order_e[0::2], order_e[1::2]  # the two occurrences of each edge (edge index 3·face + k)
+    rows, cols = [], []
+    for end in (0, 1):  # connect (face_a, v) with (face_b, v) for both ends v of the edge
+        va = edges[ea, end]
+        ca = 3 * f_of[ea] + np.argmax(surf[f_of[ea]] == va[:, None], axis=1)
+        cb = 3 * f_of[eb] + np.argmax(surf[f_of[eb]] == va[:, None], axis=1)
+        rows.append(ca)
+        cols.append(cb)
+    m = 3 * len(surf)
+    rows, cols = np.concatenate(rows), np.concatenate(cols)
+    n_fans, fan = connected_components(coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(m, m)), directed=False)
+    n_surf = len(np.unique(surf))
+    if n_fans != n_surf:
+        corner_vertex = surf.ravel()
+        fans_per_vertex = np.zeros(n, dtype=int)
+        first_corner = np.unique(fan, return_index=True)[1]
+        np.add.at(fans_per_vertex, corner_vertex[first_corner], 1)
+        v = _first(fans_per_vertex > 1)
+        raise MeshError(f"{int((fans_per_vertex > 1).sum())} surface vertex(es) are pinched (non-manifold: the body "
+                        f"touches itself at a single point); first is vertex {v}, where "
+                        f"{int(fans_per_vertex[v])} separate sheets of the surface meet")
 
 
 def vertex_normals(points: np.ndarray, faces: np.ndarray) -> np.ndarray:
@@ -122,8 +237,14 @@ class TetMesh:
     ------
     MeshError
         (a ``ValueError``) for wrong shapes or dtypes, NaN/inf coordinates,
-        out-of-range indices, duplicate or zero-volume tetrahedra; the message
-        gives the count and the first offending index.
+        out-of-range indices, duplicate or zero-volume tetrahedra, points used
+        by no tetrahedron, tetrahedra that overlap a neighbour (a fold: an
+        inverted element that reorientation cannot mend), a mesh in several
+        pieces (disconnected, or joined only at vertices or edges: hinges
+        with no stiffness), and a non-manifold boundary (a triangle in three
+        tets, a surface edge not in exactly two surface triangles, a pinched
+        surface vertex); the message gives the count and the first offending
+        index.
     """
 
     points: np.ndarray
