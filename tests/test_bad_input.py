@@ -6,15 +6,17 @@ tests/test_response.py (collinear and malformed contact sets), which are not
 repeated here.  Every case is listed in docs/limits.md.
 """
 
+import warnings
+
 import numpy as np
 import pytest
 
 from fem_grasp import Body, MeshError, TetMesh, box_mesh
 from fem_grasp.closure import surface_normals_at
 from fem_grasp.placement import PAPER_SQUEEZE_DIRECTIONS
-from fem_grasp.validation import (ContactNodeError, DirectionError, MaterialError, PlacementError, SceneError,
-                                  check_contact_nodes, check_directions, check_finger_placement, check_friction,
-                                  check_material)
+from fem_grasp.validation import (ContactNodeError, DirectionError, LockingWarning, MaterialError, PlacementError,
+                                  SceneError, check_contact_nodes, check_directions, check_finger_placement,
+                                  check_friction, check_material)
 
 UNIT = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
 
@@ -144,8 +146,16 @@ def test_material_and_load_errors(kw, match):
 def test_material_error_is_a_value_error_and_valid_values_pass():
     assert issubclass(MaterialError, ValueError)
     assert check_material(np.float32(1e5), 0) == (1e5, 0.0)
-    Body(box_mesh(), 1e5, 0.4999, weight=1.0)  # near-incompressible is allowed (P1 locks: see docs/limits.md)
     Body(box_mesh(), 1e5, -0.999, weight=1.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        Body(box_mesh(), 1e5, 0.45, weight=1.0)  # no warning up to LOCKING_POISSON
+
+
+def test_near_incompressible_material_is_accepted_with_a_locking_warning():
+    with pytest.warns(LockingWarning, match=r"ν = 0.4999 > 0.45: P1 tetrahedra lock"):
+        body = Body(box_mesh(), 1e5, 0.4999, weight=1.0)
+    assert body.poisson == 0.4999
 
 
 def test_body_refuses_a_non_mesh():
@@ -345,6 +355,14 @@ def test_direction_out_of_the_object_is_refused(box):
                                              rf"contact node {nodes[0]}"):
         check_finger_placement(box.points, box.surface_nodes, c, R, contact_nodes=nodes, normals=out,
                                directions=PAPER_SQUEEZE_DIRECTIONS[::-1])
+
+
+def test_standing_finger_is_not_checked_for_direction(box):
+    nodes = side_nodes(box)
+    c, out = tangent(box, nodes)
+    velocities = np.stack([PAPER_SQUEEZE_DIRECTIONS[0], 0.0 * PAPER_SQUEEZE_DIRECTIONS[0]])  # s = 0
+    check_finger_placement(box.points, box.surface_nodes, c, R, contact_nodes=nodes, normals=out,
+                           directions=velocities)
 
 
 def test_overlapping_fingertips_and_table_are_refused(box):
