@@ -32,6 +32,12 @@ Default scene (the paper's §IV, where it is silent our choice)
   to hold the weight by friction — so the increments adapt to E — kept
   between 0.1 % and 2 % of the maximum depth (the contact patch grows with
   the geometry, whatever E);
+* a lift that fails (all contacts of a finger slide, or no quasi-static
+  stick/slip state exists: the grip is lost) sends the run back to the
+  squeeze from the lift-start state (Algorithm 1 step 6, "otherwise go back
+  to step 3"): the lift test, path-independent, can pass where the real lift,
+  which unloads the table gradually, slips; up to ``max_lift_attempts`` = 4
+  lifts, each recorded in ``result.lift_attempts``;
 * lift-test step h = mg/20; lift increment equal to the squeeze increment,
   maximum lift height equal to the object's height (a soft object stays on
   the table while its contacts with the fingers stretch: at E = 1e4 Pa the
@@ -75,7 +81,7 @@ from .rigid import RigidGrasp, rigid_grasp
 from .squeeze import initial_state, squeeze
 from .tracking import FINGER1, FINGER2, OBSTACLES, ContactEvent, ContactState, Tracker, TrackingError
 
-__all__ = ["DEFAULT_FRICTION", "PickupCheckError", "PickupResult", "Snapshot", "default_finger_contacts",
+__all__ = ["DEFAULT_FRICTION", "LiftAttempt", "PickupCheckError", "PickupResult", "Snapshot", "default_finger_contacts",
            "pickup"]
 
 log = logging.getLogger(__name__)
@@ -249,6 +255,30 @@ class Snapshot:
 
 
 # =================================================================== result
+@dataclass(frozen=True)
+class LiftAttempt:
+    """One simulated lift (Algorithm 1 step 5).
+
+    Attributes
+    ----------
+    squeeze_depth : ρ at which the lift started, metres
+    success : the object left the table
+    reason : why not (empty on success)
+    lift_height : how far the fingers rose, metres
+    n_events : events during this lift
+    """
+
+    squeeze_depth: float
+    success: bool
+    reason: str
+    lift_height: float
+    n_events: int
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"squeeze_depth": self.squeeze_depth, "success": self.success, "reason": self.reason,
+                "lift_height": self.lift_height, "n_events": self.n_events}
+
+
 @dataclass
 class PickupResult:
     """Everything :func:`pickup` found out.
@@ -270,6 +300,8 @@ class PickupResult:
     finger_normal_force : total finger normal force Σ f·n̂ in the final snapshot, newtons
     rigid : the rigid comparison (Table III) for the same shape and contacts
     timings : wall time per phase, seconds
+    lift_attempts : every simulated lift, in order (more than one when a lift failed and the squeeze
+        went on, Algorithm 1 step 6)
     """
 
     success: bool
@@ -293,6 +325,7 @@ class PickupResult:
     timings: dict[str, float] = field(default_factory=dict)
     max_squeeze: float = 0.0
     step: float = 0.0
+    lift_attempts: list[LiftAttempt] = field(default_factory=list)
 
     @property
     def table(self) -> TablePlane:
@@ -340,6 +373,7 @@ class PickupResult:
             "event_counts": self.event_counts(),
             "finger_normal_force": self.finger_normal_force, "n_final_contacts": self.n_final_contacts,
             "rigid": rigid, "timings": self.timings,
+            "lift_attempts": [a.to_dict() for a in self.lift_attempts],
             "reference_points": self.body.mesh.points.tolist(),
             "tets": self.body.mesh.tets.tolist(),
             "snapshots": [s.to_dict() for s in self.snapshots],
@@ -412,7 +446,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
            directions: tuple[np.ndarray, np.ndarray] = PAPER_SQUEEZE_DIRECTIONS, ratio: float = 1.0,
            max_squeeze: float | None = None, step: float | None = None, backend: str = "sparse",
            rest_state: RestState | None = None, lift_test_step: float | None = None,
-           max_lift: float | None = None, lift: bool = True) -> PickupResult:
+           max_lift: float | None = None, lift: bool = True, max_lift_attempts: int = 4) -> PickupResult:
     """Run Algorithm 1: will two hemispherical fingers pick ``body`` up from the table?
 
     Parameters
@@ -432,6 +466,10 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
     max_lift : maximum lift height, metres (default: the object's height)
     lift : run step 5; with False the run stops when the lift test passes
         (``success`` stays False and ``reason`` says the lift was not run)
+    max_lift_attempts : when a simulated lift fails (the object slides on a
+        finger, or friction cannot hold it), the squeeze resumes from the
+        lift-start state and the lift is tried again at the next passing lift
+        test (Algorithm 1 step 6, "go back to step 3"), up to this many lifts
 
     Returns
     -------
@@ -446,6 +484,8 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
             raise ValueError(f"{name} must be a finite friction coefficient ≥ 0, got {mu!r}")
     if not ratio >= 0:
         raise ValueError(f"the squeeze ratio s must be ≥ 0, got {ratio!r}")
+    if int(max_lift_attempts) < 1:
+        raise ValueError(f"max_lift_attempts must be ≥ 1, got {max_lift_attempts!r}")
     d1, d2 = (np.asarray(d, float) / np.linalg.norm(d) for d in directions)
     timings: dict[str, float] = {}
 
@@ -510,37 +550,54 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
     result.max_squeeze = float(max_squeeze)
     result.step = float(step)
     lt = LiftTest(hanging, posed.weight, lift_test_step)
-    sq = squeeze(tracker, state, (d1, d2), ratio, lt, max_squeeze=max_squeeze, step=step,
-                 on_event=lambda st, ev: snap(st, "event", ev))
-    result.events.extend(sq.events)
-    result.liftable = sq.liftable
-    result.squeeze_depth = sq.state.squeeze_depth
-    timings["lift_test"] = sq.lift_test_time
-    timings["squeeze"] = time.perf_counter() - t0 - sq.lift_test_time
-    if not sq.passed:
-        result.reason = sq.reason
-        result.final = Snapshot.from_state(sq.state, finger_radius, "final")
-        result.finger_normal_force = result.final.finger_normal_force(table)
-        timings["total"] = time.perf_counter() - t_start
-        return result
+    t_squeeze = t0
+    timings["squeeze"] = timings["lift_test"] = timings["lift"] = 0.0
+    while True:
+        sq = squeeze(tracker, state, (d1, d2), ratio, lt, max_squeeze=max_squeeze, step=step,
+                     on_event=lambda st, ev: snap(st, "event", ev))
+        result.events.extend(sq.events)
+        result.liftable.extend(sq.liftable)
+        result.squeeze_depth = sq.state.squeeze_depth
+        timings["lift_test"] += sq.lift_test_time
+        timings["squeeze"] += time.perf_counter() - t_squeeze - sq.lift_test_time
+        if not sq.passed:
+            result.reason = sq.reason + "".join(
+                f"; lift attempt at ρ = {a.squeeze_depth:.4g} m failed: {a.reason}" for a in result.lift_attempts)
+            result.final = Snapshot.from_state(sq.state, finger_radius, "final")
+            result.finger_normal_force = result.final.finger_normal_force(table)
+            timings["total"] = time.perf_counter() - t_start
+            return result
 
-    # Step 5: lift.
-    t0 = time.perf_counter()
-    snap(sq.state, "lift start")
-    if not lift:
-        result.reason = "the lift test passed; the lift was not run (lift=False)"
-        result.final = result.snapshots[-1]
-        result.finger_normal_force = result.final.finger_normal_force(table)
-        timings["total"] = time.perf_counter() - t_start
-        return result
-    if max_lift is None:
-        max_lift = float(np.ptp(rs.positions[:, 2]))
-    lf = run_lift(tracker, sq.state, max_height=max_lift, step=step,
-                  on_event=lambda st, ev: snap(st, "event", ev))
-    timings["lift"] = time.perf_counter() - t0
-    result.events.extend(lf.events)
+        # Step 5: lift.
+        t0 = time.perf_counter()
+        attempt = len(result.lift_attempts) + 1
+        snap(sq.state, "lift start" if attempt == 1 else f"lift start (attempt {attempt})")
+        if not lift:
+            result.reason = "the lift test passed; the lift was not run (lift=False)"
+            result.final = result.snapshots[-1]
+            result.finger_normal_force = result.final.finger_normal_force(table)
+            timings["total"] = time.perf_counter() - t_start
+            return result
+        if max_lift is None:
+            max_lift = float(np.ptp(rs.positions[:, 2]))
+        lf = run_lift(tracker, sq.state, max_height=max_lift, step=step,
+                      on_event=lambda st, ev: snap(st, "event", ev))
+        timings["lift"] += time.perf_counter() - t0
+        result.events.extend(lf.events)
+        result.lift_attempts.append(LiftAttempt(sq.state.squeeze_depth, lf.success, lf.reason,
+                                                lf.state.lift_height, len(lf.events)))
+        if lf.success or attempt >= max_lift_attempts or sq.state.squeeze_depth >= max_squeeze * (1 - 1e-9):
+            break
+        # Algorithm 1 step 6, "otherwise go back to step 3": the simulated lift predicts a slip, so the
+        # planner squeezes on from the lift-start state and tries again at the next passing lift test.
+        log.info("lift attempt %d at ρ = %.4g m failed (%s); squeezing further", attempt,
+                 sq.state.squeeze_depth, lf.reason)
+        snap(lf.state, f"lift failed (attempt {attempt})")
+        state = type(sq.state)(**{**sq.state.__dict__, "phase": "squeeze"})
+        t_squeeze = time.perf_counter()
     result.success = lf.success
-    result.reason = lf.reason
+    result.reason = lf.reason if attempt == 1 or lf.success else (
+        f"{lf.reason} (after {attempt} lift attempts from ρ = {result.lift_attempts[0].squeeze_depth:.4g} m)")
     result.final = Snapshot.from_state(lf.state, finger_radius, "lift-off" if lf.success else "final")
     result.snapshots.append(result.final)
     result.finger_normal_force = result.final.finger_normal_force(table)

@@ -84,7 +84,8 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
     Parameters
     ----------
     tracker : Tracker with the table
-    state : the initial state (:func:`initial_state`), settled
+    state : the initial state (:func:`initial_state`), settled, or the lift-start state of a lift that
+        failed (the squeeze resumes from there)
     directions : unit squeeze directions (d̂₁, d̂₂)
     ratio : s ≥ 0, ℱ₂ moves s ρ d̂₂
     lift_test : the liftable-weight tracker (§III-B)
@@ -96,7 +97,7 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
     velocities = np.stack([d1, ratio * d2])
     out = SqueezeOutcome(state)
 
-    next_test = [step]
+    next_test = [state.squeeze_depth + step]  # the squeeze may resume from an earlier lift start
 
     def after_step(st: ContactState, events: list[ContactEvent]) -> bool:
         # The lift test runs once per increment of ``step`` in ρ (events split increments; the test is

@@ -167,6 +167,46 @@ def test_squeeze_depth_limit_is_a_failure():
     res.check()
 
 
+def test_a_failed_lift_sends_the_squeeze_on_and_the_next_lift_starts_deeper(monkeypatch, lifted):
+    """Algorithm 1 step 6: a simulated lift that fails is followed by more squeeze and another lift."""
+    import fem_grasp.lift as lift_module
+    pickup_module = __import__("sys").modules["fem_grasp.pickup"]
+    real = lift_module.lift
+    calls = []
+
+    def first_lift_slips(tracker, state, **kw):
+        calls.append(state.squeeze_depth)
+        out = real(tracker, state, **{**kw, "max_height": 1e-4}) if len(calls) == 1 else real(tracker, state, **kw)
+        if len(calls) == 1:  # stop the first lift early and call it a slip
+            out.success, out.reason = False, "every contact of finger 1 slides (simulated)"
+        return out
+
+    monkeypatch.setattr(pickup_module, "run_lift", first_lift_slips)
+    res = _pickup(0.5)
+    assert res.success, res.reason
+    assert [a.success for a in res.lift_attempts] == [False, True]
+    first, second = res.lift_attempts
+    assert first.squeeze_depth == pytest.approx(lifted.squeeze_depth, rel=1e-9)
+    assert second.squeeze_depth >= first.squeeze_depth + 0.99 * res.step  # at least one more increment
+    assert calls == [first.squeeze_depth, second.squeeze_depth]
+    labels = [s.label for s in res.snapshots]
+    assert "lift failed (attempt 1)" in labels and "lift start (attempt 2)" in labels
+    # The squeeze resumed from the lift-start state: squeeze events after the failed lift lie beyond it.
+    k = labels.index("lift failed (attempt 1)")
+    later = [s for s in res.snapshots[k + 1:] if s.phase == "squeeze"]
+    assert later and all(s.squeeze_depth >= first.squeeze_depth - 1e-12 and s.lift_height == 0 for s in later)
+    assert [w for r, w in res.liftable if r > first.squeeze_depth]  # the lift test ran again
+    res.check()
+    assert json.loads(res.to_json())["lift_attempts"][0]["success"] is False
+
+    calls.clear()
+    once = _pickup(0.5, max_lift_attempts=1)
+    assert not once.success and "simulated" in once.reason and len(once.lift_attempts) == 1
+    once.check()
+    with pytest.raises(ValueError, match="max_lift_attempts"):
+        _pickup(0.5, max_lift_attempts=0)
+
+
 # --------------------------------------------------------- the lift test
 def test_lift_test_holds_light_weights_and_not_heavy_ones(lifted):
     body = lifted.body
