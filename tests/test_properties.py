@@ -4,14 +4,16 @@ Each example draws a small box mesh (1–3 cells per side, 8–64 nodes) with
 random extents, every node jiggled by up to 8 % of a cell, placed by a
 random rigid motion; a random material (E over seven decades, ν in
 (−0.5, 0.45)) and weight; and a random set of 3–6 distinct surface contact
-nodes with random prescribed displacements.  Contact sets that are
-numerically near-collinear (cond(M) > 1e8, Theorem 3) are discarded: they are
-refused or warned about by design and tested in tests/test_response.py.
+nodes with random prescribed displacements.  Contact sets with cond(M) > 1e6
+(near-collinear, Theorem 3; cond(M) of these scenes is 84 at the median and
+1.4e4 at worst over 200 draws) are discarded: collinear sets are refused or
+warned about by design and tested in tests/test_response.py.
 
 Tolerances are relative to the magnitudes being compared (forces against
 mg + max |f|, fields against their largest entry, K against its largest
-entry) and sit ≥ 2500× above the worst round-off seen in 300 random scenes
-(≤ 4e-13 relative), so that they fail on a real error and not on round-off.
+entry).  With cond(M) ≤ 1e6 the round-off bound eps·cond(M) is 2e-10, under
+the 1e-9 allowed; the worst seen over 600 random scenes was 4e-12 (1e-10 for
+equilibrium: worst seen 6e-16).  A failure is a real error, not round-off.
 
 Gravity: ``Body`` always pulls along −z.  The whole-scene rotation test
 therefore rotates about the vertical (gravity is then unchanged in the
@@ -28,7 +30,7 @@ from hypothesis import strategies as st
 from fem_grasp import Body, MeshError, TetMesh, box_mesh
 
 SETTINGS = settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-MAX_COND = 1e8
+MAX_COND = 1e6
 
 
 def rotation(q: np.ndarray) -> np.ndarray:
