@@ -134,6 +134,11 @@ class Body:
         u = np.asarray(displacements, dtype=float).reshape(-1)
         if u.size != 3 * self.n_nodes:
             raise ValueError(f"expected {3 * self.n_nodes} displacement components, got {u.size}")
+        bad = ~np.isfinite(u)
+        if bad.any():
+            k = int(np.argmax(bad))
+            raise ValueError(f"displacement field has NaN or infinite components; first is node {k // 3}, "
+                             f"component {'xyz'[k % 3]}")
         return 0.5 * float(u @ (self.stiffness @ u))
 
     # ------------------------------------------------------ contact solves

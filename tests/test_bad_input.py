@@ -158,6 +158,16 @@ def test_near_incompressible_material_is_accepted_with_a_locking_warning():
     assert body.poisson == 0.4999
 
 
+def test_strain_energy_of_a_nan_field_is_refused_not_nan():
+    body = Body(box_mesh(), 1e5, 0.3, weight=1.0)
+    u = np.zeros((body.n_nodes, 3))
+    u[5, 1] = np.nan
+    with pytest.raises(ValueError, match="NaN or infinite components; first is node 5, component y"):
+        body.strain_energy(u)
+    with pytest.raises(ValueError, match="expected 81 displacement components, got 3"):
+        body.strain_energy(np.zeros(3))
+
+
 def test_body_refuses_a_non_mesh():
     with pytest.raises(TypeError, match="mesh must be a TetMesh, got ndarray"):
         Body(UNIT, 1e5, 0.3, weight=1.0)
