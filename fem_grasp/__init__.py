@@ -47,3 +47,10 @@ from .tracking import ContactEvent, ContactState, TrackingError  # noqa: E402
 
 __all__ += ["ClosureResult", "ContactEvent", "ContactState", "PickupResult", "RigidGrasp", "Snapshot",
             "TrackingError", "force_closure", "pickup", "rigid_grasp"]
+
+# Input validation (issue #8): the named errors a user can catch.
+from .validation import (ContactNodeError, DirectionError, LockingWarning, MaterialError,  # noqa: E402
+                         PlacementError, SceneError)
+
+__all__ += ["ContactNodeError", "DirectionError", "LockingWarning", "MaterialError", "PlacementError", "SceneError"]
+

@@ -20,12 +20,15 @@ Default scene (the paper's §IV, where it is silent our choice)
   ratio s = 1; fingertip radius :data:`fem_grasp.fingertip.DEFAULT_RADIUS`;
 * μ_ℱ = μ_𝒫 = :data:`DEFAULT_FRICTION` unless given (``mu_table`` defaults to
   ``mu_finger``, the paper has one μ per object);
-* finger contacts p_i, p_j (:func:`default_finger_contacts`): the surface
-  nodes extreme along ∓ĥ, ĥ the horizontal part of d̂₁, at the height of the
-  centre of mass; if there a fingertip tangent to the resting object would
-  come within ``R/10`` of the table, or the placement is not force closure,
-  the nearest height (searched in steps of 2.5 % of the object's height,
-  alternately below and above) where neither happens;
+* finger contacts p_i, p_j (:func:`default_finger_contacts`): among the
+  pairs of surface nodes extreme along ∓ĥ (ĥ the horizontal part of d̂₁) at
+  heights stepped by 2.5 % of the object's height, those whose tangent
+  fingertips clear the table by max(R/10, |d̂₁·ẑ| × maximum squeeze), start
+  outside the object and are force closure, the pair whose rigid grasp needs
+  the least total normal force (Table III's measure): contacts where the
+  surface faces a little upward let the normal forces carry part of the
+  weight.  (``placement_rule="centre-of-mass-height"``: the first valid pair
+  from the centre of mass's height outwards, the rule before 2026-11.)
 * maximum squeeze depth: 40 % of the object's width along ĥ;
 * squeeze increment: 1/20 of the depth ρ* = mg / (μ_ℱ k₀) at which a
   finger of the initial (point) contact stiffness k₀ would press hard enough
@@ -79,6 +82,8 @@ from .response import equilibrium_residual
 from .rest import RestState, rest
 from .rigid import RigidGrasp, rigid_grasp
 from .squeeze import initial_state, squeeze
+from .validation import (ContactNodeError, PlacementError, SceneError, check_contact_nodes, check_directions,
+                         check_finger_placement, check_friction, check_positive)
 from .tracking import FINGER1, FINGER2, OBSTACLES, ContactEvent, ContactState, Tracker, TrackingError
 
 __all__ = ["DEFAULT_FRICTION", "LiftAttempt", "PickupCheckError", "PickupResult", "Snapshot", "default_finger_contacts",
@@ -389,13 +394,30 @@ class PickupResult:
 
 
 # ================================================================ placement
+#: Rules for choosing the initial finger contacts (:func:`default_finger_contacts`).
+PLACEMENT_RULES = ("least-force", "centre-of-mass-height")
+
+
 def default_finger_contacts(rest_state: RestState, direction: np.ndarray, mu_finger: float, mu_table: float,
-                            radius: float) -> tuple[tuple[int, int], ClosureResult]:
+                            radius: float, velocities: np.ndarray | None = None, *,
+                            rule: str = "least-force", max_squeeze: float | None = None
+                            ) -> tuple[tuple[int, int], ClosureResult]:
     """Initial finger contacts by the rule of the module notes; returns them and their closure test.
 
-    Raises ``ValueError`` if no height gives a placement that clears the
-    table and is force closure.
+    Candidates are the surface nodes extreme along ∓ĥ at heights stepped by
+    2.5 % of the object's height, kept when the fingertips tangent there
+    clear the table by ``max(R/10, |d̂₁·ẑ| max_squeeze)`` (they do not reach
+    it within the maximum squeeze), start outside the object, and are force
+    closure.  ``rule="least-force"`` takes the candidate whose rigid grasp
+    (:func:`fem_grasp.rigid.rigid_grasp`, Table III's measure) needs the
+    least total normal force, ties going to the height nearest the centre of
+    mass; ``rule="centre-of-mass-height"`` the first valid candidate from the
+    centre of mass's height outwards.
+
+    Raises ``ValueError`` if no height gives a valid placement.
     """
+    if rule not in PLACEMENT_RULES:
+        raise SceneError(f"unknown placement rule {rule!r}; choose one of {PLACEMENT_RULES}")
     body = rest_state.body
     mesh = body.mesh
     pos = rest_state.positions
@@ -403,10 +425,13 @@ def default_finger_contacts(rest_state: RestState, direction: np.ndarray, mu_fin
     z = pos[mesh.surface_nodes, 2]
     z0, z1 = float(z.min()), float(z.max())
     height = z1 - z0
-    com = float(body.center_of_mass[2])
+    com_point = (mesh.volumes @ pos[mesh.tets].mean(axis=1)) / mesh.volume
+    com = float(com_point[2])
     table_z = rest_state.table_z
+    clearance = max(0.1 * radius, abs(float(direction[2])) * (max_squeeze or 0.0))
     tried: set[tuple[int, int]] = set()
     last: ClosureResult | None = None
+    best: tuple[float, int, tuple[int, int], ClosureResult] | None = None
     for k in range(0, 81):
         h = com + (-1) ** k * ((k + 1) // 2) * 0.025 * height
         if not z0 < h < z1:
@@ -419,14 +444,27 @@ def default_finger_contacts(rest_state: RestState, direction: np.ndarray, mu_fin
             continue
         tried.add(ij)
         centers = pos[list(ij)] + radius * out[list(ij)]
-        if (centers[:, 2] - radius - table_z).min() < 0.1 * radius:
+        if (centers[:, 2] - radius - table_z).min() < clearance:
+            continue
+        try:
+            check_finger_placement(pos, mesh.surface_nodes, centers, radius, contact_nodes=ij, normals=out,
+                                   directions=velocities)
+        except PlacementError:
             continue
         closure = placement_closure(body, pos, ij, rest_state.support_triangle, mu_finger, mu_table)
         last = closure
-        if closure.closed:
+        if not closure.closed:
+            continue
+        if rule == "centre-of-mass-height":
             return ij, closure
-    raise ValueError("no finger placement along the squeeze direction both clears the table and is force closure"
-                     + (f" (last tried: {last.reason})" if last is not None else ""))
+        grasp = rigid_grasp(pos[list(ij)], -out[list(ij)], com_point, body.weight, mu_finger)
+        force = grasp.total_normal_force if grasp.feasible else np.inf
+        if best is None or force < best[0] * (1 - 1e-9):
+            best = (force, k, ij, closure)
+    if best is not None:
+        return best[2], best[3]
+    raise ValueError("no finger placement along the squeeze direction clears the table, starts outside the object "
+                     "and is force closure" + (f" (last tried: {last.reason})" if last is not None else ""))
 
 
 def _initial_stiffness(tracker: Tracker, state: ContactState, velocities: np.ndarray) -> float:
@@ -446,7 +484,8 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
            directions: tuple[np.ndarray, np.ndarray] = PAPER_SQUEEZE_DIRECTIONS, ratio: float = 1.0,
            max_squeeze: float | None = None, step: float | None = None, backend: str = "sparse",
            rest_state: RestState | None = None, lift_test_step: float | None = None,
-           max_lift: float | None = None, lift: bool = True, max_lift_attempts: int = 4) -> PickupResult:
+           max_lift: float | None = None, lift: bool = True, max_lift_attempts: int = 4,
+           placement_rule: str = "least-force") -> PickupResult:
     """Run Algorithm 1: will two hemispherical fingers pick ``body`` up from the table?
 
     Parameters
@@ -466,6 +505,8 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
     max_lift : maximum lift height, metres (default: the object's height)
     lift : run step 5; with False the run stops when the lift test passes
         (``success`` stays False and ``reason`` says the lift was not run)
+    placement_rule : how ``contacts`` are chosen when not given, "least-force" or
+        "centre-of-mass-height" (:func:`default_finger_contacts`)
     max_lift_attempts : when a simulated lift fails (the object slides on a
         finger, or friction cannot hold it), the squeeze resumes from the
         lift-start state and the lift is tried again at the next passing lift
@@ -477,16 +518,14 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
         ``success`` and ``reason``; see its attributes.  Failures are results.
     """
     t_start = time.perf_counter()
-    mu_f = DEFAULT_FRICTION if mu_finger is None else float(mu_finger)
-    mu_t = mu_f if mu_table is None else float(mu_table)
-    for name, mu in (("mu_finger", mu_f), ("mu_table", mu_t)):
-        if not np.isfinite(mu) or mu < 0:
-            raise ValueError(f"{name} must be a finite friction coefficient ≥ 0, got {mu!r}")
+    mu_f = check_friction(DEFAULT_FRICTION if mu_finger is None else mu_finger, "mu_finger")
+    mu_t = mu_f if mu_table is None else check_friction(mu_table, "mu_table")
+    finger_radius = check_positive(finger_radius, "the fingertip radius R", "metres", SceneError)
     if not ratio >= 0:
-        raise ValueError(f"the squeeze ratio s must be ≥ 0, got {ratio!r}")
+        raise SceneError(f"the squeeze ratio s must be ≥ 0, got {ratio!r}")
     if int(max_lift_attempts) < 1:
         raise ValueError(f"max_lift_attempts must be ≥ 1, got {max_lift_attempts!r}")
-    d1, d2 = (np.asarray(d, float) / np.linalg.norm(d) for d in directions)
+    d1, d2 = check_directions(*directions, ratio=ratio)
     timings: dict[str, float] = {}
 
     # Step 2 (computed first: step 1 needs the resting shape).
@@ -498,18 +537,30 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
     result = PickupResult(False, "", posed, rs, (-1, -1), None, mu_f, mu_t, float(finger_radius), (d1, d2),
                           float(ratio), timings=timings)
 
+    width = float(np.ptp(rs.positions @ np.array([d1[0], d1[1], 0.0]) / max(np.hypot(d1[0], d1[1]), 1e-300)))
+    if max_squeeze is None:
+        max_squeeze = 0.4 * width
+
     # Step 1: force closure of p_i, p_j and the support-triangle centre.
     t0 = time.perf_counter()
     if contacts is None:
         try:
-            ij, closure = default_finger_contacts(rs, d1, mu_f, mu_t, finger_radius)
+            ij, closure = default_finger_contacts(rs, d1, mu_f, mu_t, finger_radius, np.stack([d1, ratio * d2]),
+                                                  rule=placement_rule, max_squeeze=max_squeeze)
         except ValueError as exc:
             result.reason = f"no initial finger placement: {exc}"
             timings["closure"] = time.perf_counter() - t0
             timings["total"] = time.perf_counter() - t_start
             return result
     else:
-        ij = (int(contacts[0]), int(contacts[1]))
+        ij = tuple(int(k) for k in check_contact_nodes(posed.mesh, rs.positions, contacts,
+                                                          what="finger contact node"))
+        if len(ij) != 2:
+            raise ContactNodeError(f"give two finger contact nodes (p_i, p_j), got {len(ij)}")
+        out = surface_normals_at(posed.mesh, rs.positions)
+        check_finger_placement(rs.positions, posed.mesh.surface_nodes,
+                               rs.positions[list(ij)] + finger_radius * out[list(ij)], finger_radius,
+                               contact_nodes=ij, normals=out, directions=np.stack([d1, ratio * d2]))
         closure = placement_closure(posed, rs.positions, ij, rs.support_triangle, mu_f, mu_t)
     result.finger_nodes = ij
     result.closure = closure
@@ -540,9 +591,6 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
         return result
     result.events.extend(ev0)
     snap(state, "initial", ev0)
-    width = float(np.ptp(rs.positions @ np.array([d1[0], d1[1], 0.0]) / max(np.hypot(d1[0], d1[1]), 1e-300)))
-    if max_squeeze is None:
-        max_squeeze = 0.4 * width
     if step is None:
         k0 = _initial_stiffness(tracker, state, velocities)
         rho_star = posed.weight / (max(mu_f, 1e-3) * k0)

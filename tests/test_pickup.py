@@ -16,6 +16,7 @@ from fem_grasp.fingertip import Fingertip
 from fem_grasp.lift_test import hang, hanging_state
 from fem_grasp.pickup import PickupResult, pickup
 from fem_grasp.rest import rest
+from fem_grasp.validation import ContactNodeError, DirectionError, PlacementError, SceneError
 from fem_grasp.tracking import FINGER1, TABLE, MixedSlipSystem, Tracker
 
 RADIUS = 0.02
@@ -155,9 +156,25 @@ def test_bad_placement_fails_by_force_closure():
     i, _ = _face_centres(rs)
     p = rs.body.mesh.points
     same = int(np.argmin(np.linalg.norm(p - (p[i] + [0.01, 0, 0]), axis=1)))
-    res = pickup(body, mu_finger=0.5, contacts=(i, same), rest_state=rs, finger_radius=RADIUS)
-    assert not res.success and "force closure" in res.reason
-    res.check()
+    # Both fingers on one face: finger 2's squeeze would pull it off the surface, refused before step 1.
+    with pytest.raises(PlacementError, match="points out of the object"):
+        pickup(body, mu_finger=0.5, contacts=(i, same), rest_state=rs, finger_radius=0.002)
+
+
+def test_pickup_refuses_a_bad_scene_with_a_named_error():
+    body = _box()
+    rs = rest(body, 0.5)
+    interior = int(np.setdiff1d(np.arange(body.n_nodes), rs.body.mesh.surface_nodes)[0])
+    with pytest.raises(DirectionError, match="upward"):
+        pickup(body, directions=([0, 1, 0.2], [0, -1, 0]), rest_state=rs)
+    with pytest.raises(ContactNodeError, match="interior"):
+        pickup(body, contacts=(interior, 0), rest_state=rs)
+    with pytest.raises(ContactNodeError, match="not a node"):
+        pickup(body, contacts=(10_000, 0), rest_state=rs)
+    with pytest.raises(SceneError, match="radius"):
+        pickup(body, finger_radius=-1.0, rest_state=rs)
+    with pytest.raises(SceneError, match="mu_finger"):
+        pickup(body, mu_finger=-0.1, rest_state=rs)
 
 
 def test_squeeze_depth_limit_is_a_failure():
