@@ -29,14 +29,26 @@ $(STAMPS)/venv: $(STAMPS)/apt pyproject.toml
 	$(SYSPY) -c "import numpy; print('numpy==' + numpy.__version__)" > $(STAMPS)/constraints.txt
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -c $(STAMPS)/constraints.txt -e ".[dev,report]"
+	@# Optional CHOLMOD backend: scikit-sparse compiled against Debian's SuiteSparse and the pinned numpy
+	@# (no build isolation, so Cython comes first). If it fails to build, SuperLU is used instead.
+	$(PY) -m pip install -q -c $(STAMPS)/constraints.txt "cython>=0.29" setuptools wheel && \
+	  $(PY) -m pip install -q -c $(STAMPS)/constraints.txt --no-build-isolation -e ".[cholmod]" \
+	  || echo "WARNING: scikit-sparse (CHOLMOD) did not build; fem_grasp falls back to SciPy SuperLU"
 	$(PY) -c "import dolfinx, gmsh, numpy; print('venv ok: dolfinx', dolfinx.__version__, 'numpy', numpy.__version__)"
 	@touch $@
 
 test: setup
 	$(PY) -m pytest $(PYTEST_ARGS)
 
+# The tomato scene end to end: result.json, a ParaView time series and report.html in out/tomato.
+DEMO_SCENE ?= tomato
 demo: setup
-	$(PY) examples/demo.py --out out
+	$(PY) -m fem_grasp run $(DEMO_SCENE) --out out/$(DEMO_SCENE) --report $(DEMO_ARGS); status=$$?; \
+	  if [ $$status -gt 1 ]; then exit $$status; fi; \
+	  echo; echo "Look at:  out/$(DEMO_SCENE)/report.html   (pictures, w(rho), event timeline)"; \
+	  echo "          out/$(DEMO_SCENE)/object.pvd    (ParaView; with finger1.pvd, finger2.pvd, table.vtu)"; \
+	  echo "          out/$(DEMO_SCENE)/result.json   (summary, events, forces)"; \
+	  echo "Other scenes: $(PY) -m fem_grasp scenes;  quick variant: make demo DEMO_ARGS=--quick"
 
 # Cross-checks against dolfinx, convergence, Hertz, stability; writes verification/out/report.html.
 verify: setup
@@ -55,9 +67,12 @@ rest-table: setup
 	$(PY) scripts/rest_table.py
 
 .PHONY: paper
-# Our figures beside the paper's Tables II and III (python -m fem_grasp.paper; several minutes).
+# Our figures beside the paper's Tables II and III: one process per object (logs in out/paper/), then the tables.
 paper: setup
-	$(PY) -m fem_grasp.paper
+	@mkdir -p out/paper
+	@for o in tomato orange steam_bun football; do \
+	  $(PY) -m fem_grasp.paper --objects $$o --json out/paper/$$o.json > out/paper/$$o.log 2>&1 & done; wait
+	$(PY) -m fem_grasp.paper --merge out/paper/*.json
 
 clean-venv:
 	rm -rf $(VENV) $(STAMPS)

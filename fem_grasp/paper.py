@@ -148,9 +148,20 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help="skip the run at Table I's printed modulus (the steam bun's 202 table contacts make it "
                              "very slow: thousands of table slip events at nanometre depths)")
     parser.add_argument("--json", default=None, help="write all figures to this JSON file")
+    parser.add_argument("--merge", nargs="+", default=None, metavar="JSON",
+                        help="print the tables from JSON files written by earlier runs (e.g. one per object, run in "
+                             "parallel) instead of running anything")
     parser.add_argument("-v", "--verbose", action="store_true")
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(message)s")
+    if args.merge:
+        merged: list[dict[str, Any]] = []
+        for path in args.merge:
+            with open(path) as fh:
+                merged += json.load(fh)
+        order = {n: i for i, n in enumerate(objects.NAMES)}
+        print(format_tables(sorted(merged, key=lambda r: order.get(r["name"], len(order)))))
+        return 0
     rows = []
     start = time.perf_counter()
     for name in args.objects:
