@@ -66,6 +66,12 @@ spectral-vs-sparse: setup
 rest-table: setup
 	$(PY) scripts/rest_table.py
 
+.PHONY: bench
+# Issue #7 benchmarks: contact solve against dolfinx, cost against vertex count (1k-100k), per-object pickups,
+# sparse against spectral; tables on stdout and bench/out/bench.json (long: BENCH_ARGS="--max-vertices 10000").
+bench: setup
+	$(PY) -m bench.bench $(BENCH_ARGS)
+
 .PHONY: paper
 # Our figures beside the paper's Tables II and III: one process per object (logs in out/paper/), then the tables.
 paper: setup

@@ -100,3 +100,51 @@ def test_material_is_validated(young, poisson, match):
 def test_center_of_mass_of_box():
     b = Body(box_mesh((1, 2, 3), (2, 4, 7), (2, 3, 2)), 1e5, 0.3, weight=1.0)
     np.testing.assert_allclose(b.center_of_mass, [1.5, 3.0, 5.0], rtol=1e-14)
+
+
+# ----------------------------------------------------------------- assembly
+def reference_stiffness(points, tets, young, poisson):
+    """K by scattering every (12, 12) element matrix with np.add.at: slow and obvious."""
+    lam, mu = fem.lame_parameters(young, poisson)
+    grads, vol = fem.shape_gradients(points, tets)
+    ke = fem.element_stiffness(grads, np.abs(vol), lam, mu)
+    dofs = fem.element_dofs(tets)
+    k = np.zeros((3 * len(points), 3 * len(points)))
+    np.add.at(k, (dofs[:, :, None], dofs[:, None, :]), ke)
+    return k
+
+
+def test_assembly_matches_element_by_element_scatter(rng, monkeypatch):
+    mesh = perturbed_box(rng, divisions=(3, 2, 2))
+    ref = reference_stiffness(mesh.points, mesh.tets, 2e5, 0.3)
+    k = fem.stiffness_matrix(mesh.points, mesh.tets, 2e5, 0.3)
+    assert np.abs(k.toarray() - ref).max() <= 1e-14 * np.abs(ref).max()
+    assert abs(k - k.T).max() == 0.0
+    # The sparsity is exactly the node adjacency: a 3×3 block per pair of nodes sharing an element.
+    adj = np.zeros((mesh.n_points, mesh.n_points), dtype=bool)
+    adj[mesh.tets[:, :, None], mesh.tets[:, None, :]] = True
+    assert k.nnz == 9 * adj.sum()
+    # Tiny passes (blocks split across many passes) give the same matrix bit for bit.
+    monkeypatch.setattr(fem, "ASSEMBLY_BLOCK", 7)
+    assert abs(fem.stiffness_matrix(mesh.points, mesh.tets, 2e5, 0.3) - k).max() == 0.0
+
+
+def test_sparsity_pattern_is_reusable_and_checked(rng):
+    mesh = perturbed_box(rng)
+    pattern = fem.stiffness_pattern(mesh.tets, mesh.n_points)
+    k = fem.stiffness_matrix(mesh.points, mesh.tets, 1e5, 0.25)
+    moved = mesh.points * 1.5
+    k2 = fem.stiffness_matrix(moved, mesh.tets, 3e5, 0.25, pattern=pattern)
+    # Scaling the mesh by s scales K by s (3D P1: gradients 1/s, volumes s³); E by 3 scales it by 3.
+    assert abs(k2 - 4.5 * k).max() <= 1e-14 * abs(k2).max()
+    assert abs(fem.stiffness_matrix(mesh.points, mesh.tets, 1e5, 0.25, pattern=pattern) - k).max() == 0.0
+    other = box_mesh(divisions=(1, 1, 1))
+    with pytest.raises(ValueError, match="stiffness pattern is for"):
+        fem.stiffness_matrix(other.points, other.tets, 1e5, 0.25, pattern=pattern)
+
+
+def test_zero_volume_element_is_named():
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0]], float)
+    tets = np.array([[0, 1, 2, 3], [0, 1, 2, 4]])  # the second is flat (all in z = 0)
+    with pytest.raises(ValueError, match="first: element 1"):
+        fem.shape_gradients(points, tets)

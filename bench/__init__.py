@@ -1,0 +1,1 @@
+"""Benchmarks of fem_grasp (``make bench``); see :mod:`bench.bench`."""

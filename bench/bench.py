@@ -1,0 +1,426 @@
+"""Benchmarks of fem_grasp against the paper's targets (issue #7): ``make bench``.
+
+Sections (``--only NAME``, repeatable; default all):
+
+``solve``
+    One contact-displacement solve (three low support nodes and two finger
+    nodes squeezed 1 mm, under gravity) on the orange at ~10k and ~50k
+    vertices: fem_grasp from a fresh :class:`~fem_grasp.Body` (assembly,
+    grounding, factorisation, compliance columns, forces and field) against
+    dolfinx 0.5.2 (assembly with the Dirichlet conditions, lifting, PETSc/MUMPS
+    Cholesky solve, reactions from the unconstrained K; JIT excluded by a
+    warm-up on the same mesh).  Every available sparse solver is timed.
+``scaling``
+    Time and peak memory (ru_maxrss, one subprocess per size) of assembly,
+    factorisation, ``rest()`` and ``pickup()`` from 1k to 100k vertices; a
+    pickup over ``--pickup-cap`` seconds is recorded as ``"timeout"``.
+``objects``
+    Per-object pickup medians for the four paper objects at E = 1e4 Pa (each
+    repetition on a fresh body, so assembly and factorisation are included),
+    with import time and first-call time measured separately in a fresh
+    interpreter.
+``spectral``
+    One pickup of the football with the sparse and the spectral (paper)
+    backends: time ratio and the largest difference of the results.
+
+Medians over ``--reps`` repetitions.  Prints tables and writes
+``bench/out/bench.json`` (sections run earlier are kept when ``--only`` runs
+some again).  Meshes are generated once with gmsh and cached in
+``bench/out/meshes``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import gc
+import json
+import logging
+import os
+import platform
+import resource
+import statistics
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+log = logging.getLogger("bench")
+
+ROOT = Path(__file__).resolve().parent.parent
+OUT = ROOT / "bench" / "out" / "bench.json"
+SECTIONS = ("solve", "scaling", "objects", "spectral")
+SOLVE_SIZES = (10000, 50000)
+SCALING_SIZES = (1000, 3000, 10000, 30000, 50000, 100000)
+#: SuperLU above this many vertices takes minutes and gigabytes: not timed.
+SUPERLU_MAX_VERTICES = 20000
+YOUNG = 1e4
+
+
+# ----------------------------------------------------------------- helpers
+def median(values: list[float]) -> float:
+    return float(statistics.median(values))
+
+
+def timed(fn: Callable[[], Any]) -> tuple[float, Any]:
+    t0 = time.perf_counter()
+    out = fn()
+    return time.perf_counter() - t0, out
+
+
+def maxrss_mib() -> float:
+    """Peak resident memory of this process so far, MiB (Linux reports KiB)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def machine() -> dict[str, Any]:
+    cpu = platform.processor() or ""
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+        mem = next(int(line.split()[1]) for line in Path("/proc/meminfo").read_text().splitlines()
+                   if line.startswith("MemTotal")) / 2**20
+    except (OSError, StopIteration):
+        mem = float("nan")
+    import scipy
+
+    from fem_grasp import compliance
+
+    return {"cpu": cpu, "cores": os.cpu_count(), "memory_gib": round(mem, 1), "python": platform.python_version(),
+            "numpy": np.__version__, "scipy": scipy.__version__, "default_solver": compliance.choose_solver(),
+            "cholmod": compliance.cholmod_available(), "date": time.strftime("%Y-%m-%d")}
+
+
+def orange_body(mesh):
+    from fem_grasp import Body, objects
+
+    row = objects.paper_object("orange")
+    return Body(mesh, YOUNG, row.poisson, weight=row.weight)
+
+
+def demo_contacts(body) -> tuple[np.ndarray, np.ndarray]:
+    """Three low support nodes and two finger nodes at the centre-of-mass height, squeezed 1 mm along d̂1, d̂2."""
+    from fem_grasp import placement
+
+    support = placement.spread_triple(body.mesh.points, placement.lowest_nodes(body.mesh))
+    fingers = placement.finger_contact_nodes(body.mesh, body.center_of_mass[2])
+    nodes = np.concatenate([support, fingers]).astype(np.int64)
+    disp = np.zeros((5, 3))
+    disp[3:] = 1e-3 * np.array(placement.PAPER_SQUEEZE_DIRECTIONS)
+    return nodes, disp
+
+
+def available_solvers() -> list[str]:
+    from fem_grasp import compliance
+
+    out = ["cholmod"] if compliance.cholmod_available() else []
+    out.append("superlu")
+    try:
+        import petsc4py  # noqa: F401
+        out.append("mumps")
+    except ImportError:
+        pass
+    return out
+
+
+# ------------------------------------------------------------ (a) solve
+def fem_grasp_solve(mesh, nodes, disp, solver: str) -> dict[str, Any]:
+    """One contact solve from a fresh body, with its phases timed."""
+    from fem_grasp import solve_contact
+    from fem_grasp.compliance import Compliance
+
+    os.environ["FEM_GRASP_SOLVER"] = solver
+    gc.collect()
+    t0 = time.perf_counter()
+    body = orange_body(mesh)
+    t_asm, _ = timed(lambda: body.stiffness)
+    t_fac, comp = timed(lambda: body.compliance)
+    assert isinstance(comp, Compliance) and comp.solver == solver
+    t_sol, sol = timed(lambda: solve_contact(body, nodes, disp))
+    total = time.perf_counter() - t0
+    return {"total_s": total, "assembly_s": t_asm, "factorisation_s": t_fac, "solve_s": t_sol,
+            "forces": sol.forces, "displacements": sol.displacements}
+
+
+def dolfinx_solve(model, body, nodes, disp) -> dict[str, Any]:
+    sol = model.solve_contact(body.young, body.poisson, body.density, body.gravity, nodes, disp)
+    return {"total_s": sol.seconds, "forces": sol.forces, "displacements": sol.displacements}
+
+
+def section_solve(sizes: list[int], reps: int) -> dict[str, Any]:
+    from bench.meshes import cached_mesh
+
+    rows = []
+    for size in sizes:
+        mesh = cached_mesh("orange", size)
+        body = orange_body(mesh)
+        nodes, disp = demo_contacts(body)
+        row: dict[str, Any] = {"target": size, "vertices": mesh.n_points, "tets": mesh.n_tets,
+                               "dofs": 3 * mesh.n_points, "contacts": len(nodes), "fem_grasp": {}}
+        ref = None
+        for solver in available_solvers():
+            if solver == "superlu" and mesh.n_points > SUPERLU_MAX_VERTICES:
+                row["fem_grasp"][solver] = "skipped (minutes and GBs at this size)"
+                continue
+            runs = [fem_grasp_solve(mesh, nodes, disp, solver) for _ in range(reps)]
+            ref = ref or runs[0]
+            row["fem_grasp"][solver] = {k: median([r[k] for r in runs])
+                                        for k in ("total_s", "assembly_s", "factorisation_s", "solve_s")}
+            log.info("solve %d vertices, %s: %.3f s", mesh.n_points, solver, row["fem_grasp"][solver]["total_s"])
+        os.environ.pop("FEM_GRASP_SOLVER", None)
+        try:
+            from verification.dolfinx_ref import DolfinxModel
+        except ImportError as exc:  # pragma: no cover - dolfinx is in the venv
+            row["dolfinx"] = f"unavailable: {exc}"
+        else:
+            model = DolfinxModel(mesh)
+            dolfinx_solve(model, body, nodes, disp)  # JIT and first-call costs, not timed
+            runs = [dolfinx_solve(model, body, nodes, disp) for _ in range(reps)]
+            row["dolfinx"] = {"total_s": median([r["total_s"] for r in runs]), "solver": "PETSc MUMPS Cholesky"}
+            f_ref = runs[0]["forces"]
+            row["force_rel_diff"] = float(np.abs(ref["forces"] - f_ref).max() / np.abs(f_ref).max())
+            row["field_rel_diff"] = float(np.abs(ref["displacements"] - runs[0]["displacements"]).max()
+                                          / np.abs(runs[0]["displacements"]).max())
+            best = min(v["total_s"] for v in row["fem_grasp"].values() if isinstance(v, dict))
+            row["best_fem_grasp_s"] = best
+            row["ratio_fem_grasp_over_dolfinx"] = best / row["dolfinx"]["total_s"]
+            del model
+        rows.append(row)
+    return {"rows": rows, "reps": reps}
+
+
+def print_solve(sec: dict[str, Any]) -> None:
+    print("\n(a) one contact solve, assembly included (orange, 5 contacts, medians of", sec["reps"], "runs)")
+    print(f"{'vertices':>9s} {'DOFs':>8s} {'solver':>8s} {'assembly':>9s} {'factor':>8s} {'solve':>7s} "
+          f"{'total s':>8s} {'dolfinx s':>9s} {'ratio':>6s} {'|dF|/|F|':>9s}")
+    for r in sec["rows"]:
+        dol = r.get("dolfinx")
+        dol_s = dol["total_s"] if isinstance(dol, dict) else float("nan")
+        for solver, v in r["fem_grasp"].items():
+            if not isinstance(v, dict):
+                print(f"{r['vertices']:9d} {r['dofs']:8d} {solver:>8s}  {v}")
+                continue
+            print(f"{r['vertices']:9d} {r['dofs']:8d} {solver:>8s} {v['assembly_s']:9.3f} {v['factorisation_s']:8.3f} "
+                  f"{v['solve_s']:7.3f} {v['total_s']:8.3f} {dol_s:9.3f} {v['total_s'] / dol_s:6.2f} "
+                  f"{r.get('force_rel_diff', float('nan')):9.1e}")
+
+
+# ---------------------------------------------------------- (b) scaling
+def scaling_worker(size: int) -> None:
+    """Run in a subprocess: one JSON line per finished phase on stdout."""
+    from bench.meshes import cached_mesh
+    from fem_grasp import pickup, rest
+    from fem_grasp.pickup import DEFAULT_FRICTION
+
+    def emit(**kw: Any) -> None:
+        print(json.dumps(kw), flush=True)
+
+    mesh = cached_mesh("orange", size)
+    emit(phase="mesh", vertices=mesh.n_points, tets=mesh.n_tets, surface=len(mesh.surface_nodes),
+         maxrss_mib=maxrss_mib())
+    body = orange_body(mesh)
+    t, k = timed(lambda: body.stiffness)
+    emit(phase="assembly", seconds=t, nnz=int(k.nnz), maxrss_mib=maxrss_mib())
+    t, comp = timed(lambda: body.compliance)
+    emit(phase="factorisation", seconds=t, solver=comp.solver, maxrss_mib=maxrss_mib())
+    mu = DEFAULT_FRICTION  # pickup()'s default for finger and table
+    t, rs = timed(lambda: rest(body, mu))
+    emit(phase="rest", seconds=t, contacts=len(rs.contact_nodes), maxrss_mib=maxrss_mib())
+    t, res = timed(lambda: pickup(body, mu_finger=mu, mu_table=mu, rest_state=rs))
+    emit(phase="pickup", seconds=t, success=bool(res.success), reason=res.reason, events=len(res.events),
+         cached_columns=body.compliance.cached_nodes, maxrss_mib=maxrss_mib())
+
+
+def section_scaling(sizes: list[int], cap: float) -> dict[str, Any]:
+    rows = []
+    for size in sizes:
+        cmd = [sys.executable, "-m", "bench.bench", "--worker-scaling", str(size)]
+        row: dict[str, Any] = {"target": size}
+        lines: list[str] = []
+        t0 = time.perf_counter()
+        proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, text=True)
+        try:
+            out, _ = proc.communicate(timeout=cap)
+            lines = out.splitlines()
+            row["status"] = "ok" if proc.returncode == 0 else f"exit {proc.returncode}"
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            out, _ = proc.communicate()
+            lines = out.splitlines()
+            row["status"] = "timeout"
+        row["wall_s"] = time.perf_counter() - t0
+        for line in lines:
+            try:
+                rec = json.loads(line)
+            except json.JSONDecodeError:
+                continue
+            row[rec.pop("phase")] = rec
+        for phase in ("assembly", "factorisation", "rest", "pickup"):
+            if phase not in row:
+                row[phase] = "timeout" if row["status"] == "timeout" else "not reached"
+        rows.append(row)
+        log.info("scaling %d: %s", size, row["status"])
+    return {"rows": rows, "cap_s": cap,
+            "note": "one subprocess per size (cap on the whole run: mesh load, assembly, factorisation, rest, "
+                    "pickup); memory is the process's peak RSS after each phase"}
+
+
+def print_scaling(sec: dict[str, Any]) -> None:
+    print(f"\n(b) cost against vertex count (orange, E = 1e4 Pa; one process per size, cap {sec['cap_s']:.0f} s)")
+    print(f"{'vertices':>9s} {'assembly s':>10s} {'factor s':>9s} {'rest s':>8s} {'pickup s':>9s} "
+          f"{'peak MiB':>9s} {'after':>14s}")
+
+    def s(v: Any) -> str:
+        return f"{v['seconds']:.3f}" if isinstance(v, dict) else str(v)
+
+    for r in sec["rows"]:
+        mem, where = 0.0, "-"
+        for phase in ("mesh", "assembly", "factorisation", "rest", "pickup"):
+            if isinstance(r.get(phase), dict):
+                mem, where = r[phase]["maxrss_mib"], phase
+        verts = r["mesh"]["vertices"] if isinstance(r.get("mesh"), dict) else r["target"]
+        print(f"{verts:9d} {s(r['assembly']):>10s} {s(r['factorisation']):>9s} {s(r['rest']):>8s} "
+              f"{s(r['pickup']):>9s} {mem:9.0f} {where:>14s}")
+
+
+# ---------------------------------------------------------- (c) objects
+IMPORT_SNIPPET = """
+import json, time
+t0 = time.perf_counter()
+import fem_grasp
+from fem_grasp import objects, pickup
+t1 = time.perf_counter()
+body = objects.load({name!r}, young={young!r})
+res = pickup(body)
+t2 = time.perf_counter()
+print(json.dumps({{"import_s": t1 - t0, "first_call_s": t2 - t1}}))
+"""
+
+
+def one_pickup(name: str, backend: str = "sparse"):
+    from fem_grasp import objects, pickup
+
+    body = objects.load(name, young=YOUNG)
+    return pickup(body, backend=backend)
+
+
+def section_objects(reps: int, budget: float) -> dict[str, Any]:
+    from fem_grasp import objects
+
+    rows = []
+    for name in objects.NAMES:
+        proc = subprocess.run([sys.executable, "-c", IMPORT_SNIPPET.format(name=name, young=YOUNG)], cwd=ROOT,
+                              capture_output=True, text=True, check=True)
+        first = json.loads(proc.stdout.strip().splitlines()[-1])
+        times, res = [], None
+        start = time.perf_counter()
+        for _ in range(reps):
+            t, res = timed(lambda: one_pickup(name))
+            times.append(t)
+            if time.perf_counter() - start > budget:
+                break
+        rows.append({"object": name, "vertices": res.body.n_nodes, "success": bool(res.success),
+                     "events": len(res.events), "median_s": median(times), "min_s": min(times), "runs": len(times),
+                     "import_s": first["import_s"], "first_call_s": first["first_call_s"],
+                     "phases_s": {k: float(v) for k, v in res.timings.items()}})
+        log.info("pickup %s: %.3f s", name, rows[-1]["median_s"])
+    return {"rows": rows, "young": YOUNG,
+            "note": "median over fresh bodies (assembly and factorisation included), in-process after import"}
+
+
+def print_objects(sec: dict[str, Any]) -> None:
+    print(f"\n(c) full pickup per paper object (E = {sec['young']:g} Pa; fresh body each run)")
+    print(f"{'object':>10s} {'vertices':>8s} {'lifted':>6s} {'events':>6s} {'median s':>9s} {'runs':>4s} "
+          f"{'import s':>8s} {'1st call s':>10s}")
+    for r in sec["rows"]:
+        print(f"{r['object']:>10s} {r['vertices']:8d} {str(r['success']):>6s} {r['events']:6d} {r['median_s']:9.3f} "
+              f"{r['runs']:4d} {r['import_s']:8.3f} {r['first_call_s']:10.3f}")
+
+
+# --------------------------------------------------------- spectral ratio
+def snapshot_difference(a, b) -> dict[str, float]:
+    """Largest differences between two pickups of the same body (forces relative to the weight)."""
+    out = {"same_events": [(e.kind, e.node) for e in a.events] == [(e.kind, e.node) for e in b.events],
+           "squeeze_depth_rel": abs(a.squeeze_depth - b.squeeze_depth) / max(abs(b.squeeze_depth), 1e-300)}
+    if a.final is not None and b.final is not None:
+        w = a.body.weight
+        fa, fb = np.asarray(a.final.all_forces), np.asarray(b.final.all_forces)
+        out["final_forces_over_weight"] = float(np.abs(fa - fb).max() / w) if fa.shape == fb.shape else float("inf")
+        out["final_positions_over_diameter"] = float(np.abs(a.final.positions - b.final.positions).max()
+                                                     / a.body.mesh.diameter)
+    return out
+
+
+def section_spectral(name: str = "football") -> dict[str, Any]:
+    t_sparse, a = timed(lambda: one_pickup(name, "sparse"))
+    t_spec, b = timed(lambda: one_pickup(name, "spectral"))
+    return {"object": name, "vertices": a.body.n_nodes, "sparse_s": t_sparse, "spectral_s": t_spec,
+            "ratio": t_spec / t_sparse, "difference": snapshot_difference(a, b)}
+
+
+def print_spectral(sec: dict[str, Any]) -> None:
+    d = sec["difference"]
+    print(f"\n(d) one pickup, sparse against spectral (paper), {sec['object']} ({sec['vertices']} vertices): "
+          f"sparse {sec['sparse_s']:.3f} s, spectral {sec['spectral_s']:.2f} s, ratio {sec['ratio']:.0f}; "
+          f"same events {d['same_events']}, squeeze depth rel. diff. {d['squeeze_depth_rel']:.1e}, "
+          f"final forces / mg {d.get('final_forces_over_weight', float('nan')):.1e}, "
+          f"positions / diameter {d.get('final_positions_over_diameter', float('nan')):.1e}")
+
+
+# -------------------------------------------------------------------- main
+PRINTERS = {"solve": print_solve, "scaling": print_scaling, "objects": print_objects, "spectral": print_spectral}
+
+
+def main(argv: list[str] | None = None) -> dict[str, Any]:
+    ap = argparse.ArgumentParser(prog="python -m bench.bench", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--only", action="append", choices=SECTIONS, help="run only this section (repeatable)")
+    ap.add_argument("--max-vertices", type=int, default=100000, help="largest mesh (default 100000)")
+    ap.add_argument("--reps", type=int, default=3, help="repetitions for medians (default 3)")
+    ap.add_argument("--pickup-cap", type=float, default=300.0,
+                    help="seconds allowed per size in the scaling section (default 300)")
+    ap.add_argument("--object-budget", type=float, default=60.0,
+                    help="stop repeating an object's pickup after this many seconds (default 60)")
+    ap.add_argument("--out", type=Path, default=OUT)
+    ap.add_argument("--worker-scaling", type=int, help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
+    logging.getLogger("fem_grasp").setLevel(logging.WARNING)
+    if args.worker_scaling:
+        scaling_worker(args.worker_scaling)
+        return {}
+    sections = args.only or list(SECTIONS)
+    data: dict[str, Any] = {}
+    if args.out.exists():
+        try:
+            data = json.loads(args.out.read_text())
+        except json.JSONDecodeError:
+            data = {}
+    data["machine"] = machine()
+    data["command"] = "python -m bench.bench " + " ".join(argv if argv is not None else sys.argv[1:])
+    for name in sections:
+        if name == "solve":
+            data["solve"] = section_solve([s for s in SOLVE_SIZES if s <= args.max_vertices], args.reps)
+        elif name == "scaling":
+            data["scaling"] = section_scaling([s for s in SCALING_SIZES if s <= args.max_vertices], args.pickup_cap)
+        elif name == "objects":
+            data["objects"] = section_objects(args.reps, args.object_budget)
+        elif name == "spectral":
+            data["spectral"] = section_spectral()
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(json.dumps(data, indent=2, default=float))
+    m = data["machine"]
+    print(f"\nmachine: {m['cpu']}, {m['cores']} cores, {m['memory_gib']} GiB; Python {m['python']}, numpy {m['numpy']}, "
+          f"scipy {m['scipy']}; default sparse solver {m['default_solver']}")
+    for name in SECTIONS:
+        if name in data:
+            PRINTERS[name](data[name])
+    print(f"\nwrote {args.out}")
+    return data
+
+
+if __name__ == "__main__":
+    main()

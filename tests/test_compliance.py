@@ -1,0 +1,135 @@
+"""The generalised inverse X of K (fem_grasp.compliance): every sparse solver, the column cache, kept rows."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from fem_grasp import Body, solve_contact
+from fem_grasp import compliance as cp
+
+from _meshes import perturbed_box
+
+def _available():
+    out = ["superlu"]
+    if cp.cholmod_available():
+        out.append("cholmod")
+    try:
+        import petsc4py  # noqa: F401
+        out.append("mumps")
+    except ImportError:
+        pass
+    return out
+
+
+AVAILABLE = _available()
+
+
+@pytest.fixture(scope="module")
+def body():
+    return Body(perturbed_box(np.random.default_rng(7), divisions=(4, 3, 3)), 3e4, 0.35, weight=1.5)
+
+
+def spd(rng, n=60):
+    a = sp.random(n, n, 0.08, random_state=np.random.RandomState(3))
+    return (a @ a.T + sp.eye(n) * 0.5).tocsc()
+
+
+@pytest.mark.parametrize("solver", AVAILABLE)
+def test_factorize_solves_vectors_and_blocks(rng, solver):
+    a = spd(rng)
+    solve = cp.factorize(a, solver)
+    b = rng.standard_normal((a.shape[0], 4))
+    for rhs in (b[:, 0], b):
+        x = solve(rhs)
+        assert x.shape == rhs.shape
+        assert np.abs(a @ x - rhs).max() <= 1e-12 * np.abs(rhs).max() * 1e3
+
+
+@pytest.mark.parametrize("solver", AVAILABLE)
+def test_compliance_is_a_generalised_inverse(body, rng, solver):
+    """K X F = F for every load F orthogonal to the rigid modes; X is symmetric."""
+    comp = cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver=solver)
+    assert comp.solver == solver
+    q = body.orthonormal_rigid_modes
+    f = rng.standard_normal((3 * body.n_nodes, 3))
+    f -= q @ (q.T @ f)
+    x = comp.apply(f)
+    k = body.stiffness
+    assert np.abs(k @ x - f).max() <= 1e-9 * np.abs(f).max()
+    nodes = np.array([0, 5, 17, 30])
+    cols = comp.node_columns(nodes)
+    block = cols[(3 * nodes[:, None] + np.arange(3)).ravel()]
+    assert np.abs(block - block.T).max() <= 1e-10 * np.abs(block).max()
+    assert np.array_equal(comp.contact_block(nodes), block)
+
+
+def test_solvers_agree(body, rng):
+    cols = {s: cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver=s).node_columns([3, 9, 40])
+            for s in AVAILABLE}
+    ref = cols["superlu"]
+    for s, c in cols.items():
+        assert np.abs(c - ref).max() <= 1e-9 * np.abs(ref).max(), s
+
+
+@pytest.mark.parametrize("solver", AVAILABLE)
+def test_contact_solutions_agree_across_solvers_and_with_spectral(body, monkeypatch, solver):
+    """The environment variable picks the solver of Body.compliance; forces and fields match the paper's route."""
+    monkeypatch.setenv(cp.SOLVER_ENV, solver)
+    fresh = body.with_material()
+    assert fresh.compliance.solver == solver
+    nodes = np.array([0, 4, 19, 33, 45])
+    disp = np.random.default_rng(1).standard_normal((5, 3)) * 1e-4
+    a = solve_contact(fresh, nodes, disp)
+    b = solve_contact(body, nodes, disp, backend="spectral")
+    assert np.abs(a.forces - b.forces).max() <= 1e-9 * np.abs(b.forces).max()
+    assert np.abs(a.displacements - b.displacements).max() <= 1e-9 * np.abs(b.displacements).max()
+
+
+def test_kept_rows_match_full_columns(body):
+    """Compliance(rows=surface) caches only surface rows, equal to the same rows of the full columns."""
+    surf = body.mesh.surface_nodes
+    full = cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver="superlu")
+    lean = cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver="superlu", rows=surf)
+    nodes = surf[[0, 7, 20]]
+    sdofs = (3 * surf[:, None] + np.arange(3)).ravel()
+    assert np.array_equal(lean.node_columns(nodes), full.node_columns(nodes)[sdofs])
+    assert np.array_equal(lean.contact_block(nodes), full.contact_block(nodes))
+    assert np.array_equal(lean.node_columns(nodes, rows=surf[5:9]), full.node_columns(nodes, rows=surf[5:9]))
+    assert lean.cache_bytes * body.n_nodes == full.cache_bytes * len(surf)
+    interior = np.setdiff1d(np.arange(body.n_nodes), surf)[0]
+    with pytest.raises(ValueError, match=f"node {interior} is not among"):
+        lean.node_columns(nodes, rows=[interior])
+
+
+def test_columns_are_cached_once_per_node(body):
+    comp = cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver="superlu")
+    calls = []
+    inner = comp._solve
+    comp._solve = lambda b: calls.append(b.shape) or inner(b)
+    comp.node_columns([1, 2, 3])
+    comp.node_columns([3, 2, 1, 4])
+    assert calls == [(3 * body.n_nodes - 6, 9), (3 * body.n_nodes - 6, 3)]
+    assert comp.cached_nodes == 4
+
+
+def test_bad_solver_names_and_inputs_are_refused(body, monkeypatch):
+    with pytest.raises(ValueError, match="unknown sparse solver 'umfpack'"):
+        cp.factorize(sp.eye(3).tocsc(), "umfpack")
+    monkeypatch.setenv(cp.SOLVER_ENV, "pardiso")
+    with pytest.raises(ValueError, match=r"unknown sparse solver 'pardiso' \(\$FEM_GRASP_SOLVER\)"):
+        cp.choose_solver()
+    monkeypatch.setenv(cp.SOLVER_ENV, "auto")
+    assert cp.choose_solver() == ("cholmod" if cp.cholmod_available() else "superlu")
+    comp = cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver="superlu")
+    with pytest.raises(ValueError, match="not a node of the body"):
+        comp.node_columns([body.n_nodes])
+    with pytest.raises(ValueError, match="expected a load with"):
+        comp.apply(np.zeros(5))
+    with pytest.raises(ValueError, match="rows must be node indices"):
+        cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver="superlu", rows=[-1, 2])
+
+
+@pytest.mark.skipif(cp.cholmod_available(), reason="scikit-sparse is installed")
+def test_explicit_cholmod_without_scikit_sparse_says_how_to_install():
+    with pytest.raises(ImportError, match="scikit-sparse"):
+        cp.choose_solver("cholmod")
