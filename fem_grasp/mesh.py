@@ -365,6 +365,14 @@ class TetMesh:
         """Write in the format meshio infers from the file extension."""
         self.to_meshio(point_data).write(path)
 
+    @classmethod
+    def from_surface(cls, path: str | PathLike, target_vertices: int | None = None,
+                     size: float | None = None) -> "TetMesh":
+        """Mesh the solid inside a closed triangle surface (STL, OBJ, PLY) with gmsh; see :mod:`fem_grasp.scan`."""
+        from .scan import mesh_surface
+
+        return mesh_surface(path, target_vertices=target_vertices, size=size)
+
 
 def box_mesh(lower: tuple[float, float, float] = (0.0, 0.0, 0.0), upper: tuple[float, float, float] = (1.0, 1.0, 1.0),
              divisions: tuple[int, int, int] = (2, 2, 2)) -> TetMesh:

@@ -1,0 +1,141 @@
+"""The fem-grasp command line, in-process: every shipped scene's quick variant, exit statuses, bad input."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from fem_grasp.cli import main
+from fem_grasp.scene import shipped_scenes
+
+from _ux_helpers import cache_dir, cli_run, icosphere, write_stl
+
+#: Scenes whose quick variant is run to the end; the others stop when the lift test passes (--no-lift),
+#: because their simulated lift still takes minutes (issue #7).
+SLOW_LIFT = {"foam_block": ("--no-lift",), "steam_bun": ("--no-lift",)}
+
+
+@pytest.mark.parametrize("scene", sorted(shipped_scenes()))
+def test_every_shipped_scene_runs_quick_and_the_exit_status_matches_the_result(scene):
+    code, out = cli_run(scene, *SLOW_LIFT.get(scene, ()))
+    assert code in (0, 1)
+    doc = json.loads((out / "result.json").read_text())
+    assert doc["exit_code"] == code and doc["summary"]["success"] == (code == 0)
+    assert doc["scene"]["name"] == scene and doc["scene"]["quick"] is True
+    assert doc["command"][:2] == ["run", scene]
+    if doc["summary"]["success"]:
+        assert doc["result"]["final"]["label"] == "lift-off"
+    else:
+        assert doc["summary"]["reason"]
+    assert (out / "object.pvd").exists()
+
+
+def test_summary_printed_and_quiet_prints_nothing(capsys, tmp_path):
+    args = ["run", "football", "--quick", "--cache", str(cache_dir()), "--no-lift"]
+    code = main(args)
+    text = capsys.readouterr().out
+    assert code in (0, 1) and "scene      football (quick)" in text and "rho =" in text and "events" in text
+    assert main(args + ["--quiet"]) == code
+    assert capsys.readouterr().out == ""
+
+
+def test_rest_command_uses_the_cache_and_writes_rest_files(capsys, tmp_path):
+    args = ["rest", "orange", "--quick", "--cache", str(tmp_path / "c"), "--out", str(tmp_path / "o")]
+    assert main(args) == 0
+    first = capsys.readouterr().out
+    assert main(args) == 0
+    second = capsys.readouterr().out
+    assert "[cached]" not in first and "[cached]" in second and "checks     pass" in second
+    doc = json.loads((tmp_path / "o" / "rest.json").read_text())
+    assert doc["check"]["ok"] and doc["rest_from_cache"] is True
+    assert (tmp_path / "o" / "rest.vtu").exists()
+
+
+def test_help_of_every_command_explains_units(capsys):
+    for cmd in ("run", "rest", "mesh", "info", "report", "scenes"):
+        assert main([cmd, "--help"]) == 0
+    text = capsys.readouterr().out
+    assert "metres" in text and "Exit status" in text
+    assert main([]) == 2  # no command: usage error
+
+
+def test_mesh_and_info_on_a_generated_scan(capsys, tmp_path):
+    p, f = icosphere(0.03, 2)
+    stl = write_stl(tmp_path / "ball.stl", p, f)
+    vtu = tmp_path / "ball.vtu"
+    assert main(["mesh", str(stl), "-o", str(vtu), "--vertices", "200"]) == 0
+    assert main(["info", str(vtu)]) == 0
+    assert main(["info", str(stl)]) == 0
+    text = capsys.readouterr().out
+    assert "closed and manifold" in text and "vertices" in text and "quality" in text
+    assert main(["mesh", str(stl), "-o", str(vtu)]) == 2  # exists, no --force
+    assert "exists; pass --force" in capsys.readouterr().err
+
+
+def _bad(capsys, argv, *words):
+    code = main(argv)
+    err = capsys.readouterr().err
+    assert code == 2, err
+    for w in words:
+        assert w in err, err
+    return err
+
+
+def test_bad_input_exits_2_with_a_message_that_names_it(capsys, tmp_path):
+    scene = tmp_path / "bad.toml"
+    scene.write_text('[object]\npaper = "tomato"\nsqueeze = 3\n')
+    _bad(capsys, ["run", str(scene)], str(scene), "object.squeeze", "unknown key")
+    scene.write_text('[object]\npaper = "tomato"\n[material]\nyoung = "3 mm"\n')
+    _bad(capsys, ["run", str(scene)], "material.young", "is a length, but a pressure is expected")
+    scene.write_text('[object]\npaper = "tomato"\n[material]\npoisson = 0.7\n')
+    _bad(capsys, ["info", str(scene)], "material.poisson", "(-1, 0.5)")
+    _bad(capsys, ["run", str(tmp_path / "missing.toml")], "missing.toml", "does not exist")
+    scene.write_text('[object]\nmesh = "scan.stl"\n')
+    _bad(capsys, ["run", str(scene)], "object.mesh", "scan.stl does not exist")
+    scene.write_text('[object]\npaper = "tomato"\n[fingers]\ncontacts = [0, 99999]\n')
+    _bad(capsys, ["run", str(scene), "--no-cache"], "fingers.contacts", "node 99999 does not exist")
+    _bad(capsys, ["run", "tomato", "--report"], "--report needs --out")
+    # Surfaces: not closed, self-intersecting.
+    p, f = icosphere(0.03, 2)
+    _bad(capsys, ["mesh", str(write_stl(tmp_path / "open.stl", p, f[1:])), "-o", str(tmp_path / "o.vtu")],
+         "open.stl", "not closed")
+    q = p.copy()
+    q[q[:, 2].argmax()] = [0, 0, -0.06]
+    _bad(capsys, ["mesh", str(write_stl(tmp_path / "cross.stl", q, f)), "-o", str(tmp_path / "o.vtu")],
+         "cross.stl", "intersects itself")
+    assert main(["info", str(tmp_path / "cross.stl")]) == 2
+    # A folder that is not ours.
+    foreign = tmp_path / "foreign"
+    foreign.mkdir()
+    (foreign / "thesis.tex").write_text("precious")
+    _bad(capsys, ["run", "football", "--quick", "--out", str(foreign)], "not written by fem_grasp", "--force")
+    assert (foreign / "thesis.tex").read_text() == "precious"
+    _bad(capsys, ["report", str(tmp_path)], "result.json does not exist")
+
+
+def test_python_dash_m_entry_point():
+    r = subprocess.run([sys.executable, "-m", "fem_grasp", "scenes"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and "tomato" in r.stdout and "slippery_ball" in r.stdout
+
+
+def test_scene_demo_example_writes_the_same_outputs(tmp_path):
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parent.parent / "examples" / "scene_demo.py"
+    spec = importlib.util.spec_from_file_location("scene_demo", path)
+    demo = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(demo)
+    result = demo.run("football", quick=True, out=tmp_path / "o", report=False, lift=False)
+    doc = json.loads((tmp_path / "o" / "result.json").read_text())
+    assert doc["summary"]["success"] == result.success and doc["summary"]["n_events"] == len(result.events)
+
+
+def test_main_leaves_logging_as_it_found_it():
+    import logging
+
+    lg = logging.getLogger("fem_grasp")
+    before = (lg.level, lg.propagate, list(lg.handlers))
+    assert main(["scenes", "--quiet"]) == 0 and main(["scenes", "-vv"]) == 0
+    assert (lg.level, lg.propagate, list(lg.handlers)) == before

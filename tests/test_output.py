@@ -1,0 +1,121 @@
+"""Outputs (fem_grasp.output): result.json schema, ParaView time series read back with meshio, atomic writes."""
+
+import json
+import xml.etree.ElementTree as ET
+
+import meshio
+import numpy as np
+import pytest
+
+from fem_grasp.output import (MARKER, SCHEMA, SCHEMA_VERSION, OutputError, atomic_write_text, hemisphere,
+                              prepare_out_dir, read_result)
+
+from _ux_helpers import cli_run
+
+
+@pytest.fixture(scope="module")
+def run():
+    code, out = cli_run("foam_block", "--no-lift")
+    return out, read_result(out)
+
+
+def _pvd_files(path):
+    return [(float(d.get("timestep")), d.get("file")) for d in ET.parse(path).getroot().iter("DataSet")]
+
+
+def test_result_json_has_schema_summary_and_no_stray_files(run):
+    out, doc = run
+    assert doc["schema"] == SCHEMA and doc["schema_version"] == SCHEMA_VERSION
+    for key in ("success", "reason", "squeeze_depth", "n_final_contacts", "finger_normal_force", "event_counts"):
+        assert key in doc["summary"]
+    assert doc["summary"]["n_events"] == len(doc["result"]["events"]) == sum(doc["summary"]["event_counts"].values())
+    json.loads((out / "result.json").read_text(), parse_constant=lambda c: pytest.fail(f"non-strict JSON {c}"))
+    assert not list(out.rglob("*.tmp*")) and not list(out.rglob(".*.vtu"))  # atomic writes leave nothing behind
+    listed = set(json.loads((out / MARKER).read_text())["files"])
+    on_disk = {str(p.relative_to(out)) for p in out.rglob("*") if p.is_file() and p.name != MARKER}
+    assert listed == on_disk
+
+
+def test_time_series_round_trips_and_matches_result_json(run):
+    out, doc = run
+    res = doc["result"]
+    frames = doc["series"]["frames"]
+    steps = _pvd_files(out / "object.pvd")
+    assert [f for _, f in steps] == [fr["file"] for fr in frames] and [t for t, _ in steps] == list(range(len(steps)))
+    assert frames[0]["label"] == "rest" and len(frames) == len(res["snapshots"]) + 1
+    reference = None
+    for fr in frames:
+        m = meshio.read(out / fr["file"])
+        pd = m.point_data
+        assert set(pd) == {"displacement", "contact_state", "contact_body", "contact_force"}
+        ref = m.points - pd["displacement"]
+        if reference is None:
+            reference = ref
+        np.testing.assert_allclose(ref, reference, atol=1e-12)  # one reference shape under every frame
+        if fr["snapshot"] is None:
+            rest = doc["rest"]
+            nodes = {"table": rest["contact_nodes"], "finger1": [], "finger2": []}
+            forces = {"table": rest["contact_forces"]}
+            sliding = {"table": rest["sliding"]}
+        else:
+            s = res["snapshots"][fr["snapshot"]]
+            nodes, forces, sliding = s["contact_nodes"], s["contact_forces"], s["sliding"]
+        in_contact = np.zeros(len(m.points), bool)
+        for code, body in ((1, "finger1"), (2, "finger2"), (3, "table")):
+            k = np.asarray(nodes[body], int)
+            in_contact[k] = True
+            if not len(k):
+                continue
+            np.testing.assert_array_equal(pd["contact_body"][k], code)
+            np.testing.assert_allclose(pd["contact_force"][k], forces[body], rtol=0, atol=1e-12)
+            np.testing.assert_array_equal(pd["contact_state"][k], np.where(sliding[body], 2, 1))
+        assert (pd["contact_body"][~in_contact] == 0).all() and (pd["contact_state"][~in_contact] == 0).all()
+        assert (pd["contact_force"][~in_contact] == 0).all()
+        # Contact forces and gravity balance: Σf = +mg ẑ (forces on the object hold its weight).
+        np.testing.assert_allclose(pd["contact_force"].sum(axis=0), [0, 0, doc["summary"]["weight"]],
+                                   atol=1e-8 * doc["summary"]["weight"] + 1e-9 * np.abs(pd["contact_force"]).sum())
+
+
+def test_fingertips_are_hemispheres_of_the_fingertip_radius_at_the_snapshot_centres(run):
+    out, doc = run
+    res = doc["result"]
+    for f, name in enumerate(("finger1", "finger2")):
+        steps = _pvd_files(out / f"{name}.pvd")
+        assert len(steps) == len(doc["series"]["frames"])
+        for t, rel in steps[1:]:
+            snap = res["snapshots"][int(t) - 1]
+            m = meshio.read(out / rel)
+            c = np.asarray(snap["finger_centers"][f])
+            np.testing.assert_allclose(np.linalg.norm(m.points - c, axis=1), res["finger_radius"], rtol=1e-12)
+            d = np.asarray(res["directions"][f])
+            assert ((m.points - c) @ d >= -1e-12).all()  # the half facing the squeeze direction
+    table = meshio.read(out / "table.vtu")
+    np.testing.assert_allclose(table.points[:, 2], doc["rest"]["table_z"])
+
+
+def test_hemisphere_geometry():
+    p, t = hemisphere([1.0, 2.0, 3.0], 0.5, [0, 1, 0], n_theta=6, n_phi=12)
+    np.testing.assert_allclose(np.linalg.norm(p - [1, 2, 3], axis=1), 0.5)
+    assert ((p[:, 1] - 2.0) >= -1e-12).all() and t.max() == len(p) - 1 and len(t) == 12 + 2 * 12 * 5
+
+
+def test_out_dir_rules(tmp_path):
+    foreign = tmp_path / "foreign"
+    foreign.mkdir()
+    (foreign / "notes.txt").write_text("mine")
+    with pytest.raises(OutputError, match="not written by fem_grasp"):
+        prepare_out_dir(foreign)
+    prepare_out_dir(foreign, force=True)
+    assert (foreign / "notes.txt").read_text() == "mine"  # --force writes beside, never deletes the user's files
+    # Our own folder: files from the previous manifest are removed (no stale steps), others kept.
+    ours = tmp_path / "ours"
+    prepare_out_dir(ours)
+    atomic_write_text(ours / "series" / "object_0009.vtu", "old step")
+    atomic_write_text(ours / "keep.txt", "user file")
+    atomic_write_text(ours / MARKER, json.dumps({"written_by": "fem_grasp", "files": ["series/object_0009.vtu"]}))
+    prepare_out_dir(ours)
+    assert not (ours / "series" / "object_0009.vtu").exists() and (ours / "keep.txt").exists()
+    with pytest.raises(OutputError, match="not a folder"):
+        prepare_out_dir(ours / "keep.txt")
+    with pytest.raises(OutputError, match="does not exist"):
+        read_result(tmp_path / "empty")

@@ -1,0 +1,154 @@
+"""Scene files (fem_grasp.scene): parsing, units, error messages naming file and key, the resting-state cache."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fem_grasp import Body, box_mesh, objects
+from fem_grasp.scene import (SceneError, cached_rest, load_scene, parse_quantity, resolve_scene, rest_key,
+                             shipped_scenes)
+
+PAPER = ("tomato", "orange", "steam_bun", "football")
+
+
+def _write(tmp_path: Path, text: str, name: str = "s.toml") -> Path:
+    p = tmp_path / name
+    p.write_text(text)
+    return p
+
+
+BOX = """
+[object]
+box = ["3 cm", "4 cm", "3 cm"]
+divisions = [2, 2, 2]
+[material]
+young = "20 kPa"
+poisson = 0.3
+weight = "0.3 N"
+[friction]
+finger = 0.5
+"""
+
+
+def test_shipped_scenes_parse_full_and_quick_and_paper_ones_carry_table_one():
+    scenes = shipped_scenes()
+    assert set(PAPER) <= set(scenes) and len(scenes) >= 6
+    assert any(load_scene(p).expect == "failure" for p in scenes.values())  # the slippery one
+    for name, path in scenes.items():
+        full, quick = load_scene(path), load_scene(path, quick=True)
+        assert quick.quick and not full.quick
+        assert full.object != quick.object, f"{name}: the quick variant must coarsen the mesh"
+        if name in PAPER:
+            row = objects.TABLE_I[name]
+            assert (full.weight, full.poisson, full.mu_finger, full.mu_table) == (row.weight, row.poisson,
+                                                                                  row.friction, row.friction)
+            assert full.young == objects.EFFECTIVE_YOUNG_ESTIMATE
+            assert full.object.vertices is None and 100 <= quick.object.vertices <= 250
+            np.testing.assert_allclose(np.linalg.norm(full.directions, axis=1), 1.0)
+
+
+@pytest.mark.parametrize("text, kind, si", [("10 kPa", "pressure", 1e4), ("2 cm", "length", 0.02),
+                                           ("0.5mm", "length", 5e-4), ("1.2 N", "force", 1.2),
+                                           ("120 g", "mass", 0.12), ("1 g/cm^3", "density", 1000.0),
+                                           (3, "length", 3.0), ("1e9 Pa", "pressure", 1e9)])
+def test_quantities_convert_to_si(text, kind, si):
+    assert parse_quantity(text, kind) == pytest.approx(si)
+
+
+def test_scene_units_are_converted(tmp_path):
+    s = load_scene(_write(tmp_path, BOX))
+    assert s.object.box == pytest.approx((0.03, 0.04, 0.03))
+    assert (s.young, s.weight, s.mu_finger, s.mu_table) == (2e4, 0.3, 0.5, 0.5)  # μ_table defaults to μ_finger
+
+
+def _with(table: str, line: str) -> str:
+    """BOX with ``line`` added to ``[table]`` (created if absent; "" = top level)."""
+    if not table:
+        return line + "\n" + BOX
+    header = f"[{table}]\n"
+    if header in BOX:
+        return BOX.replace(header, header + line + "\n", 1)
+    return BOX + "\n" + header + line + "\n"
+
+
+@pytest.mark.parametrize("table, line, key, words", [
+    ("object", 'colour = "red"', "object.colour", "unknown key"),
+    ("", "speed = 3", "speed", "unknown key"),
+    ("material", "youngs = 1e4", "material.youngs", "did you mean 'material.young'"),
+    ("solver", 'max_squeeze = "5 kPa"', "solver.max_squeeze", "is a pressure, but a length is expected"),
+    ("solver", 'step = "5 parsecs"', "solver.step", "unknown unit"),
+    ("fingers", "ratio = -3", "fingers.ratio", "≥ 0"),
+    ("object", "vertices = 5", "object.vertices", "at least 20"),
+    ("friction", "table = -0.1", "friction.table", "≥ 0"),
+    ("fingers", 'radius = "0 mm"', "fingers.radius", "positive"),
+    ("fingers", "contacts = [3]", "fingers.contacts", "two node indices"),
+    ("fingers", "directions = [[0, 0, 0], [0, 1, 0]]", "fingers.directions[0]", "non-zero"),
+    ("solver", 'backend = "dense"', "solver.backend", "sparse"),
+    ("solver", "lift = 1", "solver.lift", "true or false"),
+    ("quick", "object = { vertex = 10 }", "object.vertex", "unknown key"),
+])
+def test_bad_values_name_the_file_and_the_key(tmp_path, table, line, key, words):
+    path = _write(tmp_path, _with(table, line))
+    with pytest.raises(SceneError) as exc:
+        load_scene(path, quick=True)
+    msg = str(exc.value)
+    assert str(path) in msg and key in msg and words in msg, msg
+
+
+@pytest.mark.parametrize("old, new, key, words", [
+    ('young = "20 kPa"', 'young = "5 cm"', "material.young", "is a length, but a pressure is expected"),
+    ('young = "20 kPa"', "young = -3", "material.young", "positive"),
+    ("poisson = 0.3", "poisson = 0.5", "material.poisson", "(-1, 0.5)"),
+    ("finger = 0.5", "finger = -0.1", "friction.finger", "≥ 0"),
+    ('weight = "0.3 N"', 'weight = "0.3 kg"', "material.weight", "is a mass, but a force is expected"),
+])
+def test_bad_values_of_given_keys(tmp_path, old, new, key, words):
+    path = _write(tmp_path, BOX.replace(old, new))
+    with pytest.raises(SceneError) as exc:
+        load_scene(path)
+    msg = str(exc.value)
+    assert str(path) in msg and key in msg and words in msg, msg
+
+
+def test_missing_file_bad_toml_missing_mesh_and_object_choice(tmp_path):
+    with pytest.raises(SceneError, match="does not exist"):
+        load_scene(tmp_path / "nope.toml")
+    with pytest.raises(SceneError, match="not valid TOML"):
+        load_scene(_write(tmp_path, "[object\npaper = 1"))
+    with pytest.raises(SceneError, match=r"object\.mesh: mesh file .*missing\.stl does not exist"):
+        load_scene(_write(tmp_path, '[object]\nmesh = "missing.stl"\n' + BOX.split("[object]")[1].split("\n", 3)[3]))
+    with pytest.raises(SceneError, match="exactly one of paper, mesh, box; got paper, box"):
+        load_scene(_write(tmp_path, '[object]\npaper = "tomato"\nbox = [1, 1, 1]'))
+    with pytest.raises(SceneError, match="unknown paper object 'apple'"):
+        load_scene(_write(tmp_path, '[object]\npaper = "apple"'))
+    with pytest.raises(SceneError, match="material.young .* is required for a box"):
+        load_scene(_write(tmp_path, "[object]\nbox = [0.01, 0.01, 0.01]"))
+    with pytest.raises(SceneError, match="no shipped scene"):
+        resolve_scene("no_such_scene")
+
+
+def test_quick_table_merges_over_the_scene(tmp_path):
+    s = load_scene(_write(tmp_path, BOX + '\n[quick]\nobject = { divisions = [1, 2, 1] }\nsolver = { step = "1 mm" }'),
+                   quick=True)
+    assert s.object.divisions == (1, 2, 1) and s.object.box == pytest.approx((0.03, 0.04, 0.03))
+    assert s.step == pytest.approx(1e-3) and s.quick
+
+
+def test_resting_state_cache_is_reused_and_equal_and_keyed(tmp_path):
+    body = Body(box_mesh((0, 0, 0), (0.03, 0.04, 0.03), (2, 3, 2)), 2e4, 0.3, weight=0.3)
+    first, cached = cached_rest(body, 0.5, cache_dir=tmp_path)
+    assert not cached and len(list(tmp_path.glob("rest-*.npz"))) == 1
+    again, cached = cached_rest(body, 0.5, cache_dir=tmp_path)
+    assert cached
+    np.testing.assert_array_equal(again.contact_nodes, first.contact_nodes)
+    np.testing.assert_allclose(again.contact_forces, first.contact_forces, rtol=0, atol=1e-12 * body.weight)
+    np.testing.assert_allclose(again.positions, first.positions, rtol=0, atol=1e-15)
+    assert again.check()["ok"]
+    # Another μ, modulus or mesh is another key.
+    assert rest_key(body, 0.5) != rest_key(body, 0.4) != rest_key(body.with_material(young=3e4), 0.5)
+    # A damaged entry is recomputed, not trusted.
+    f = next(tmp_path.glob("rest-*.npz"))
+    f.write_bytes(b"garbage")
+    state, cached = cached_rest(body, 0.5, cache_dir=tmp_path)
+    assert not cached and state.n_contacts == first.n_contacts
