@@ -4,7 +4,7 @@ An output folder written by :func:`write_run` holds::
 
     result.json            schema-versioned summary, scene, events, w(ρ), every snapshot's contacts
     object.pvd             time series of the object (open this in ParaView)
-    finger1.pvd            the fingertips, one surface per step (hemispheres facing the object)
+    finger1.pvd            the fingertips, one sphere per step (front and back hemispheres)
     finger2.pvd
     table.vtu              the table plane (a square under the object)
     series/*.vtu           the steps (meshio VTU, XML binary)
@@ -43,7 +43,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 __all__ = ["SCHEMA", "SCHEMA_VERSION", "OutputError", "atomic_write_bytes", "atomic_write_text", "prepare_out_dir",
-           "frames_of", "write_series", "write_result_json", "write_run", "read_result", "hemisphere",
+           "frames_of", "fingertip_surface", "write_series", "write_result_json", "write_run", "read_result", "hemisphere",
            "contact_point_data", "write_rest", "MARKER"]
 
 log = logging.getLogger(__name__)
@@ -242,6 +242,18 @@ def hemisphere(center: np.ndarray, radius: float, axis: np.ndarray, n_theta: int
     return np.asarray(center, float) + radius * pts, np.array(tris, dtype=np.int64)
 
 
+def fingertip_surface(center: np.ndarray, radius: float, axis: np.ndarray, n_theta: int = 10,
+                      n_phi: int = 24) -> tuple[np.ndarray, np.ndarray]:
+    """The whole fingertip sphere as two hemispheres, the front one (facing the object) first.
+
+    A deep squeeze buries the front hemisphere in the object; the back one
+    stays visible.  Returns (points, triangles).
+    """
+    p1, t1 = hemisphere(center, radius, axis, n_theta, n_phi)
+    p2, t2 = hemisphere(center, radius, -np.asarray(axis, float), n_theta, n_phi)
+    return np.vstack([p1, p2]), np.vstack([t1, t2 + len(p1)])
+
+
 def _pvd(entries: Sequence[tuple[float, str]]) -> str:
     lines = ['<?xml version="1.0"?>',
              '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">', "  <Collection>"]
@@ -274,7 +286,7 @@ def write_series(out: str | Path, result: Any, progress: Callable[[int, int], No
         entries["object"].append((float(k), rel))
         if fr["finger_centers"] is not None:
             for f, (name, axis) in enumerate((("finger1", d1), ("finger2", d2))):
-                pts, tris = hemisphere(fr["finger_centers"][f], fr["finger_radius"], axis)
+                pts, tris = fingertip_surface(fr["finger_centers"][f], fr["finger_radius"], axis)
                 rel_f = f"series/{name}_{k:04d}.vtu"
                 atomic_write_mesh(out / rel_f, meshio.Mesh(pts, [("triangle", tris)]))
                 files.append(rel_f)

@@ -7,7 +7,7 @@ Pictures (PNG, beside report.html):
   deformed shape (true scale) coloured by displacement magnitude |δ| (mm, one
   colour scale for the three), contact forces on the object as arrows (one
   length scale; red on the fingers, blue on the table), sliding contacts as
-  orange dots, the two hemispherical fingertips and the table.  Rendered
+  orange dots, the two fingertips (whole spheres) and the table.  Rendered
   off-screen with pyvista in a freshly *spawned* process (VTK aborts in a
   process that has loaded dolfinx; see ``verification/render.py``), from
   plain arrays read back from the time series.
@@ -115,7 +115,7 @@ def _pyvista() -> Any:
 
 
 def _draw_frame(job: dict[str, Any]) -> str:
-    from .output import hemisphere
+    from .output import fingertip_surface
 
     pv = _pyvista()
     pts, tets = job["points"], job["tets"]
@@ -143,9 +143,9 @@ def _draw_frame(job: dict[str, Any]) -> str:
     # Fingertips.
     if job["centers"] is not None:
         for f in range(2):
-            hp, tri = hemisphere(job["centers"][f], job["radius"], job["directions"][f], 14, 36)
+            hp, tri = fingertip_surface(job["centers"][f], job["radius"], job["directions"][f], 14, 36)
             poly = pv.PolyData(hp, np.hstack([np.full((len(tri), 1), 3), tri]).ravel())
-            p.add_mesh(poly, color="#b0b0b0", opacity=0.55, smooth_shading=True)
+            p.add_mesh(poly, color="#c0c0c0", smooth_shading=True, specular=0.4)
     # Contact forces: arrows ending at the node (the force pushes the object there).
     force, body, state = job["force"], job["body"], job["state"]
     if job["fmax"] > 0:
@@ -166,7 +166,7 @@ def _draw_frame(job: dict[str, Any]) -> str:
                position=(12, int(job["size"][1]) - 58))
     # One camera for every picture: oblique, fingers left and right.
     focal = c.copy()
-    view = np.array([1.0, 0.28, 0.42])
+    view = np.array([1.0, 0.12, 0.55])
     view /= np.linalg.norm(view)
     p.camera_position = [tuple(focal + 2.6 * diam * view), tuple(focal), (0.0, 0.0, 1.0)]
     p.camera.view_angle = 30.0
@@ -246,7 +246,7 @@ def plot_timeline(doc: dict[str, Any], path: Path) -> Path:
         y = np.array([kinds.index(e["kind"]) for e in ev]) + {"finger1": -0.2, "finger2": 0.0, "table": 0.2}[body]
         ax.scatter(x, y + rng.uniform(-0.06, 0.06, len(y)), s=12, color=colour, label=body, alpha=0.8)
     ax.set_yticks(range(4), [names[k] for k in kinds])
-    ax.set_ylim(-0.6, 3.6)
+    ax.set_ylim(-0.6, 4.3)  # room for the legend above the D row
     ax.set_title(f"{len(res['events'])} events along the finger path (squeeze ρ, then ρ + lift height)")
     ax.legend(loc="upper left", fontsize=8, ncol=3)
     frames = doc["series"]["frames"]
