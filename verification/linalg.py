@@ -14,7 +14,8 @@ from typing import Callable, Iterator
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
+
+from fem_grasp.compliance import factorize as _package_factorize  # bound before any swap below
 
 log = logging.getLogger(__name__)
 
@@ -62,40 +63,13 @@ def factorized(matrix: sp.spmatrix, block: int = 256) -> Callable[[np.ndarray], 
     per multi-RHS solve), otherwise SciPy's SuperLU.
     """
     try:
-        from petsc4py import PETSc
+        import petsc4py  # noqa: F401
     except ImportError:  # pragma: no cover - dolfinx brings petsc4py
-        lu = spla.splu(sp.csc_matrix(matrix), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
-                       options={"SymmetricMode": True})
         log.debug("SuperLU factorisation of %d DOFs", matrix.shape[0])
-        return lu.solve
-
-    mat = petsc_matrix(matrix)
-    ksp = mumps_solver(mat)
-    x, b = mat.createVecRight(), mat.createVecLeft()
+        return _package_factorize(matrix, solver="superlu")
     log.debug("MUMPS factorisation of %d DOFs", matrix.shape[0])
-
-    def solve(rhs: np.ndarray) -> np.ndarray:
-        rhs = np.asarray(rhs, dtype=float)
-        if rhs.ndim == 1:
-            b.array[:] = rhs
-            ksp.solve(b, x)
-            return x.array.copy()
-        # Many right-hand sides: one MUMPS multi-RHS solve per block of columns.
-        out = np.empty_like(rhs)
-        factor = ksp.getPC().getFactorMatrix()
-        for start in range(0, rhs.shape[1], block):
-            cols = np.asfortranarray(rhs[:, start:start + block])
-            bmat = PETSc.Mat().createDense(cols.shape, array=cols, comm=PETSc.COMM_SELF)
-            xmat = PETSc.Mat().createDense(cols.shape, comm=PETSc.COMM_SELF)
-            xmat.setUp()
-            factor.matSolve(bmat, xmat)
-            out[:, start:start + block] = xmat.getDenseArray()
-            bmat.destroy()
-            xmat.destroy()
-        return out
-
-    solve.ksp = ksp  # keep PETSc objects alive with the closure
-    return solve
+    # The package's MUMPS path (one multi-RHS solve per block of columns).
+    return _package_factorize(matrix, solver="mumps")
 
 
 def dirichlet_solve(matrix: sp.spmatrix, load: np.ndarray, fixed: np.ndarray, values: np.ndarray) -> np.ndarray:
