@@ -221,6 +221,10 @@ class MixedSlipSystem:
       touched) can acquire a friction component across a frozen direction
       that no slip along it removes.
 
+    The fingertip unknown c_k is carried as c_k = 1 + γ_k (held state γ = 0):
+    the slip δ_k = γ_k r_k + … then has no −r_k offset, whose force C r_k
+    (~E·R) would otherwise bury a lightly loaded contact's force in round-off.
+
     The cone of a fingertip node uses the normal at its new position,
     n̂_k = (q_k − O)/R; the table normal is ẑ.  r_k = p̃_k − O is the node's
     position relative to the fingertip centre before the increment.
@@ -275,8 +279,9 @@ class MixedSlipSystem:
                     axis = np.cross(nrm, t)
                     axis /= np.linalg.norm(axis)
                     cols_e = np.stack([r, np.cross(axis, r)], axis=1)
-                self.e0[j] = -r
-                start = [1.0] + [0.0] * (cols_e.shape[1] - 1)
+                # Unknowns (γ_k, s_k) with c_k = 1 + γ_k: δ_k = γ_k r_k + s_k N̂_k × r_k carries no −r_k
+                # offset, whose product with C (~E·R) would swamp a small contact force in round-off.
+                start = [0.0] * cols_e.shape[1]
             else:
                 if free:
                     e1, e2 = tangent_basis(self.n0[j])
@@ -367,7 +372,8 @@ class MixedSlipSystem:
         n = self.n0 + self.kappa[:, None] * d
         fn = (f * n).sum(axis=1)
         cone = (1.0 + self.mu**2) * fn**2 - (f * f).sum(axis=1)
-        sphere = (x[self.sph_idx] ** 2).sum(axis=1) - 1.0
+        xs = x[self.sph_idx]
+        sphere = 2.0 * xs[:, 0] + (xs**2).sum(axis=1)  # (1 + γ)² + s² − 1 without cancellation
         if len(self.align_rows):
             align = (n * _cross(f, d)).sum(axis=1)
         else:
@@ -387,7 +393,9 @@ class MixedSlipSystem:
         rows -= 2.0 * np.einsum("ki,kij->kj", f, g)
         sphere = np.zeros((len(self.sphere_rows), self.n))
         if len(self.sphere_rows):
-            np.put_along_axis(sphere, self.sph_idx, 2.0 * x[self.sph_idx], axis=1)
+            xs = 2.0 * x[self.sph_idx]
+            xs[:, 0] += 2.0
+            np.put_along_axis(sphere, self.sph_idx, xs, axis=1)
         out = [rows, sphere]
         if len(self.align_rows):
             # ∂[n·(f×δ)] = ∂n·(f×δ) + ∂f·(δ×n) + ∂δ·(n×f)

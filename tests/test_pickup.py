@@ -341,3 +341,29 @@ def test_slip_rates_of_event_d_match_finite_differences(free):
     sl = state.sliding
     np.testing.assert_allclose((t1.amounts - t0.amounts)[sl] / 1e-8, t0.rates[sl], rtol=0,
                                atol=1e-4 * np.abs(t0.rates[sl]).max())
+
+
+def test_a_lightly_loaded_fingertip_contact_on_a_stiff_body_slides_onto_its_cone():
+    # Figures of the tomato at Table I's E = 1 GPa just after ρ = 0: a contact of 5 µN, 25 % outside its
+    # cone, with an own stiffness of 5e6 N/m and R = 1 cm.  Carried as c_k (≈ 1), the fingertip unknowns
+    # put C·r_k ≈ 5e4 N into every force and buried this one in round-off (Newton failed).
+    c = np.array([[123569.8, -31895.7, -220655.4], [-31895.7, 5290413.3, 1039374.6],
+                  [-220655.4, 1039374.6, 2255505.1]])
+    n = np.array([0.05818, -0.96774, 0.24512])
+    n /= np.linalg.norm(n)
+    radius = 0.01
+    fh = np.array([[3.2622e-09, -5.33995e-06, -6.75193e-07]])
+    fn = fh[0] @ n
+    ft = fh[0] - fn * n
+    assert np.linalg.norm(ft) > 1.2 * 0.32 * fn  # starts well outside
+    system = MixedSlipSystem(c, fh, np.zeros((1, 3)), np.array([0]), np.array([FINGER1]), np.array([0.32]),
+                             (ft / np.linalg.norm(ft))[None, :], (radius * n)[None, :],
+                             np.array([0.0, 0.0, 1.0]), radius)
+    x = system.solve()
+    f = system.forces(x)[0]
+    nq = system.normals(x)[0]
+    fn_new = f @ nq
+    assert np.linalg.norm(f - fn_new * nq) == pytest.approx(0.32 * fn_new, rel=1e-9)
+    assert np.linalg.norm(system.normals(x)[0]) == pytest.approx(1.0, abs=1e-15)  # still on the sphere
+    assert 0 < system.amounts(x)[0] < 1e-12  # a slip of a few 1e-14 m
+
