@@ -260,8 +260,7 @@ class MixedSlipSystem:
         p = len(self.sliding)
         self.finger = self.kinds != TABLE
         self.cols: list[np.ndarray] = []
-        self.e_loc: list[np.ndarray] = []  # (3, k_j): δ_j = e_loc x[cols] + e0_j
-        self.e0 = np.zeros((p, 3))
+        self.e_loc: list[np.ndarray] = []  # (3, k_j): δ_j = e_loc x[cols]
         self.n0 = np.broadcast_to(np.asarray(up, float), (p, 3)).copy()
         self.kappa = np.where(self.finger, 1.0 / self.radius, 0.0)
         x0: list[float] = []
@@ -301,14 +300,10 @@ class MixedSlipSystem:
         for j, k in enumerate(self.sliding):
             e[3 * k:3 * k + 3, self.cols[j]] = self.e_loc[j]
             self.d_map[j][:, self.cols[j]] = self.e_loc[j]
-        e_off = np.zeros(3 * m)
-        for j, k in enumerate(self.sliding):
-            e_off[3 * k:3 * k + 3] = self.e0[j]
         self.e = e
-        self.e_off = e_off
         self.g = stiffness @ e  # dF/dx
         self.g_sl = self.g.reshape(m, 3, n)[self.sliding]  # (p, 3, N)
-        self.base = held_forces.reshape(-1) + stiffness @ e_off
+        self.base = held_forces.reshape(-1)  # δ(0) = 0: the held state
         # Scales: distance unknowns by the slip that changes the force by its own size; the
         # dimensionless fingertip unknowns by one.
         fscale = float(np.abs(held_forces).max()) if held_forces.size else 1.0
@@ -351,12 +346,12 @@ class MixedSlipSystem:
 
     def displacements(self, x: np.ndarray) -> np.ndarray:
         """(m, 3) change of the contact displacements from the held prediction."""
-        return (self.e @ x + self.e_off).reshape(-1, 3)
+        return (self.e @ x).reshape(-1, 3)
 
     def slips(self, x: np.ndarray) -> np.ndarray:
         """(p, 3) δ_k of the sliding nodes."""
         xe = np.append(x, 0.0)[self.loc_idx]  # (p, 3)
-        return np.einsum("kij,kj->ki", self.loc_e, xe) + self.e0
+        return np.einsum("kij,kj->ki", self.loc_e, xe)
 
     def _sliding_forces(self, x: np.ndarray) -> np.ndarray:
         return (self.base_sl + self.g_sl2 @ x).reshape(-1, 3)
