@@ -9,16 +9,16 @@ and asks whether the fingers hold a hypothetical weight w.
 Hanging at a trial weight (:func:`hang`)
 ----------------------------------------
 The finger configuration is held at the trial weight (gravity load factor
-λ = w / mg) and settled in place, as the resting iteration of §III-A does on
-the table: tensile contacts are released (B), contacts outside their cones
-slide back onto them through the slip system of eqs. (7)–(8) (C), sliding
-contacts whose slip would run with their friction stick (D), nodes that come
-to penetrate a fingertip are added (A), until the configuration is
-consistent.  The slips start from the squeeze state's own stick/slip flags.
-The weight **is held** when this settles and each finger keeps at least one
-sticking contact; it is **not held** when every contact of one finger
-slides (the object slides on that finger), when the slip system has no root
-(gross slip), or when too few contacts remain to fix the body (Theorem 3).
+λ = w / mg) and settled in place by a return mapping
+(:meth:`~fem_grasp.tracking.Tracker.implicit_step` with the fingers still,
+:func:`~fem_grasp.relaxation.relax_contacts`): every contact ends sticking,
+sliding onto its cone along its fingertip's great circle (eqs. 7–8), or
+released (B); nodes that come to penetrate a fingertip are added (A).
+The weight **is held** when a static state is found and each finger keeps at
+least one sticking contact; it is **not held** when every contact of one
+finger slides (the object slides on that finger), when no static state
+exists (gross slip), or when too few contacts remain to fix the body
+(Theorem 3).
 
 Incremental tracking (:class:`LiftTest`)
 ---------------------------------------
@@ -33,7 +33,7 @@ extension.  The test passes once w(ρ_l) ≥ mg.  The step h defaults to mg/20.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -83,10 +83,7 @@ def hanging_state(tracker: Tracker, state: ContactState) -> HangResult:
                                    lift_height=state.lift_height, load=0.0, centers=state.centers, nodes=nodes,
                                    owner=state.owner[fingers], disp=state.disp[fingers],
                                    sliding=state.sliding[fingers], slip=state.slip[fingers])
-        # Slip directions of the contacts that already slide come from the squeeze forces.
-        start = replace(start, forces=np.where(start.sliding[:, None], state.forces[fingers], start.forces))
-        settled, _ = tracker.settle(start, np.zeros((2, 3)), phase="lift test", param="lift_height",
-                                    by_amount=True)
+        settled, _ = tracker.implicit_step(start, 0.0, np.zeros((2, 3)), param="lift_height", phase="lift test")
     except TrackingError as exc:
         return HangResult(0.0, False, f"the fingers cannot hold it: {exc}", None)
     return _verdict(0.0, settled)
@@ -107,9 +104,7 @@ def hang(tracker: Tracker, start: ContactState, weight: float, *, max_depth: int
                                    lift_height=start.lift_height, load=load, centers=start.centers,
                                    nodes=start.nodes, owner=start.owner, disp=start.disp,
                                    sliding=start.sliding, slip=start.slip)
-        begin = replace(begin, forces=np.where(begin.sliding[:, None], start.forces, begin.forces))
-        settled, _ = tracker.settle(begin, np.zeros((2, 3)), phase="lift test", param="lift_height",
-                                    by_amount=True)
+        settled, _ = tracker.implicit_step(begin, 0.0, np.zeros((2, 3)), param="lift_height", phase="lift test")
     except TrackingError as exc:
         if max_depth <= 0:
             return HangResult(weight, False, f"the fingers cannot hold it: {exc}", None)

@@ -33,6 +33,26 @@ configuration is updated there.  Several events at the same t (symmetric
 bodies give pairs) are applied together, and cascades (a release that makes
 a neighbour tensile) are settled at the same t.
 
+Where the rate problem has no solution
+--------------------------------------
+With μ = 0.3–0.5 and the strong coupling between tangential slip and normal
+force of coarse P1 patches, the stick/slip rate problem can have no solution:
+a contact leaves its cone when it sticks, yet its slip rate is negative when
+it slides, or the slip system of several coupled sliding nodes loses its
+root.  The body then reaches a static state by a finite slip.  The tracker
+takes that step as a return mapping (:meth:`Tracker.implicit_step`):
+every contact held, then the static stick / slide / release state of all of
+them at once (:func:`fem_grasp.relaxation.relax_contacts`), with new
+contacts added as they appear.  This is used (i) when a settle after events
+finds no slip solution or a node toggles more than three times, (ii) when an
+increment's slip system fails after four halvings (the increment is then
+taken implicitly), and (iii) when a node chatters between stick and slip
+without progress in the parameter (one implicit increment of ``step``).
+Events inside an implicit increment are recorded at its end.  Only if no
+static state exists either (gross slip) does the tracking stop with
+:class:`TrackingError`.  The lift test's hanging settles use the same
+return mapping (:mod:`fem_grasp.lift_test`).
+
 Modelling choices (the paper is silent or vague here)
 -----------------------------------------------------
 * **Slip directions are re-anchored every increment**: the great circle
@@ -81,6 +101,7 @@ import scipy.linalg as la
 
 from . import homotopy
 from .body import Body
+from .relaxation import RELEASE, SLIDE, RelaxationFailure, relax_contacts
 from .geometry import TablePlane, tangent_basis
 from .response import CollinearContactError, ContactResponse, check_contact_set
 
@@ -101,6 +122,10 @@ TOL_FORCE_FLOOR = 1e-7  # × force scale: contacts carrying less are 'just touch
 TOL_RATE = 1e-9  # slip per unit parameter
 #: Event localisation tolerance in t, × diameter.
 TOL_LOCATE = 1e-10
+#: Failed halvings of an increment before it is taken as one implicit step (:meth:`Tracker.implicit_step`).
+MAX_HALVINGS = 2
+#: A contact sliding further than this × diameter in one implicit step is gross slip.
+MAX_SLIP = 0.1
 
 
 class TrackingError(RuntimeError):
@@ -594,6 +619,8 @@ class Tracker:
         self.solves = 0
         #: Slip forms tried in order: False = great circle (the paper's), True = free direction.
         self.forms: tuple[bool, ...] = (False, True)
+        #: The last increment was implicit (the next one tries the rate problem with Newton only).
+        self.implicit = False
 
     # ------------------------------------------------------------ responses
     def response(self, nodes: np.ndarray) -> ContactResponse:
@@ -652,7 +679,7 @@ class Tracker:
                             np.zeros(len(nodes)) if slip is None else np.asarray(slip, float))
 
     def trial(self, base: ContactState, dt: float, velocities: np.ndarray, load_rate: float = 0.0,
-              param: str = "squeeze_depth") -> _Trial:
+              param: str = "squeeze_depth", methods: Sequence[str] = ("newton", "homotopy")) -> _Trial:
         """The state after an increment dt of the parameter with the configuration of ``base`` held fixed.
 
         Raises :class:`SlipFailure` when the slip system has no admissible root.
@@ -696,7 +723,7 @@ class Tracker:
         x = None
         # Great-circle form (the paper's) first, the free-direction form if it has no root; Newton on
         # both before the (costlier) homotopy continuation on both.
-        for method in ("newton", "homotopy"):
+        for method in methods:
             for free in self.forms:
                 if free not in systems:
                     systems[free] = MixedSlipSystem(c, fh, dfh, sl, kinds, self.mu[kinds], t_hat, r, self.up,
@@ -789,12 +816,23 @@ class Tracker:
         min_step = 1e-9 * self.diameter if min_step is None else min_step
         fscale = self.force_scale(base)
         h = dt
+        halvings = 0
         while True:
             try:
-                trial = self.trial(base, h, velocities, load_rate, param)
+                # Just after an implicit increment the rate problem is likely to fail again: Newton only.
+                trial = self.trial(base, h, velocities, load_rate, param,
+                                   methods=("newton",) if self.implicit else ("newton", "homotopy"))
+                self.implicit = False
                 break
             except SlipFailure as exc:
                 h *= 0.5
+                halvings += 1
+                if (self.implicit or halvings > MAX_HALVINGS) and h >= min_step:
+                    # The rate problem has no solution near here (a friction limit): one implicit step.
+                    log.debug("%s = %.6g: slip system fails (%s); implicit step of %.3g", param,
+                              getattr(base, param), exc, 2.0 * h if self.implicit else h)
+                    return self.implicit_step(base, 2.0 * h if halvings == 1 else h, velocities,
+                                              load_rate=load_rate, param=param, phase=phase)
                 if h < min_step:
                     try:
                         t0 = self.trial(base, 0.0, velocities, load_rate, param)
@@ -899,7 +937,12 @@ class Tracker:
             try:
                 tr = self.trial(state, 0.0, velocities, load_rate, param)
             except SlipFailure as exc:
-                raise TrackingError(f"no slip solution after a change of contact configuration: {exc}") from None
+                # The sliding set reached one toggle at a time has no root: find the static state directly.
+                log.debug("settle at %s = %.6g: %s; relaxing", param, getattr(state, param), exc)
+                state, ev = self.implicit_step(state, 0.0, velocities, load_rate=load_rate, param=param,
+                                               phase=phase, why=f"no slip solution after a change of contact "
+                                                                f"configuration ({exc})")
+                return state, events + ev
             tr.values = self.event_values(tr, self.force_scale(tr.state), by_amount)
             if self._gmax(tr.values) <= 0.0:
                 return tr.state, events
@@ -909,12 +952,120 @@ class Tracker:
                 if e.kind in "CD":
                     toggles[e.node] = toggles.get(e.node, 0) + 1
                     if toggles[e.node] > 3:
-                        raise TrackingError(
-                            f"friction limit at {param} = {getattr(state, param):.6g}: node {e.node} ({e.contact}) "
-                            "leaves its friction cone when it sticks, yet its slip rate is negative when it "
-                            "slides — no quasi-static stick/slip state exists (the grip is lost)")
+                        # Friction limit of the rate problem: sticking, the node leaves its cone; sliding,
+                        # its slip rate is negative.  The static state is reached by a finite slip.
+                        state, ev2 = self.implicit_step(
+                            state, 0.0, velocities, load_rate=load_rate, param=param, phase=phase,
+                            why=f"friction limit at {param} = {getattr(state, param):.6g}: node {e.node} "
+                                f"({e.contact}) leaves its friction cone when it sticks, yet its slip rate is "
+                                "negative when it slides")
+                        return state, events + ev2
         raise TrackingError(f"contact events keep cascading at {param} = {getattr(state, param):.6g} "
                             f"({max_cascade} rounds): the configuration chatters")
+
+    def _project(self, p: np.ndarray, o: int, centers: np.ndarray) -> np.ndarray:
+        """The point of obstacle ``o`` nearest to ``p`` (where a new contact is placed, event A)."""
+        if o == TABLE:
+            return self.table.project(p[None, :])[0]
+        d = p - centers[o]
+        return centers[o] + self.radius * d / np.linalg.norm(d)
+
+    def implicit_step(self, base: ContactState, dt: float, velocities: np.ndarray, *, load_rate: float = 0.0,
+                      param: str = "squeeze_depth", phase: str | None = None, why: str = "",
+                      max_rounds: int = 50) -> tuple[ContactState, list[ContactEvent]]:
+        """Advance by ``dt`` (0: stay) in one implicit increment, as a return mapping.
+
+        Every contact is held (fingertip contacts move with their finger),
+        then :func:`~fem_grasp.relaxation.relax_contacts` finds the static
+        stick / slide / release state of all of them at once; nodes that would
+        penetrate an obstacle are added and the relaxation repeated.  Used
+        where the rate problem of the event tracking has no solution (module
+        notes); the events of the increment are recorded at its end, in the
+        order release (B), new contact (A), then the stick/slip changes (C, D).
+        """
+        phase = phase or base.phase
+        self.implicit = True
+        if param == "load":
+            load_rate = 1.0
+        m = base.n_contacts
+        vel = np.zeros((m, 3))
+        for f in (FINGER1, FINGER2):
+            vel[base.owner == f] = velocities[f]
+        centers = base.centers + dt * np.asarray(velocities, float)
+        load = base.load + dt * load_rate
+        nodes, owner = base.nodes.copy(), base.owner.copy()
+        disp = base.disp + dt * vel
+        slip = base.slip.copy()
+        fscale = self.force_scale(base)
+        kw = {} if param == "load" else {param: getattr(base, param) + dt}
+        at = replace(base, **kw)
+        events: list[ContactEvent] = []
+
+        def record(kind: str, node: int, o: int) -> None:
+            events.append(ContactEvent(phase, kind, int(node), OBSTACLES[o], at.squeeze_depth, at.lift_height))
+
+        status = np.zeros(m, dtype=np.int64)
+        for _ in range(max_rounds):
+            resp = self.response(nodes)
+            forces = (resp.reduced_stiffness @ disp.reshape(-1)).reshape(-1, 3) + load * resp.gravity_forces
+            q0 = self.points[nodes] + disp
+            cen = [None if o == TABLE else centers[o] for o in owner]
+            try:
+                rel = relax_contacts(resp.reduced_stiffness, forces, q0, cen, self.up, self.mu[owner], fscale,
+                                     max_slip=MAX_SLIP * self.diameter)
+            except RelaxationFailure as exc:
+                raise TrackingError(f"no quasi-static equilibrium at {param} = {getattr(at, param):.6g}"
+                                    f"{': ' + why if why else ''}; a static stick/slip state was sought and "
+                                    f"not found: {exc}") from None
+            disp = disp + rel.displacements
+            slip = slip + rel.slips
+            status = rel.status
+            released = status == RELEASE
+            for j in np.flatnonzero(released):
+                record("B", nodes[j], owner[j])
+            keep = ~released
+            nodes, owner, disp, slip, status = nodes[keep], owner[keep], disp[keep], slip[keep], status[keep]
+            positions = self.points + self.field(nodes, disp, load)
+            gaps = self.obstacle_gaps(positions, centers)
+            in_contact = set(int(k) for k in nodes)
+            deep = np.argwhere(-gaps / self.diameter - TOL_PENETRATION > 0)
+            added = []
+            for s_pos, o in deep:
+                k = int(self.surface[s_pos])
+                if k in in_contact:
+                    if int(owner[np.flatnonzero(nodes == k)[0]]) != o:
+                        raise TrackingError(f"node {k} touches {OBSTACLES[o]} while in contact with another "
+                                            "obstacle: pinched nodes are not modelled")
+                    continue
+                if any(k == a[0] for a in added):
+                    continue
+                added.append((k, int(o), self._project(positions[k], int(o), centers) - self.points[k]))
+                record("A", k, int(o))
+            if not added and not released.any():
+                break
+            nodes = np.concatenate([nodes, [a[0] for a in added]]).astype(np.int64)
+            owner = np.concatenate([owner, [a[1] for a in added]]).astype(np.int64)
+            disp = np.vstack([disp] + [a[2][None, :] for a in added])
+            slip = np.concatenate([slip, np.zeros(len(added))])
+            try:
+                check_contact_set(self.points, nodes)
+            except CollinearContactError as exc:
+                raise TrackingError(f"the object is no longer held at {param} = {getattr(at, param):.6g}: "
+                                    f"{exc}") from None
+        else:
+            raise TrackingError(f"contacts keep being made and released at {param} = {getattr(at, param):.6g} "
+                                f"({max_rounds} rounds)")
+        sliding = status == SLIDE
+        before = dict(zip(base.nodes.tolist(), base.sliding.tolist()))
+        for j, k in enumerate(nodes.tolist()):
+            if k in before and before[k] != bool(sliding[j]):
+                record("C" if sliding[j] else "D", k, int(owner[j]))
+        state = self.make_state(phase=base.phase, squeeze_depth=at.squeeze_depth, lift_height=at.lift_height,
+                                load=load, centers=centers, nodes=nodes, owner=owner, disp=disp,
+                                sliding=sliding, slip=slip)
+        log.debug("implicit step to %s = %.6g: %d contacts, %d sliding, events %s", param, getattr(at, param),
+                  len(nodes), int(sliding.sum()), "".join(e.kind for e in events))
+        return state, events
 
     def _apply(self, trial: _Trial, phase: str) -> tuple[ContactState, list[ContactEvent]]:
         """Apply every event that fires at the trial state; return the new (unsettled) state."""
@@ -1016,18 +1167,26 @@ def run(tracker: Tracker, state: ContactState, velocities: np.ndarray, *, stop: 
             events += ev
             n_events += 1
             # A node switching between stick and slip again and again with no progress in the parameter
-            # has no consistent quasi-static state (sticking, its force leaves the cone; sliding, its slip
-            # rate is negative): friction cannot hold the configuration.
+            # has no consistent rate solution (sticking, its force leaves the cone; sliding, its slip
+            # rate is negative).
             now = getattr(state, param)
+            chatter = None
             for e in ev:
                 if e.kind in "CD":
                     hist = [t for t in toggles.get(e.node, []) if now - t <= window] + [now]
                     toggles[e.node] = hist
                     if len(hist) > 8:
-                        raise TrackingError(
-                            f"friction limit at {param} = {now:.6g}: node {e.node} ({e.contact}) switches between "
-                            "stick and slip without progress — sticking, its force leaves the cone; sliding, its "
-                            "slip rate is negative — so no quasi-static stick/slip state exists")
+                        chatter = e
+            if chatter is not None:
+                # Sticking, its force leaves the cone; sliding, its slip rate is negative: the rate problem
+                # has no solution here.  Cross it with implicit increments (return mapping) of one step.
+                dt = min(step, stop - now)
+                state, ev2 = tracker.implicit_step(
+                    state, dt, velocities, param=param, phase=phase,
+                    why=f"node {chatter.node} ({chatter.contact}) switches between stick and slip")
+                events += ev2
+                ev = ev + ev2
+                toggles.clear()
             if on_event is not None:
                 on_event(state, ev)
             if n_events > max_events:

@@ -1,0 +1,485 @@
+"""Static frictional contact at fixed obstacles: nodal projected Gauss–Seidel (a return mapping).
+
+The event tracking of :mod:`fem_grasp.tracking` follows the *rate* problem of
+§III-C: between events the sliding set ℙ is fixed and its slips solve
+eqs. (6)–(8).  Where friction is strong compared with the coupling between
+tangential slip and normal force (μ = 0.4–0.5 on coarse P1 patches), that
+rate problem can have no solution: a contact leaves its cone when it sticks,
+yet its slip rate is negative when it slides, or the slip system of several
+coupled sliding nodes loses its root.  The body then reaches a new static
+state by a finite slip, as a return mapping (backward-Euler Coulomb) does.
+
+This module finds that state.  With the obstacles fixed and every contact
+starting on its obstacle (positions q⁰_k), the unknowns are the changes δ_k
+of the contact displacements; the forces are affine in them,
+f = f⁰ + C δ (eq. 5).  Each contact k ends in exactly one of three states:
+
+* **stick**: δ_k = 0 with f_k in its friction cone, f·n̂ ≥ 0 and
+  |f_t| ≤ μ f·n̂ (+ ``tol`` F_s: closer than that, a slip would be round-off);
+* **release**: f_k = 0 at a position outside the obstacle (event B);
+* **slide**: on the obstacle (in the table plane, or on the fingertip sphere
+  along the great circle of its slip, Fig. 1), with the friction on the cone
+  and opposite to the slip at the new position: f_t = −μ (f·n̂) ŝ_k.
+
+The coupled problem is solved node by node (projected Gauss–Seidel, the
+classical solver of nonsmooth contact mechanics): each visit solves contact
+k's own problem exactly with the others frozen — a 2×2 Newton iteration for a
+slide, warm-started from the previous sweep — and updates every force by the
+rank-3 change C[:, k] Δδ_k.  Sweeps repeat until no force changes by more than
+``tol`` × the force scale.  For the Tresca (fixed normal force) problem this
+is block coordinate descent on a convex energy and converges; the Coulomb
+coupling through the normal forces makes it a fixed point that converges
+when friction is not too large for the coupling, and the iteration count is
+bounded either way.  Once the statuses stop changing, Newton's method on
+their smooth system finishes the solve (quadratically).  Sliding that
+nothing stops shows as a steady drift — the same statuses, no root for
+them, and no decay of the motion from sweep to sweep — and is reported as
+gross slip.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from .geometry import tangent_basis
+
+__all__ = ["RelaxationFailure", "Relaxation", "relax_contacts", "STICK", "SLIDE", "RELEASE"]
+
+log = logging.getLogger(__name__)
+
+STICK, SLIDE, RELEASE = 0, 1, 2
+
+
+#: Sweeps of unchanged statuses over which a steady drift (no decay of the motion) means gross slip.
+DRIFT_SWEEPS = 300
+#: ... once some contact has slid this fraction of ``max_slip``.
+DRIFT_SLIP = 0.01
+#: Consecutive sweeps in which some contact has no local solution before the relaxation gives up.
+STUCK_SWEEPS = 50
+
+
+class RelaxationFailure(RuntimeError):
+    """No static stick/slip/release state was found (friction cannot hold the contacts: gross slip)."""
+
+
+@dataclass(frozen=True)
+class Relaxation:
+    """The static state found by :func:`relax_contacts`.
+
+    Attributes
+    ----------
+    displacements : (m, 3) change δ_k of each contact's displacement, metres
+    forces : (m, 3) contact forces on the object, f⁰ + C δ, newtons
+    normals : (m, 3) inward unit normals at the new positions
+    status : (m,) STICK, SLIDE or RELEASE
+    slips : (m,) length of each contact's tangential motion, metres
+    sweeps : Gauss–Seidel sweeps used
+    """
+
+    displacements: np.ndarray
+    forces: np.ndarray
+    normals: np.ndarray
+    status: np.ndarray
+    slips: np.ndarray
+    sweeps: int
+
+
+class _Contact:
+    """One contact: its start position q⁰ on a plane (normal ``up``) or a sphere (centre, radius)."""
+
+    def __init__(self, q0: np.ndarray, center: np.ndarray | None, up: np.ndarray) -> None:
+        self.q0 = q0
+        self.sphere = center is not None
+        if self.sphere:
+            self.o = center
+            self.r0 = q0 - center
+            self.radius = float(np.linalg.norm(self.r0))
+            self.n0 = self.r0 / self.radius
+        else:
+            self.n0 = np.asarray(up, float)
+        self.basis = tangent_basis(self.n0)
+
+    def motion(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(δ, n̂, ŝ) for a tangential motion u (2,): along the great circle of length |u| on a sphere."""
+        t = u @ self.basis
+        tl = float(np.sqrt(t @ t))
+        that = t / tl if tl > 0 else t
+        if not self.sphere:
+            return t, self.n0, that
+        th = tl / self.radius
+        c, s = np.cos(th), np.sin(th)
+        # q − q⁰ = (cos θ − 1) r⁰ + R sin θ t̂, written without cancellation for small θ
+        d = -2.0 * np.sin(0.5 * th) ** 2 * self.r0 + self.radius * s * that
+        n = c * self.n0 + s * that
+        return d, n, c * that - s * self.n0
+
+    def gap(self, d: np.ndarray) -> float:
+        """Separation of q⁰ + d along the start normal (≥ 0: the contact lifts off).
+
+        Signorini's condition in the contact's own frame.  On a sphere the
+        exact distance would also grow with a purely tangential motion
+        (|r⁰ + t| > R), which would let a pressed contact "release" sideways
+        instead of sliding; d·n̂⁰ ≥ 0 still implies |r⁰ + d| ≥ R.
+        """
+        return float(d @ self.n0)
+
+
+def _slide(c: _Contact, ckk: np.ndarray, fs: np.ndarray, mu: float, u0: np.ndarray | None,
+           tol: float, amax: float) -> np.ndarray | None:
+    """Tangential motion u with f_t = −μ f_n ŝ at the new position (f = fs + C_kk δ(u)); None if none."""
+
+    def resid(u: np.ndarray) -> tuple[np.ndarray, float]:
+        d, n, s = c.motion(u)
+        f = fs + ckk @ d
+        fn = float(f @ n)
+        g = f - fn * n + mu * fn * s
+        b1 = c.basis[0] - (c.basis[0] @ n) * n
+        b1 /= np.linalg.norm(b1)
+        b2 = np.cross(n, b1)
+        return np.array([g @ b1, g @ b2]), fn
+
+    a = c.basis @ ckk @ c.basis.T
+    if u0 is not None and np.any(u0):
+        return _newton2(resid, u0.copy(), a, tol)
+    ft = c.basis @ fs
+    ftn = float(np.linalg.norm(ft))
+    if ftn == 0.0:
+        return None
+    # First guess: straight back against f_t, by the linearised cone equation.
+    tt = ft / ftn
+    fn0 = float(fs @ c.n0)
+    stiff = float(tt @ a @ tt)
+    den = stiff - mu * float(c.n0 @ ckk @ c.basis.T @ tt)
+    out = _newton2(resid, -((ftn - mu * fn0) / den if den > 0 else ftn / stiff) * tt, a, tol)
+    if out is None:
+        u = _ray_root(c, ckk, fs, mu, -tt, amax)
+        if u is None:
+            return None
+        out = _newton2(resid, u, a, tol)
+    if out is None:
+        # Strongly anisotropic C_kk: the slip turns away from −f_t.  Fixed point on the direction (the
+        # friction at the new position sets it), each step a root along a ray, then Newton again.
+        for _ in range(100):
+            d, n, _s = c.motion(u)
+            f = fs + ckk @ d
+            ft = c.basis @ (f - (f @ n) * n)
+            ftn = float(np.linalg.norm(ft))
+            if ftn == 0.0:
+                return None
+            u_new = _ray_root(c, ckk, fs, mu, -ft / ftn, amax)
+            if u_new is None:
+                return None
+            done = float(np.linalg.norm(u_new - u)) <= 1e-6 * float(np.linalg.norm(u_new))
+            u = u_new
+            if done:
+                break
+        out = _newton2(resid, u, a, tol)
+    return out
+
+
+def _ray_root(c: _Contact, ckk: np.ndarray, fs: np.ndarray, mu: float, e: np.ndarray,
+              amax: float) -> np.ndarray | None:
+    """u = α e with the smallest α > 0 at which the force reaches its cone, by bracketing and bisection."""
+
+    def excess(alpha: float) -> float:
+        d, n, _ = c.motion(alpha * e)
+        f = fs + ckk @ d
+        fn = float(f @ n)
+        return float(np.linalg.norm(f - fn * n)) - mu * fn
+
+    lo, hi = 0.0, None
+    alpha = amax * 2.0 ** -50
+    while alpha <= amax:
+        if excess(alpha) <= 0.0:
+            hi = alpha
+            break
+        lo, alpha = alpha, 2.0 * alpha
+    if hi is None:
+        return None
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if excess(mid) <= 0.0:
+            hi = mid
+        else:
+            lo = mid
+        if hi - lo <= 1e-12 * hi:
+            break
+    return hi * e
+
+
+def _newton2(resid, u: np.ndarray, a: np.ndarray, tol: float) -> np.ndarray | None:
+    """Newton's method (finite-difference 2×2 Jacobian, backtracking) on a contact's slide residual."""
+    g, fn = resid(u)
+    hmin = 1e-9 * tol / max(float(np.abs(a).max()), 1e-300)
+    for _ in range(40):
+        if np.abs(g).max() <= tol:
+            break
+        h = max(1e-7 * float(np.linalg.norm(u)), hmin)
+        jac = np.empty((2, 2))
+        for j in range(2):
+            e = u.copy()
+            e[j] += h
+            jac[:, j] = (resid(e)[0] - g) / h
+        try:
+            step = -np.linalg.solve(jac, g)
+        except np.linalg.LinAlgError:
+            return None
+        norm, lam = float(np.linalg.norm(g)), 1.0
+        for _ in range(30):
+            g2, fn2 = resid(u + lam * step)
+            if np.linalg.norm(g2) < (1.0 - 1e-4 * lam) * norm:
+                break
+            lam *= 0.5
+        else:
+            return None
+        u = u + lam * step
+        g, fn = g2, fn2
+    if np.abs(g).max() > tol or fn < 0.0 or not np.any(u):
+        return None
+    return u
+
+
+def _polish(contacts: list, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, status: np.ndarray,
+            d: np.ndarray, u: list, tol: float, stick_tol: float, max_slip: float
+            ) -> tuple[np.ndarray, list, np.ndarray] | None:
+    """Newton's method on the smooth system of fixed statuses; None unless it converges and they hold.
+
+    Unknowns: u_k (2) of each sliding contact, δ_k (3) of each released one.
+    Equations: f_t + μ f_n ŝ = 0 in the tangent plane at the new position
+    (sliding), f_k = 0 (released); sticking contacts keep δ_k = 0.  The
+    Jacobian is assembled from per-contact blocks, ∂R_j/∂f_j C_jk ∂δ_k/∂x_k
+    plus each contact's own geometric term, the geometric blocks by finite
+    differences.
+    """
+    m = len(contacts)
+    act = [k for k in range(m) if status[k] != STICK]
+    if not act:
+        return None
+    sizes = [2 if status[k] == SLIDE else 3 for k in act]
+    offs = np.concatenate([[0], np.cumsum(sizes)])
+    x = np.concatenate([u[k] if status[k] == SLIDE else d[k] for k in act])
+
+    def evaluate(x: np.ndarray, with_jacobian: bool):
+        dd = d.copy()
+        for i, k in enumerate(act):
+            xk = x[offs[i]:offs[i + 1]]
+            if status[k] == SLIDE:
+                dd[k] = contacts[k].motion(xk)[0]
+            else:
+                dd[k] = xk
+        f = f0 + (c @ dd.reshape(-1)).reshape(m, 3)
+        r = np.empty(offs[-1])
+        a_blocks, d_blocks, e_blocks = [], [], []
+        for i, k in enumerate(act):
+            if status[k] == RELEASE:
+                r[offs[i]:offs[i + 1]] = f[k]
+                if with_jacobian:
+                    a_blocks.append(np.eye(3))
+                    d_blocks.append(np.eye(3))
+                    e_blocks.append(np.zeros((3, 3)))
+                continue
+            ct, xk = contacts[k], x[offs[i]:offs[i + 1]]
+
+            def proj(xv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                """(2, 3) map f ↦ residual at motion xv, and δ(xv)."""
+                dk, n, sv = ct.motion(xv)
+                b1 = ct.basis[0] - (ct.basis[0] @ n) * n
+                b1 /= np.linalg.norm(b1)
+                b = np.stack([b1, np.cross(n, b1)])
+                return b @ (np.eye(3) - np.outer(n, n) + mu[k] * np.outer(sv, n)), dk
+
+            a, dk = proj(xk)
+            r[offs[i]:offs[i + 1]] = a @ f[k]
+            if with_jacobian:
+                h = max(1e-7 * float(np.linalg.norm(xk)), 1e-30)
+                dj, ej = np.empty((3, 2)), np.empty((2, 2))
+                for j in range(2):
+                    xp = xk.copy()
+                    xp[j] += h
+                    ap, dp = proj(xp)
+                    dj[:, j] = (dp - dk) / h
+                    ej[:, j] = (ap - a) @ f[k] / h
+                a_blocks.append(a)
+                d_blocks.append(dj)
+                e_blocks.append(ej)
+        if not with_jacobian:
+            return r, f, dd, None
+        rows = np.concatenate([3 * k + np.arange(3) for k in act])
+        n_x = offs[-1]
+        amat = np.zeros((n_x, 3 * len(act)))
+        dmat = np.zeros((3 * len(act), n_x))
+        jac = np.zeros((n_x, n_x))
+        for i in range(len(act)):
+            amat[offs[i]:offs[i + 1], 3 * i:3 * i + 3] = a_blocks[i]
+            dmat[3 * i:3 * i + 3, offs[i]:offs[i + 1]] = d_blocks[i]
+            jac[offs[i]:offs[i + 1], offs[i]:offs[i + 1]] = e_blocks[i]
+        jac += amat @ c[np.ix_(rows, rows)] @ dmat
+        return r, f, dd, jac
+
+    r, f, dd, jac = evaluate(x, True)
+    for _ in range(20):
+        norm = float(np.linalg.norm(r))
+        if np.abs(r).max() <= tol:
+            break
+        try:
+            step = -np.linalg.solve(jac, r)
+        except np.linalg.LinAlgError:
+            return None
+        lam = 1.0
+        for _ in range(10):
+            r2, f2, dd2, _ = evaluate(x + lam * step, False)
+            if np.linalg.norm(r2) < (1.0 - 1e-4 * lam) * norm:
+                break
+            lam *= 0.5
+        else:
+            return None
+        x = x + lam * step
+        r, f, dd, jac = evaluate(x, True)
+    else:
+        return None
+    if np.abs(r).max() > tol:
+        return None
+    # The statuses must still hold at the polished state.
+    u2 = list(u)
+    for i, k in enumerate(act):
+        xk = x[offs[i]:offs[i + 1]]
+        if status[k] == SLIDE:
+            _, n, _ = contacts[k].motion(xk)
+            if not (f[k] @ n > 0.0 and 0.0 < float(np.linalg.norm(xk)) <= max_slip):
+                return None
+            u2[k] = xk
+        elif contacts[k].gap(xk) < 0.0:
+            return None
+    for k in range(m):
+        if status[k] == STICK:
+            n = contacts[k].n0
+            fn = float(f[k] @ n)
+            if fn < 0.0 or float(np.linalg.norm(f[k] - fn * n)) > mu[k] * fn + stick_tol:
+                return None
+    return dd, u2, f
+
+
+def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndarray, centers: list,
+                   up: np.ndarray, mu: np.ndarray, force_scale: float, *, tol: float = 1e-11,
+                   max_sweeps: int = 20000, max_slip: float = np.inf) -> Relaxation:
+    """Static stick/slide/release state of every contact at fixed obstacles (module notes).
+
+    Parameters
+    ----------
+    stiffness : (3m, 3m) reduced stiffness C of eq. (5) for the contact set
+    forces : (m, 3) forces f⁰ at the start (every contact held at its start position)
+    positions : (m, 3) start positions q⁰_k, each on its obstacle
+    centers : m entries: the fingertip centre of a fingertip contact, None for a table contact
+    up : (3,) the table's normal
+    mu : (m,) friction coefficients
+    force_scale : F_s, newtons; sweeps stop when no force changes by more than ``tol`` F_s
+    max_slip : a contact sliding further than this, metres, is taken as gross slip (failure)
+
+    Raises
+    ------
+    RelaxationFailure
+        A contact has no stick, release or slide state with the others frozen (friction cannot hold
+        it), or the sweeps do not settle within ``max_sweeps``.
+    """
+    c = np.asarray(stiffness, float)
+    f = np.array(forces, float)
+    m = len(f)
+    c4 = c.reshape(m, 3, m, 3)
+    contacts = [_Contact(np.asarray(positions[k], float), None if centers[k] is None else
+                         np.asarray(centers[k], float), up) for k in range(m)]
+    ckk = [np.ascontiguousarray(c4[k, :, k, :]) for k in range(m)]
+    cols = [np.ascontiguousarray(c4[:, :, k, :]) for k in range(m)]
+    fs_scale = max(float(force_scale), 1e-300)
+    d = np.zeros((m, 3))
+    u = [None] * m
+    status = np.full(m, STICK)
+    local_tol = 1e-3 * tol * fs_scale
+    stick_tol = tol * fs_scale
+    last_status = status.copy()
+    next_polish = 2
+    moves: list[float] = []
+    stuck = 0
+    for sweep in range(1, max_sweeps + 1):
+        change, move = 0.0, 0.0
+        unsolved = None
+        for k in range(m):
+            ct = contacts[k]
+            fs = f[k] - ckk[k] @ d[k]  # force at k with contact k back at its start
+            fn = float(fs @ ct.n0)
+            ft = fs - fn * ct.n0
+            # Within the sweep tolerance of its cone a contact sticks (its slip would be round-off).
+            if fn >= 0.0 and float(np.sqrt(ft @ ft)) <= mu[k] * fn + stick_tol:
+                dk, st = np.zeros(3), STICK
+            else:
+                d_free = -np.linalg.solve(ckk[k], fs)
+                if ct.gap(d_free) >= 0.0:
+                    dk, st = d_free, RELEASE
+                else:
+                    amax = min(max_slip, ct.radius if ct.sphere else np.inf,
+                               1e3 * float(np.abs(fs).max()) / float(np.linalg.eigvalsh(ckk[k])[0]))
+                    uk = _slide(ct, ckk[k], fs, float(mu[k]), u[k], local_tol, amax)
+                    if uk is None and u[k] is not None:
+                        uk = _slide(ct, ckk[k], fs, float(mu[k]), None, local_tol, amax)
+                    if uk is None:
+                        # No local state with the neighbours frozen: leave it for this sweep, the
+                        # neighbours' motion may make one (it fails only if that never happens).
+                        unsolved = (k, fs)
+                        continue
+                    if float(np.sqrt(uk @ uk)) > max_slip:
+                        raise RelaxationFailure(f"contact {k} slides more than {max_slip:.3g} m: friction cannot "
+                                                "hold the object (gross slip)")
+                    u[k] = uk
+                    dk = ct.motion(uk)[0]
+                    st = SLIDE
+            dd = dk - d[k]
+            if np.any(dd):
+                f += cols[k] @ dd
+                change = max(change, float(np.linalg.norm(ckk[k] @ dd)))
+                move = max(move, float(np.sqrt(dd @ dd)))
+            d[k] = dk
+            status[k] = st
+            if st != SLIDE:
+                u[k] = None
+        if unsolved is not None:
+            stuck += 1
+            if stuck > STUCK_SWEEPS:
+                k, fs = unsolved
+                raise RelaxationFailure(
+                    f"contact {k} can neither stick, slide nor lift off with its neighbours held "
+                    f"(force {fs.round(12).tolist()} N, μ = {mu[k]:g}): friction cannot hold it")
+        else:
+            stuck = 0
+        if change <= tol * fs_scale and unsolved is None:
+            break
+        # Once the statuses stop changing, Newton's method on their smooth system finishes the job
+        # (Gauss–Seidel converges only linearly, slowly when the contacts are strongly coupled).
+        if sweep >= next_polish and np.array_equal(status, last_status):
+            polished = _polish(contacts, c, np.asarray(forces, float), mu, status, d, u, local_tol, stick_tol,
+                               max_slip)
+            if polished is not None:
+                d, u, f = polished
+                break
+            next_polish = sweep + 10
+        if not np.array_equal(status, last_status):
+            moves = []
+        moves.append(move)
+        # Same statuses, no root for them, and the contacts move as much per sweep as 100 sweeps ago: they
+        # drift together at a steady rate, which is sliding that nothing stops (gross slip).
+        slid = max((float(np.sqrt(v @ v)) for v in u if v is not None), default=0.0)
+        if (len(moves) > DRIFT_SWEEPS and moves[-1] > 0.5 * moves[-1 - DRIFT_SWEEPS]
+                and slid > DRIFT_SLIP * max_slip):
+            raise RelaxationFailure(f"the contacts keep sliding at a steady rate after {sweep} Gauss–Seidel "
+                                    "sweeps: friction cannot hold the object (gross slip)")
+        last_status = status.copy()
+    else:
+        raise RelaxationFailure(f"the stick/slip state did not settle in {max_sweeps} Gauss–Seidel sweeps "
+                                "(the contacts keep sliding: friction cannot hold the object here)")
+    f = np.asarray(forces, float) + (c @ d.reshape(-1)).reshape(m, 3)
+    normals = np.array([contacts[k].motion(u[k])[1] if status[k] == SLIDE else contacts[k].n0 for k in range(m)])
+    slips = np.array([0.0 if u[k] is None else float(np.linalg.norm(u[k])) for k in range(m)])
+    log.debug("relaxation: %d sweeps, %d stick, %d slide, %d release", sweep, int((status == STICK).sum()),
+              int((status == SLIDE).sum()), int((status == RELEASE).sum()))
+    return Relaxation(d, f, normals, status, slips, sweep)
