@@ -427,6 +427,9 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
                 dk, st = np.zeros(3), STICK
             else:
                 d_free = -(ckk_inv[k] @ fs)
+                if not float(np.sqrt(d_free @ d_free)) <= max_slip:  # also catches NaN
+                    raise RelaxationFailure(f"contact {k} would move more than {max_slip:.3g} m to carry no "
+                                            "force: the remaining contacts no longer hold the object")
                 if ct.gap(d_free) >= 0.0:
                     dk, st = d_free, RELEASE
                 else:
@@ -491,6 +494,8 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
         raise RelaxationFailure(f"the stick/slip state did not settle in {max_sweeps} Gauss–Seidel sweeps "
                                 "(the contacts keep sliding: friction cannot hold the object here)")
     f = np.asarray(forces, float) + (c @ d.reshape(-1)).reshape(m, 3)
+    if not (np.isfinite(f).all() and np.isfinite(d).all()):
+        raise RelaxationFailure("the relaxation produced non-finite forces or displacements")
     normals = np.array([contacts[k].motion(u[k])[1] if status[k] == SLIDE else contacts[k].n0 for k in range(m)])
     slips = np.array([0.0 if u[k] is None else float(np.linalg.norm(u[k])) for k in range(m)])
     log.debug("relaxation: %d sweeps, %d stick, %d slide, %d release", sweep, int((status == STICK).sum()),
