@@ -439,10 +439,17 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
                     if uk is None and u[k] is not None:
                         uk = _slide(ct, ckk[k], fs, float(mu[k]), None, local_tol, amax)
                     if uk is None:
-                        # No local state with the neighbours frozen: leave it for this sweep, the
-                        # neighbours' motion may make one (it fails only if that never happens).
+                        # No local state with the neighbours frozen.  Provisionally slide it as far as its
+                        # force's own cone along −f_t (a ray root) so that the coupled Newton polish can
+                        # look for a state in which its neighbours move too; the sweeps cannot converge
+                        # while this lasts, and fail if it lasts STUCK_SWEEPS sweeps.
                         unsolved = (k, fs)
-                        continue
+                        ft = ct.basis @ fs
+                        ftn = float(np.linalg.norm(ft))
+                        guess = _ray_root(ct, ckk[k], fs, float(mu[k]), -ft / ftn, amax) if ftn > 0 else None
+                        if guess is None:
+                            continue
+                        uk = guess
                     if float(np.sqrt(uk @ uk)) > max_slip:
                         raise RelaxationFailure(f"contact {k} slides more than {max_slip:.3g} m: friction cannot "
                                                 "hold the object (gross slip)")
