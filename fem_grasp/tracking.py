@@ -1110,13 +1110,7 @@ class Tracker:
                                     f"{OBSTACLES[owner[nodes.index(k)]]}: pinched nodes are not modelled")
             if any(k == a[0] for a in added):
                 continue
-            p = st.positions[k]
-            if o == TABLE:
-                q = self.table.project(p[None, :])[0]
-            else:
-                d = p - st.centers[o]
-                q = st.centers[o] + self.radius * d / np.linalg.norm(d)
-            added.append((k, o, q - self.points[k]))
+            added.append((k, o, self._project(st.positions[k], o, st.centers) - self.points[k]))
             record("A", k, o)
         keep = [j for j in range(len(nodes)) if j not in remove]
         nodes = [nodes[j] for j in keep] + [a[0] for a in added]
