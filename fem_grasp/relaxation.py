@@ -40,6 +40,7 @@ gross slip.
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -109,20 +110,29 @@ class _Contact:
         else:
             self.n0 = np.asarray(up, float)
         self.basis = tangent_basis(self.n0)
+        self._basis = tuple(tuple(float(x) for x in row) for row in self.basis)
+        self._n0 = tuple(float(x) for x in self.n0)
+        self._r0 = tuple(float(x) for x in self.r0) if self.sphere else None
 
     def motion(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(δ, n̂, ŝ) for a tangential motion u (2,): along the great circle of length |u| on a sphere."""
-        t = u @ self.basis
-        tl = float(np.sqrt(t @ t))
-        that = t / tl if tl > 0 else t
+        # Scalar arithmetic: this runs millions of times per pickup, and numpy's per-call overhead on
+        # 3-vectors dominated it.
+        (a0, a1, a2), (b0, b1, b2) = self._basis
+        u0, u1 = float(u[0]), float(u[1])
+        t0, t1, t2 = u0 * a0 + u1 * b0, u0 * a1 + u1 * b1, u0 * a2 + u1 * b2
+        tl = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+        h0, h1, h2 = (t0 / tl, t1 / tl, t2 / tl) if tl > 0 else (0.0, 0.0, 0.0)
         if not self.sphere:
-            return t, self.n0, that
+            return np.array([t0, t1, t2]), self.n0, np.array([h0, h1, h2])
         th = tl / self.radius
-        c, s = np.cos(th), np.sin(th)
+        c, s = math.cos(th), math.sin(th)
         # q − q⁰ = (cos θ − 1) r⁰ + R sin θ t̂, written without cancellation for small θ
-        d = -2.0 * np.sin(0.5 * th) ** 2 * self.r0 + self.radius * s * that
-        n = c * self.n0 + s * that
-        return d, n, c * that - s * self.n0
+        cm1, rs = -2.0 * math.sin(0.5 * th) ** 2, self.radius * s
+        (r0, r1, r2), (n0, n1, n2) = self._r0, self._n0
+        return (np.array([cm1 * r0 + rs * h0, cm1 * r1 + rs * h1, cm1 * r2 + rs * h2]),
+                np.array([c * n0 + s * h0, c * n1 + s * h1, c * n2 + s * h2]),
+                np.array([c * h0 - s * n0, c * h1 - s * n1, c * h2 - s * n2]))
 
     def gap(self, d: np.ndarray) -> float:
         """Separation of q⁰ + d along the start normal (≥ 0: the contact lifts off).
