@@ -34,7 +34,8 @@ bounded either way.  Once the statuses stop changing, Newton's method on
 their smooth system finishes the solve (quadratically).  Sliding that
 nothing stops shows as a steady drift — the same statuses, no root for
 them, and no decay of the motion from sweep to sweep — and is reported as
-gross slip.
+gross slip; statuses that keep cycling without progress (no halving of the
+largest force change in 1000 sweeps) are reported too.
 """
 
 from __future__ import annotations
@@ -60,6 +61,8 @@ DRIFT_SWEEPS = 300
 DRIFT_SLIP = 0.01
 #: Consecutive sweeps in which some contact has no local solution before the relaxation gives up.
 STUCK_SWEEPS = 50
+#: Sweeps without halving the largest force change (statuses that keep cycling) before it gives up.
+STALL_SWEEPS = 1000
 
 
 class RelaxationFailure(RuntimeError):
@@ -228,6 +231,17 @@ def _ray_root(c: _Contact, ckk: np.ndarray, fs: np.ndarray, mu: float, e: np.nda
     return hi * e
 
 
+def _backtrack(fun, x: np.ndarray, step: np.ndarray, norm: float, halvings: int) -> tuple[float, tuple] | None:
+    """Armijo backtracking on ‖fun(x)[0]‖: (λ, fun(x + λ step)) for the first λ = 1, ½, … that decreases it."""
+    lam = 1.0
+    for _ in range(halvings):
+        out = fun(x + lam * step)
+        if np.linalg.norm(out[0]) < (1.0 - 1e-4 * lam) * norm:
+            return lam, out
+        lam *= 0.5
+    return None
+
+
 def _newton2(resid, u: np.ndarray, a: np.ndarray, tol: float) -> np.ndarray | None:
     """Newton's method (finite-difference 2×2 Jacobian, backtracking) on a contact's slide residual."""
     g, fn = resid(u)
@@ -245,16 +259,11 @@ def _newton2(resid, u: np.ndarray, a: np.ndarray, tol: float) -> np.ndarray | No
             step = -np.linalg.solve(jac, g)
         except np.linalg.LinAlgError:
             return None
-        norm, lam = float(np.linalg.norm(g)), 1.0
-        for _ in range(30):
-            g2, fn2 = resid(u + lam * step)
-            if np.linalg.norm(g2) < (1.0 - 1e-4 * lam) * norm:
-                break
-            lam *= 0.5
-        else:
+        found = _backtrack(resid, u, step, float(np.linalg.norm(g)), 30)
+        if found is None:
             return None
+        lam, (g, fn) = found
         u = u + lam * step
-        g, fn = g2, fn2
     if np.abs(g).max() > tol or fn < 0.0 or not np.any(u):
         return None
     return u
@@ -346,15 +355,10 @@ def _polish(contacts: list, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, statu
             step = -np.linalg.solve(jac, r)
         except np.linalg.LinAlgError:
             return None
-        lam = 1.0
-        for _ in range(10):
-            r2, f2, dd2, _ = evaluate(x + lam * step, False)
-            if np.linalg.norm(r2) < (1.0 - 1e-4 * lam) * norm:
-                break
-            lam *= 0.5
-        else:
+        found = _backtrack(lambda y: evaluate(y, False), x, step, norm, 10)
+        if found is None:
             return None
-        x = x + lam * step
+        x = x + found[0] * step
         r, f, dd, jac = evaluate(x, True)
     else:
         return None
@@ -382,7 +386,7 @@ def _polish(contacts: list, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, statu
 
 def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndarray, centers: list,
                    up: np.ndarray, mu: np.ndarray, force_scale: float, *, tol: float = 1e-11,
-                   max_sweeps: int = 20000, max_slip: float = np.inf) -> Relaxation:
+                   max_sweeps: int = 5000, max_slip: float = np.inf) -> Relaxation:
     """Static stick/slide/release state of every contact at fixed obstacles (module notes).
 
     Parameters
@@ -424,6 +428,7 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
     next_polish, polish_fails = 2, 0
     moves: list[float] = []
     stuck = 0
+    best_change, best_sweep = np.inf, 0
     for sweep in range(1, max_sweeps + 1):
         change, move = 0.0, 0.0
         unsolved = None
@@ -486,6 +491,12 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
             stuck = 0
         if change <= tol * fs_scale and unsolved is None:
             break
+        if change < 0.5 * best_change:
+            best_change, best_sweep = change, sweep
+        elif sweep - best_sweep > STALL_SWEEPS:
+            raise RelaxationFailure(f"the stick/slip state stops settling after {sweep} Gauss–Seidel sweeps "
+                                    f"(no progress in the last {STALL_SWEEPS}): friction cannot hold the "
+                                    "contacts in a static state")
         # Once the statuses stop changing, Newton's method on their smooth system finishes the job
         # (Gauss–Seidel converges only linearly, slowly when the contacts are strongly coupled).
         if sweep >= next_polish and np.array_equal(status, last_status):
