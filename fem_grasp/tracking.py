@@ -45,8 +45,8 @@ every contact held, then the static stick / slide / release state of all of
 them at once (:func:`fem_grasp.relaxation.relax_contacts`), with new
 contacts added as they appear.  This is used (i) when a settle after events
 finds no slip solution or a node toggles more than three times, (ii) when an
-increment's slip system fails after four halvings (the increment is then
-taken implicitly), and (iii) when a node chatters between stick and slip
+increment's slip system still fails after ``MAX_HALVINGS`` halvings (the
+increment is then taken implicitly, and the next one tries Newton alone), and (iii) when a node chatters between stick and slip
 without progress in the parameter (one implicit increment of ``step``).
 Events inside an implicit increment are recorded at its end.  Only if no
 static state exists either (gross slip) does the tracking stop with
@@ -768,13 +768,8 @@ class Tracker:
     def force_scale(self, state: ContactState) -> float:
         return self.body.weight * max(state.load, 0.0) + float(np.abs(state.forces).max(initial=0.0))
 
-    def event_values(self, trial: _Trial, fscale: float, by_amount: bool = False
-                     ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    def event_values(self, trial: _Trial, fscale: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """Normalised event functions (> 0: the event fires) with their ids.
-
-        With ``by_amount`` event D tests the slip of the increment (negative:
-        the node moved with its friction, so it sticks — the return-mapping
-        rule of a one-shot settle) instead of the slip rate.
 
         A: ids are (surface position, obstacle) pairs encoded as 3·s + obstacle;
         B, C, D: positions in the contact set.
@@ -793,7 +788,7 @@ class Tracker:
         mu = self.mu[st.owner]
         c_val = np.where(st.sliding, -np.inf, (ft - mu * fn - TOL_CONE * np.maximum(fn, 0.0)) / fscale
                          - TOL_FORCE_FLOOR)
-        slip_test = -trial.amounts / self.diameter - 1e-12 if by_amount else -trial.rates - TOL_RATE
+        slip_test = -trial.rates - TOL_RATE
         d_val = np.where(st.sliding, np.maximum(slip_test, 0.1 * TOL_FORCE_FLOOR - fn / fscale), -np.inf)
         ids = np.arange(st.n_contacts)
         return {"A": (a_val, a_ids), "B": (b_val, ids), "C": (c_val, ids), "D": (d_val, ids)}
@@ -928,8 +923,7 @@ class Tracker:
                             f"runs away whichever sliding node sticks (gross slip); {exc}")
 
     def settle(self, state: ContactState, velocities: np.ndarray, *, phase: str, load_rate: float = 0.0,
-               param: str = "squeeze_depth", max_cascade: int = 200,
-               by_amount: bool = False) -> tuple[ContactState, list[ContactEvent]]:
+               param: str = "squeeze_depth", max_cascade: int = 200) -> tuple[ContactState, list[ContactEvent]]:
         """Re-solve at the same parameter after a configuration change; apply cascading events."""
         events: list[ContactEvent] = []
         toggles: dict[int, int] = {}
@@ -943,7 +937,7 @@ class Tracker:
                                                phase=phase, why=f"no slip solution after a change of contact "
                                                                 f"configuration ({exc})")
                 return state, events + ev
-            tr.values = self.event_values(tr, self.force_scale(tr.state), by_amount)
+            tr.values = self.event_values(tr, self.force_scale(tr.state))
             if self._gmax(tr.values) <= 0.0:
                 return tr.state, events
             state, ev = self._apply(tr, phase)
