@@ -9,12 +9,17 @@ object        shape                                size (semi-axes, metres)
 ============  ===================================  ==========================
 tomato        slightly oblate spheroid             0.033 x 0.033 x 0.027
 orange        sphere                               radius 0.037
-steam bun     half spheroid, flat base on z = 0    radius 0.050, height 0.035
+steam bun     spheroid cut flat 1.2 cm below its    radius 0.048, semi-axis 0.023
+              equator, base on z = 0               above the equator
 football      prolate spheroid, long axis along x  0.085 x 0.045 x 0.045
 ============  ===================================  ==========================
 
 With Table I's weights these give densities of about 1.0 (tomato), 0.9 (orange),
-0.26 (steam bun) and 0.07 g/cm^3 (foam football).  Axes: x is the long axis, +z
+0.26 (steam bun) and 0.07 g/cm^3 (foam football).  The bun bulges out above
+its base, as a steamed bun does: its side is vertical 1.2 cm up, 3.5 cm tall
+in all.  (A half spheroid's side leans further than the friction angle at the
+height of its centre of mass, so that two fingers pushing slightly downward
+there cannot hold even a rigid bun.)  Axes: x is the long axis, +z
 points up; ellipsoids are centred on the origin and the bun's base lies on z = 0.
 
 gmsh is an optional dependency (Debian package ``python3-gmsh``); it is imported
@@ -41,6 +46,56 @@ log = logging.getLogger(__name__)
 
 #: A mesh builder: mesh size (metres) -> (points (n, 3) float64, tets (t, 4) int64).
 Builder = Callable[[float], "tuple[np.ndarray, np.ndarray]"]
+
+
+@dataclass(frozen=True)
+class Refinement:
+    """A finer mesh around some points: where the fingertips will touch.
+
+    Within ``radius`` of a centre the target edge length is ``size``; it grows
+    linearly to the outer mesh size over a further ``thickness`` (gmsh "Ball"
+    fields, combined by "Min").  Lengths in metres.
+
+    Why: a fingertip of radius R on a mesh of spacing h > R touches one to
+    three nodes, and two or three point contacts hold a hanging body poorly
+    (the lift test of §III-B).  Table II reports 8–15 contact nodes at lift;
+    a spacing of R/2 under the fingertips gives such counts.
+    """
+
+    centers: tuple[tuple[float, float, float], ...]
+    radius: float
+    size: float
+    thickness: float
+
+    def __post_init__(self) -> None:
+        _check_lengths(radius=self.radius, size=self.size, thickness=self.thickness)
+        c = np.asarray(self.centers, dtype=float)
+        if c.ndim != 2 or c.shape[1] != 3 or len(c) == 0 or not np.isfinite(c).all():
+            raise ValueError(f"refinement centres must be finite 3-vectors, got {self.centers!r}")
+
+    @classmethod
+    def around(cls, centers: np.ndarray, finger_radius: float) -> "Refinement":
+        """The default grading for fingertips of radius R: size R/2 within 2R, growing over R."""
+        r = float(finger_radius)
+        return cls(tuple(tuple(float(x) for x in row) for row in np.asarray(centers, float)), 2.0 * r, 0.5 * r, r)
+
+
+def _apply_refinement(gmsh: Any, refine: "Refinement | None", mesh_size: float) -> None:
+    """Set the background size field of the current model (no-op without a refinement)."""
+    if refine is None:
+        return
+    field = gmsh.model.mesh.field
+    balls = []
+    for x, y, z in refine.centers:
+        f = field.add("Ball")
+        for key, value in (("Radius", refine.radius), ("Thickness", refine.thickness),
+                           ("VIn", min(refine.size, mesh_size)), ("VOut", mesh_size),
+                           ("XCenter", x), ("YCenter", y), ("ZCenter", z)):
+            field.setNumber(f, key, float(value))
+        balls.append(f)
+    smallest = field.add("Min")
+    field.setNumbers(smallest, "FieldsList", balls)
+    field.setAsBackgroundMesh(smallest)
 
 GMSH_MISSING = (
     "fem_grasp.shapes needs gmsh's Python module to generate meshes. On Debian/Ubuntu install "
@@ -245,7 +300,8 @@ def _check_lengths(**lengths: float) -> None:
 
 
 def ellipsoid(
-    semi_axes: tuple[float, float, float], mesh_size: float, *, algorithm: str = "auto"
+    semi_axes: tuple[float, float, float], mesh_size: float, *, algorithm: str = "auto",
+    refine: Refinement | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Tetrahedral mesh of a solid ellipsoid centred on the origin.
 
@@ -257,6 +313,8 @@ def ellipsoid(
         Target edge length in metres (gmsh's ``Mesh.MeshSizeMax``).
     algorithm : {"auto", "meshadapt", "frontal-delaunay", "delaunay"}
         gmsh's surface algorithm; see :data:`AUTO_MESHADAPT_MAX_VERTICES`.
+    refine : Refinement, optional
+        A finer mesh around some points (``mesh_size`` elsewhere).
 
     Returns
     -------
@@ -280,29 +338,37 @@ def ellipsoid(
         tag = occ.addSphere(0.0, 0.0, 0.0, 1.0)
         occ.dilate([(3, tag)], 0.0, 0.0, 0.0, a, b, c)
         occ.synchronize()
+        _apply_refinement(gmsh, refine, mesh_size)
         _generate(gmsh, mesh_size)
         points, tets = _extract_tets(gmsh)
     log.debug("ellipsoid %s h=%.4g: %d vertices, %d tets", (a, b, c), mesh_size, len(points), len(tets))
     return points, tets
 
 
-def dome(radius: float, height: float, mesh_size: float, *, algorithm: str = "auto") -> tuple[np.ndarray, np.ndarray]:
-    """Tetrahedral mesh of a steam-bun dome: a half spheroid with a flat base.
+def dome(radius: float, height: float, mesh_size: float, *, algorithm: str = "auto",
+         refine: Refinement | None = None, equator: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Tetrahedral mesh of a steam-bun dome: a spheroid cut flat at its base.
 
-    The solid is ``x² / r² + y² / r² + z² / h² <= 1, z >= 0``: a circular flat
-    base of radius ``radius`` on the plane z = 0, centred on the origin, rising
-    to ``height`` on the z axis.
+    The solid is ``x² / r² + y² / r² + (z − e)² / h² <= 1, z >= 0`` with
+    ``e = equator``: a spheroid whose equator lies at height e, cut by the
+    plane z = 0.  With e = 0 it is a half spheroid whose flat base has radius
+    ``radius``; with 0 < e < h its side bulges out above a smaller base of
+    radius r √(1 − e²/h²), as a steamed bun's does, and rises to e + h.
 
     Parameters
     ----------
     radius : float
-        Radius of the circular base, metres.
+        Equatorial radius r, metres.
     height : float
-        Height of the top above the base, metres (``height < radius`` for a bun).
+        Semi-axis h along z: the height of the top above the equator, metres.
+    equator : float
+        Height e of the equator above the flat base, metres, 0 <= e < h.
     mesh_size : float
         Target edge length in metres.
     algorithm : {"auto", "meshadapt", "frontal-delaunay", "delaunay"}
         gmsh's surface algorithm, as for :func:`ellipsoid`.
+    refine : Refinement, optional
+        A finer mesh around some points, as for :func:`ellipsoid`.
 
     Returns
     -------
@@ -318,18 +384,30 @@ def dome(radius: float, height: float, mesh_size: float, *, algorithm: str = "au
         If a length is not positive and finite.
     """
     _check_lengths(radius=radius, height=height, mesh_size=mesh_size)
-    alg = _surface_algorithm(algorithm, 2.0 / 3.0 * math.pi * radius**2 * height, mesh_size)
+    if not (math.isfinite(equator) and 0.0 <= equator < height):
+        raise ValueError(f"equator must be in [0, height) = [0, {height!r}), got {equator!r}")
+    alg = _surface_algorithm(algorithm, dome_volume(radius, height, equator), mesh_size)
     with _gmsh_model("dome", mesh_size, alg) as gmsh:
         occ = gmsh.model.occ
-        tag = occ.addSphere(0.0, 0.0, 0.0, 1.0, angle1=0.0)  # upper hemisphere, base on z = 0
+        # the sphere from latitude −asin(e/h) up: after the dilation and the shift by e, the cut is z = 0
+        tag = occ.addSphere(0.0, 0.0, 0.0, 1.0, angle1=-math.asin(equator / height))
         occ.dilate([(3, tag)], 0.0, 0.0, 0.0, float(radius), float(radius), float(height))
+        if equator > 0.0:
+            occ.translate([(3, tag)], 0.0, 0.0, float(equator))
         occ.synchronize()
+        _apply_refinement(gmsh, refine, mesh_size)
         _generate(gmsh, mesh_size)
         points, tets = _extract_tets(gmsh)
     # The flat base must be exactly flat: snap round-off of the OCC plane to z = 0.
     points[np.abs(points[:, 2]) <= 1e-12 * max(radius, height), 2] = 0.0
-    log.debug("dome r=%.4g h=%.4g size=%.4g: %d vertices, %d tets", radius, height, mesh_size, len(points), len(tets))
+    log.debug("dome r=%.4g h=%.4g e=%.4g size=%.4g: %d vertices, %d tets", radius, height, equator, mesh_size, len(points), len(tets))
     return points, tets
+
+
+def dome_volume(radius: float, height: float, equator: float = 0.0) -> float:
+    """Volume of :func:`dome`'s solid, m³: π r² [(h + e) − (h³ + e³) / (3 h²)]."""
+    r, h, e = float(radius), float(height), float(equator)
+    return math.pi * r * r * ((h + e) - (h**3 + e**3) / (3.0 * h * h))
 
 
 @dataclass(frozen=True)
@@ -342,7 +420,8 @@ class PaperShape:
         Key in :data:`PAPER_SHAPES`.
     kind : str
         ``"ellipsoid"`` (dimensions are semi-axes a, b, c) or ``"dome"``
-        (dimensions are base radius and height).
+        (dimensions are the equatorial radius r, the semi-axis h above the
+        equator and the equator's height e above the flat base, :func:`dome`).
     dimensions : tuple of float
         Metres.
     vertices, surface_facets, tetrahedra : int
@@ -359,14 +438,15 @@ class PaperShape:
     tetrahedra: int
     weight: float
 
-    def build(self, mesh_size: float, algorithm: str = "auto") -> tuple[np.ndarray, np.ndarray]:
-        """Mesh this shape with target edge length ``mesh_size`` (metres)."""
+    def build(self, mesh_size: float, algorithm: str = "auto",
+              refine: Refinement | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Mesh this shape with target edge length ``mesh_size`` (metres), finer where ``refine`` says."""
         if self.kind == "ellipsoid":
             a, b, c = self.dimensions
-            return ellipsoid((a, b, c), mesh_size, algorithm=algorithm)
+            return ellipsoid((a, b, c), mesh_size, algorithm=algorithm, refine=refine)
         if self.kind == "dome":
-            r, h = self.dimensions
-            return dome(r, h, mesh_size, algorithm=algorithm)
+            r, h, e = self.dimensions
+            return dome(r, h, mesh_size, algorithm=algorithm, refine=refine, equator=e)
         raise ValueError(f"unknown shape kind {self.kind!r}")
 
     @property
@@ -375,8 +455,7 @@ class PaperShape:
         if self.kind == "ellipsoid":
             a, b, c = self.dimensions
             return 4.0 / 3.0 * math.pi * a * b * c
-        r, h = self.dimensions
-        return 2.0 / 3.0 * math.pi * r * r * h
+        return dome_volume(*self.dimensions)
 
     @property
     def density(self) -> float:
@@ -388,7 +467,7 @@ class PaperShape:
 PAPER_SHAPES: dict[str, PaperShape] = {
     "tomato": PaperShape("tomato", "ellipsoid", (0.033, 0.033, 0.027), 490, 498, 2129, 1.246),
     "orange": PaperShape("orange", "ellipsoid", (0.037, 0.037, 0.037), 600, 564, 2692, 1.868),
-    "steam_bun": PaperShape("steam_bun", "dome", (0.050, 0.035), 658, 646, 2941, 0.467),
+    "steam_bun": PaperShape("steam_bun", "dome", (0.048, 0.023, 0.012), 658, 646, 2941, 0.467),
     "football": PaperShape("football", "ellipsoid", (0.085, 0.045, 0.045), 875, 782, 4058, 0.489),
 }
 
@@ -582,7 +661,8 @@ def _probe_size(count: Callable[[float], int], target: int) -> float:
     raise RuntimeError("could not find a probe mesh size; pass initial_size")
 
 
-def paper_mesh(name: str, target_vertices: int | None = None, rel_tol: float = 0.05) -> "TetMesh":
+def paper_mesh(name: str, target_vertices: int | None = None, rel_tol: float = 0.05, *,
+               refine: Refinement | None = None) -> "TetMesh":
     """One of the paper's objects as a :class:`~fem_grasp.mesh.TetMesh` with a set vertex count.
 
     Parameters
@@ -593,6 +673,9 @@ def paper_mesh(name: str, target_vertices: int | None = None, rel_tol: float = 0
         ~60 000 take a few seconds per gmsh call (use for refinement series).
     rel_tol : float
         Relative tolerance on the vertex count.
+    refine : Refinement, optional
+        A finer mesh around given points; the search then sets the outer mesh
+        size (see :func:`fem_grasp.objects.graded_paper_mesh`).
 
     Returns
     -------
@@ -604,7 +687,7 @@ def paper_mesh(name: str, target_vertices: int | None = None, rel_tol: float = 0
     target = spec.vertices if target_vertices is None else int(target_vertices)
     # One surface algorithm for the whole search, so that n(h) stays one function.
     algorithm = "meshadapt" if target <= AUTO_MESHADAPT_MAX_VERTICES else "frontal-delaunay"
-    builder = functools.partial(spec.build, algorithm=algorithm)
+    builder = functools.partial(spec.build, algorithm=algorithm, refine=refine)
     # n ≈ V / h³ for these gmsh settings (0.7–1.3 over 200–70 000 vertices).
     h0 = (spec.volume / target) ** (1.0 / 3.0)
     points, tets = mesh_with_vertex_count(builder, target, rel_tol, initial_size=float(f"{h0:.6g}"))

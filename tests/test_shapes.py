@@ -155,3 +155,58 @@ def test_committed_mesh(name):
     assert signed_volumes(points, tets).sum() == pytest.approx(spec.volume, rel=0.05)
     if spec.kind == "dome":
         assert points[:, 2].min() == 0.0
+
+
+def _edge_lengths_near(points: np.ndarray, tets: np.ndarray, centre: np.ndarray, radius: float) -> np.ndarray:
+    pairs = np.array([(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)])
+    a, b = points[tets[:, pairs[:, 0]]].reshape(-1, 3), points[tets[:, pairs[:, 1]]].reshape(-1, 3)
+    near = np.linalg.norm(0.5 * (a + b) - centre, axis=1) <= radius
+    return np.linalg.norm(a - b, axis=1)[near]
+
+
+@pytest.mark.gmsh
+def test_refinement_makes_the_mesh_finer_only_around_its_centres(gmsh):
+    centre = np.array([0.0, 0.03, 0.0])
+    refine = shapes.Refinement.around(np.array([centre]), 0.01)  # size 5 mm within 2 cm
+    assert (refine.radius, refine.size, refine.thickness) == (0.02, 0.005, 0.01)
+    p0, t0 = shapes.ellipsoid((0.03, 0.03, 0.025), 0.012)
+    p1, t1 = shapes.ellipsoid((0.03, 0.03, 0.025), 0.012, refine=refine)
+    check_arrays(p1, t1)
+    inside = np.median(_edge_lengths_near(p1, t1, centre, 0.015))
+    assert inside < 0.75 * np.median(_edge_lengths_near(p0, t0, centre, 0.015))
+    assert 0.003 < inside < 0.0075  # about the requested 5 mm
+    far = -centre  # the opposite side keeps the outer size
+    np.testing.assert_allclose(np.median(_edge_lengths_near(p1, t1, far, 0.015)),
+                               np.median(_edge_lengths_near(p0, t0, far, 0.015)), rtol=0.2)
+    with pytest.raises(ValueError, match="3-vectors"):
+        shapes.Refinement(((0.0, 1.0),), 0.02, 0.005, 0.01)
+    with pytest.raises(ValueError, match="size must be a positive"):
+        shapes.Refinement(((0.0, 0.0, 0.0),), 0.02, 0.0, 0.01)
+
+
+@pytest.mark.gmsh
+def test_graded_paper_mesh_keeps_the_vertex_count(gmsh):
+    refine = shapes.Refinement.around(np.array([[0.0, 0.033, 0.0], [0.0, -0.033, 0.0]]), 0.01)
+    mesh = shapes.paper_mesh("tomato", 490, refine=refine)
+    assert abs(mesh.n_points - 490) <= 0.05 * 490
+    uniform = shapes.paper_mesh("tomato", 490)
+    for c in refine.centers:
+        # more surface nodes within a fingertip radius of the refined points than on the uniform mesh
+        near = lambda m: int((np.linalg.norm(m.points[m.surface_nodes] - np.array(c), axis=1) <= 0.01).sum())
+        assert near(mesh) >= 1.5 * near(uniform)
+
+
+@pytest.mark.gmsh
+def test_bulging_dome_has_its_widest_point_at_the_equator(gmsh):
+    r, h, e = 0.048, 0.025, 0.010
+    points, tets = shapes.dome(r, h, 0.006, equator=e)
+    check_arrays(points, tets)
+    assert points[:, 2].min() == 0.0 and points[:, 2].max() == pytest.approx(e + h, rel=1e-6)
+    base = points[points[:, 2] == 0.0]
+    np.testing.assert_allclose(np.hypot(base[:, 0], base[:, 1]).max(), r * math.sqrt(1 - (e / h) ** 2), rtol=1e-6)
+    rho = np.hypot(points[:, 0], points[:, 1])
+    assert abs(points[rho.argmax(), 2] - e) < 0.006 and rho.max() == pytest.approx(r, rel=1e-3)
+    assert 0.95 * shapes.dome_volume(r, h, e) < signed_volumes(points, tets).sum() < shapes.dome_volume(r, h, e)
+    assert shapes.dome_volume(r, h) == pytest.approx(2.0 / 3.0 * math.pi * r * r * h)
+    with pytest.raises(ValueError, match="equator"):
+        shapes.dome(r, h, 0.006, equator=h)
