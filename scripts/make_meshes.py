@@ -1,6 +1,10 @@
 #!/usr/bin/env python3
 """Regenerate meshes/{tomato,orange,steam_bun,football}.vtu at the paper's Table I vertex counts.
 
+Each mesh is graded to the fingertips (``fem_grasp.objects.graded_paper_mesh``):
+spacing R/2 within 2R of where the paper scenes' placement rule puts the
+fingers, coarser elsewhere, at Table I's vertex count.
+
 Needs gmsh's Python module (Debian: ``apt-get install python3-gmsh``, run with
 /usr/bin/python3 or a ``--system-site-packages`` venv) and meshio.  The meshes are
 deterministic: re-running gives identical files with the same gmsh version.
@@ -27,10 +31,10 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 try:
-    from fem_grasp import shapes
+    from fem_grasp import objects, shapes
 except ImportError:  # running from a checkout without `pip install -e .`
     sys.path.insert(0, str(REPO))
-    from fem_grasp import shapes
+    from fem_grasp import objects, shapes
 
 
 def dihedral_angles(points: np.ndarray, tets: np.ndarray) -> np.ndarray:
@@ -59,9 +63,12 @@ centred on the origin and the steam bun's flat base lies on z = 0.
 |---|---|---|---|---|---|
 {rows}
 
-Vertex counts are within ±5 % of Table I (in parentheses); tetrahedron and facet counts follow from
-gmsh's near-uniform sizing (the paper's CGAL meshes have relatively fewer surface
-facets). Regenerate with `make meshes` (runs `scripts/make_meshes.py`, which needs
+Vertex counts are within ±5 % of Table I (in parentheses). The meshes are graded to the
+fingertips: spacing R/2 = 5 mm within 2R = 2 cm of the two points where the paper scenes'
+placement rule (fingers at the height of the centre of mass, `fem_grasp.objects.PAPER_PLACEMENT_RULE`)
+puts the fingers on a first, uniform mesh, and coarser elsewhere, so that each fingertip touches
+several nodes (Table II reports 8–15 contact nodes at lift); see `fem_grasp.objects`.
+Tetrahedron and facet counts follow from gmsh's sizing. Regenerate with `make meshes` (runs `scripts/make_meshes.py`, which needs
 gmsh: Debian package `python3-gmsh`); the output is deterministic for a given gmsh
 version (these were made with gmsh {gmsh_version}).
 """
@@ -70,7 +77,12 @@ version (these were made with gmsh {gmsh_version}).
 def _describe(spec: shapes.PaperShape) -> tuple[str, str]:
     mm = [f"{1000 * d:g}" for d in spec.dimensions]
     if spec.kind == "dome":
-        return "dome: half spheroid, flat base", f"radius {mm[0]} mm, height {mm[1]} mm"
+        r, h, e = spec.dimensions
+        if e == 0:
+            return "dome: half spheroid, flat base", f"radius {mm[0]} mm, height {mm[1]} mm"
+        return ("dome: spheroid cut flat below its equator",
+                f"radius {mm[0]} mm, semi-axis {mm[1]} mm above the equator, equator {mm[2]} mm above the base "
+                f"(height {1000 * (h + e):g} mm)")
     a, b, c = spec.dimensions
     if a == b == c:
         return "sphere", f"radius {mm[0]} mm"
@@ -106,10 +118,10 @@ def main(argv: list[str] | None = None) -> int:
         args.out_dir.mkdir(parents=True, exist_ok=True)
     for name, spec in shapes.PAPER_SHAPES.items():
         try:
-            mesh = shapes.paper_mesh(name, rel_tol=args.rel_tol)
+            mesh = objects.graded_paper_mesh(name, rel_tol=args.rel_tol)
         except RuntimeError as exc:
             logging.warning("%s: %s; retrying with ±%g", name, exc, CONTRACT_TOL)
-            mesh = shapes.paper_mesh(name, rel_tol=max(args.rel_tol, CONTRACT_TOL))
+            mesh = objects.graded_paper_mesh(name, rel_tol=max(args.rel_tol, CONTRACT_TOL))
         n_faces = len(mesh.surface_faces)
         dmin = float(dihedral_angles(mesh.points, mesh.tets).min())
         vol_err = mesh.volume / spec.volume - 1.0
