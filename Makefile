@@ -11,7 +11,7 @@ APT_PACKAGES := python3-dolfinx python3-gmsh python3-venv python3-pip python3-de
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 PYTEST_ARGS ?=
 
-.PHONY: setup test demo verify verify-quick meshes spectral-vs-sparse rest-table clean-venv
+.PHONY: setup test demo verify verify-quick meshes spectral-vs-sparse rest-table clean-venv paper-scenes
 
 setup: $(STAMPS)/venv
 
@@ -79,6 +79,15 @@ paper: setup
 	@for o in tomato orange steam_bun football; do \
 	  $(PY) -m fem_grasp.paper --objects $$o --json out/paper/$$o.json > out/paper/$$o.log 2>&1 & done; wait
 	$(PY) -m fem_grasp.paper --merge out/paper/*.json
+
+.PHONY: paper-scenes
+# The README's table: Table I's moduli as printed, and the paper scenes' effective moduli (no search).
+paper-scenes: setup
+	@mkdir -p out/paper-scenes
+	@for o in tomato orange steam_bun football; do \
+	  $(PY) -m fem_grasp.paper --objects $$o --no-search --young scene --json out/paper-scenes/$$o.json \
+	    > out/paper-scenes/$$o.log 2>&1 & done; wait
+	$(PY) -m fem_grasp.paper --merge out/paper-scenes/*.json
 
 clean-venv:
 	rm -rf $(VENV) $(STAMPS)

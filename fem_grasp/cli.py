@@ -96,7 +96,14 @@ def _load_scene(args: argparse.Namespace) -> Any:
     from .scene import load_scene, resolve_scene, with_overrides
 
     scene = load_scene(resolve_scene(args.scene), quick=args.quick)
-    return with_overrides(scene, backend=getattr(args, "backend", None),
+    young = getattr(args, "young", None)
+    if young is not None:
+        from .scene import SceneError, parse_quantity
+
+        young = parse_quantity(young, "pressure", "--young")
+        if not young > 0:
+            raise SceneError(f"--young must be a positive pressure, got {args.young!r}")
+    return with_overrides(scene, backend=getattr(args, "backend", None), young=young,
                           lift=False if getattr(args, "no_lift", False) else None)
 
 
@@ -338,6 +345,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-lift", action="store_true",
                    help="stop when the lift test passes (is it liftable?) instead of simulating the lift; the exit "
                         "status is then 1, as the object has not been lifted")
+    p.add_argument("--young", metavar="E",
+                   help="override the scene's Young's modulus: pascals, or a string with a unit, e.g. '20 kPa'")
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("rest", parents=[common, scene_opts], help="compute the resting state of a scene's object",

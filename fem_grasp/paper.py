@@ -5,8 +5,10 @@ reports, in Table II, the number of contact nodes in the final configuration,
 the squeeze depth ρ before lifting and the simulation's running time, and in
 Table III the total finger normal force at pickup for the deformable object
 and for a rigid body of the same shape.  This script runs :func:`pickup` with
-the default scene (the paper's squeeze directions, s = 1, Table I's weight, ν
-and μ for both fingers and table) twice per object:
+the settings of the paper scenes (the paper's squeeze directions, s = 1,
+Table I's weight, ν and μ for both fingers and table, the fingers at the
+height of the centre of mass, :data:`~fem_grasp.objects.PAPER_PLACEMENT_RULE`,
+and :data:`~fem_grasp.objects.PAPER_MAX_SQUEEZE`) twice per object:
 
 1. with Table I's Young's modulus as printed (1e9–6e9 Pa);
 2. with an **effective modulus** found by the script so that our squeeze
@@ -56,6 +58,8 @@ def run_object(name: str, young: float, *, lift: bool = True, **kw: Any) -> tupl
     """Run :func:`pickup` on a paper object at modulus ``young`` with Table I's weight, ν and μ."""
     row = objects.TABLE_I[name]
     body = objects.load(name, young=young)
+    kw.setdefault("placement_rule", objects.PAPER_PLACEMENT_RULE)  # as the paper scenes
+    kw.setdefault("max_squeeze", objects.PAPER_MAX_SQUEEZE.get(name))
     res = pickup(body, mu_finger=row.friction, mu_table=row.friction, lift=lift, **kw)
     return _summary(name, young, res), res
 
@@ -137,13 +141,29 @@ def format_tables(rows: Sequence[dict[str, Any]]) -> str:
     return "\n".join(lines)
 
 
+def _modulus(value: str, name: str) -> float:
+    """``--young``: a number of pascals, or "scene" for the modulus of the shipped scene of ``name``."""
+    if value == "scene":
+        from .scene import load_scene, resolve_scene
+
+        return load_scene(resolve_scene(name)).young
+    try:
+        young = float(value)
+    except ValueError:
+        raise SystemExit(f"--young: expected a number of pascals or 'scene', got {value!r}") from None
+    if not young > 0:
+        raise SystemExit(f"--young must be positive, got {value!r}")
+    return young
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--objects", nargs="*", default=list(objects.NAMES), choices=objects.NAMES)
     parser.add_argument("--no-search", action="store_true",
                         help="skip the effective-modulus search (use --young instead)")
-    parser.add_argument("--young", type=float, default=None,
-                        help="with --no-search: the modulus of the second run (default: none)")
+    parser.add_argument("--young", default=None,
+                        help="with --no-search: the modulus of the second run, in Pa, or 'scene' for the modulus of "
+                             "the object's shipped scene (fem_grasp/scenes/NAME.toml; default: no second run)")
     parser.add_argument("--no-table-one", action="store_true",
                         help="skip the run at Table I's printed modulus (the steam bun's 202 table contacts make it "
                              "very slow: thousands of table slip events at nanometre depths)")
@@ -170,7 +190,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             row["table_one"], _ = run_object(name, objects.TABLE_I[name].young)
         if args.no_search:
             if args.young is not None:
-                row["effective"], _ = run_object(name, args.young)
+                row["effective"], _ = run_object(name, _modulus(args.young, name))
         else:
             e, trials = effective_modulus(name)
             row["search"] = trials

@@ -27,8 +27,12 @@ Default scene (the paper's §IV, where it is silent our choice)
   outside the object and are force closure, the pair whose rigid grasp needs
   the least total normal force (Table III's measure): contacts where the
   surface faces a little upward let the normal forces carry part of the
-  weight.  (``placement_rule="centre-of-mass-height"``: the first valid pair
-  from the centre of mass's height outwards, the rule before 2026-11.)
+  weight.  (``placement_rule="centre-of-mass-height"``, the paper scenes'
+  rule: the first valid pair from the centre of mass's height outwards whose
+  rigid grasp is feasible — the fingers alone could hold a rigid body of the
+  resting shape; on the steam bun's dome the side at that height leans
+  further than the friction angle, so the fingers go lower — or the first
+  valid pair if none is.)
 * maximum squeeze depth: 40 % of the object's width along ĥ;
 * squeeze increment: 1/20 of the depth ρ* = mg / (μ_ℱ k₀) at which a
   finger of the initial (point) contact stiffness k₀ would press hard enough
@@ -412,7 +416,8 @@ def default_finger_contacts(rest_state: RestState, direction: np.ndarray, mu_fin
     (:func:`fem_grasp.rigid.rigid_grasp`, Table III's measure) needs the
     least total normal force, ties going to the height nearest the centre of
     mass; ``rule="centre-of-mass-height"`` the first valid candidate from the
-    centre of mass's height outwards.
+    centre of mass's height outwards whose rigid grasp is feasible (else the
+    first valid one).
 
     Raises ``ValueError`` if no height gives a valid placement.
     """
@@ -432,6 +437,7 @@ def default_finger_contacts(rest_state: RestState, direction: np.ndarray, mu_fin
     tried: set[tuple[int, int]] = set()
     last: ClosureResult | None = None
     best: tuple[float, int, tuple[int, int], ClosureResult] | None = None
+    first: tuple[tuple[int, int], ClosureResult] | None = None
     for k in range(0, 81):
         h = com + (-1) ** k * ((k + 1) // 2) * 0.025 * height
         if not z0 < h < z1:
@@ -455,12 +461,18 @@ def default_finger_contacts(rest_state: RestState, direction: np.ndarray, mu_fin
         last = closure
         if not closure.closed:
             continue
-        if rule == "centre-of-mass-height":
-            return ij, closure
         grasp = rigid_grasp(pos[list(ij)], -out[list(ij)], com_point, body.weight, mu_finger)
+        if rule == "centre-of-mass-height":
+            if grasp.feasible:
+                return ij, closure
+            if first is None:
+                first = (ij, closure)
+            continue
         force = grasp.total_normal_force if grasp.feasible else np.inf
         if best is None or force < best[0] * (1 - 1e-9):
             best = (force, k, ij, closure)
+    if first is not None:
+        return first
     if best is not None:
         return best[2], best[3]
     raise ValueError("no finger placement along the squeeze direction clears the table, starts outside the object "

@@ -26,7 +26,7 @@ optional)::
 
     [fingers]
     radius = "1 cm"
-    contacts = "auto"         # or [i, j], node indices
+    contacts = "auto"         # or a placement rule ("centre-of-mass-height", "least-force"), or [i, j], node indices
     directions = [[0, 0.974, -0.227], [0, -0.974, -0.227]]
     ratio = 1.0
 
@@ -197,6 +197,7 @@ class Scene:
     path: Path | None = None
     quick: bool = False
     expect: str | None = None
+    placement_rule: str = "least-force"
 
     # ------------------------------------------------------------ building
     def load_mesh(self, cache_dir: Path | None = None) -> "Any":
@@ -212,7 +213,10 @@ class Scene:
                 from . import objects
 
                 return objects.load_mesh(spec.paper)
-            return _cached_mesh(cache_dir, ("paper", spec.paper, spec.vertices),
+            from .shapes import PAPER_SHAPES
+
+            # the shape's spec is in the key: a changed stand-in shape must not be served from the cache
+            return _cached_mesh(cache_dir, ("paper", spec.paper, spec.vertices, PAPER_SHAPES[spec.paper]),
                                 lambda: _paper_mesh(spec.paper, spec.vertices))
         path = spec.mesh
         from .scan import SURFACE_SUFFIXES
@@ -238,7 +242,8 @@ class Scene:
         return {"mu_finger": self.mu_finger, "mu_table": self.mu_table, "finger_radius": self.finger_radius,
                 "contacts": self.contacts, "directions": tuple(np.array(d, float) for d in self.directions),
                 "ratio": self.ratio, "max_squeeze": self.max_squeeze, "step": self.step, "backend": self.backend,
-                "lift_test_step": self.lift_test_step, "max_lift": self.max_lift, "lift": self.lift}
+                "lift_test_step": self.lift_test_step, "max_lift": self.max_lift, "lift": self.lift,
+                "placement_rule": self.placement_rule}
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
@@ -403,11 +408,17 @@ class _Reader:
                 raise SceneError(f"{w}: expected three numbers, got {v!r}")
             return tuple(float(x) for x in v)
         if kind == "contacts":
+            from .pickup import PLACEMENT_RULES
+
             if v == "auto":
                 return None
+            if isinstance(v, str) and v in PLACEMENT_RULES:
+                return v
             if (not isinstance(v, list) or len(v) != 2
                     or not all(isinstance(x, int) and not isinstance(x, bool) for x in v)):
-                raise SceneError(f"{w}: expected \"auto\" or two node indices [i, j], got {v!r}")
+                rules = ", ".join(f'"{r}"' for r in PLACEMENT_RULES)
+                raise SceneError(f"{w}: expected \"auto\", a placement rule ({rules}) or two node indices "
+                                 f"[i, j], got {v!r}")
             if v[0] == v[1] or min(v) < 0:
                 raise SceneError(f"{w}: the two contact nodes must be distinct non-negative indices, got {v!r}")
             return (int(v[0]), int(v[1]))
@@ -546,6 +557,9 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
     radius = g.get("radius", DEFAULT_RADIUS)
     _positive(g.where("radius"), radius, "m")
     contacts = g.get("contacts")
+    rule = "least-force"
+    if isinstance(contacts, str):
+        rule, contacts = contacts, None
     directions = g.get("directions", tuple(tuple(float(x) for x in d) for d in PAPER_SQUEEZE_DIRECTIONS))
     ratio = g.get("ratio", 1.0)
     _positive(g.where("ratio"), ratio, "dimensionless", allow_zero=True)
@@ -570,7 +584,7 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
                  contacts=contacts, directions=directions, ratio=float(ratio), backend=backend,
                  max_squeeze=max_sq, step=step, lift_test_step=s.get("lift_test_step"),
                  max_lift=s.get("max_lift"), lift=s.get("lift", True), description=top.get("description", ""),
-                 path=path, quick=quick, expect=expect)
+                 path=path, quick=quick, expect=expect, placement_rule=rule)
 
 
 def load_scene(path: str | Path, quick: bool = False) -> Scene:

@@ -31,6 +31,17 @@ def test_every_shipped_scene_runs_quick_and_the_exit_status_matches_the_result(s
     assert (out / "object.pvd").exists()
 
 
+def test_young_override_reaches_the_scene():
+    from argparse import Namespace
+
+    from fem_grasp.cli import _load_scene
+
+    args = Namespace(scene="orange", quick=True, backend=None, no_lift=False, young="12.5 kPa")
+    assert _load_scene(args).young == 12500.0
+    args.young = None
+    assert _load_scene(args).young == 20000.0  # the scene's own
+
+
 def test_summary_printed_and_quiet_prints_nothing(capsys, tmp_path):
     args = ["run", "football", "--quick", "--cache", str(cache_dir()), "--no-lift"]
     code = main(args)
@@ -96,6 +107,8 @@ def test_bad_input_exits_2_with_a_message_that_names_it(capsys, tmp_path):
     scene.write_text('[object]\npaper = "tomato"\n[fingers]\ncontacts = [0, 99999]\n')
     _bad(capsys, ["run", str(scene), "--no-cache"], "fingers.contacts", "node 99999 does not exist")
     _bad(capsys, ["run", "tomato", "--report"], "--report needs --out")
+    _bad(capsys, ["run", "tomato", "--young", "3 mm"], "--young", "is a length, but a pressure is expected")
+    _bad(capsys, ["run", "tomato", "--young", "-5"], "--young", "positive")
     # Surfaces: not closed, self-intersecting.
     p, f = icosphere(0.03, 2)
     _bad(capsys, ["mesh", str(write_stl(tmp_path / "open.stl", p, f[1:])), "-o", str(tmp_path / "o.vtu")],

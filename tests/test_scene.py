@@ -43,7 +43,11 @@ def test_shipped_scenes_parse_full_and_quick_and_paper_ones_carry_table_one():
             row = objects.TABLE_I[name]
             assert (full.weight, full.poisson, full.mu_finger, full.mu_table) == (row.weight, row.poisson,
                                                                                   row.friction, row.friction)
-            assert full.young == objects.EFFECTIVE_YOUNG_ESTIMATE
+            # the effective modulus (README, "Units"): 10 kPa, 20 kPa for the orange and the bun (their scenes say why)
+            assert full.young == (2 if name in ("orange", "steam_bun") else 1) * objects.EFFECTIVE_YOUNG_ESTIMATE
+            assert full.placement_rule == objects.PAPER_PLACEMENT_RULE and full.contacts is None
+            assert full.max_squeeze == objects.PAPER_MAX_SQUEEZE.get(name)  # the meshes are graded for these
+            assert full.pickup_kwargs()["placement_rule"] == objects.PAPER_PLACEMENT_RULE
             assert full.object.vertices is None and 100 <= quick.object.vertices <= 250
             np.testing.assert_allclose(np.linalg.norm(full.directions, axis=1), 1.0)
 
@@ -83,6 +87,7 @@ def _with(table: str, line: str) -> str:
     ("friction", "table = -0.1", "friction.table", "≥ 0"),
     ("fingers", 'radius = "0 mm"', "fingers.radius", "positive"),
     ("fingers", "contacts = [3]", "fingers.contacts", "two node indices"),
+    ("fingers", 'contacts = "highest"', "fingers.contacts", '"centre-of-mass-height"'),
     ("fingers", "directions = [[0, 0, 0], [0, 1, 0]]", "fingers.directions[0]", "non-zero"),
     ("solver", 'backend = "dense"', "solver.backend", "sparse"),
     ("solver", "lift = 1", "solver.lift", "true or false"),
