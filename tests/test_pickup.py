@@ -168,6 +168,23 @@ def test_implicit_increments_alone_pick_up_the_box_at_the_same_depth(lifted, mon
     assert res.finger_normal_force == pytest.approx(lifted.finger_normal_force, rel=0.1)
 
 
+def test_large_contact_sets_go_by_implicit_increments_to_the_same_depth(lifted, monkeypatch):
+    """Above IMPLICIT_CONTACTS contacts every increment is a return mapping; with the threshold at 0 the
+    whole box pickup goes that way and must agree with the event tracking."""
+    import fem_grasp.tracking as tracking
+
+    calls = []
+    original = Tracker.implicit_step
+    monkeypatch.setattr(tracking, "IMPLICIT_CONTACTS", 0)
+    monkeypatch.setattr(Tracker, "implicit_step", lambda self, *a, **k: calls.append(1) or original(self, *a, **k))
+    res = _pickup(0.5)
+    assert res.success, res.reason
+    res.check()
+    assert len(calls) >= lifted.squeeze_depth / lifted.step - 1  # every squeeze increment
+    assert abs(res.squeeze_depth - lifted.squeeze_depth) <= 2 * lifted.step
+    assert res.finger_normal_force == pytest.approx(lifted.finger_normal_force, rel=0.1)
+
+
 # ------------------------------------------------------------- the failures
 def test_too_little_friction_fails_by_slip_on_a_finger():
     res = _pickup(0.2)
@@ -400,3 +417,21 @@ def test_a_lightly_loaded_fingertip_contact_on_a_stiff_body_slides_onto_its_cone
     assert np.linalg.norm(system.normals(x)[0]) == pytest.approx(1.0, abs=1e-15)  # still on the sphere
     assert 0 < system.amounts(x)[0] < 1e-12  # a slip of a few 1e-14 m
 
+
+
+# ------------------------------------------------------------ a paper object
+def test_the_football_scene_is_picked_up_and_every_snapshot_obeys_the_contact_laws():
+    """The shipped football scene (graded mesh, 10 kPa) end to end: the quickest of the four paper pickups."""
+    from fem_grasp.scene import load_scene, resolve_scene
+
+    scene = load_scene(resolve_scene("football"))
+    res = pickup(scene.body(), **scene.pickup_kwargs())
+    assert res.success, res.reason
+    res.check()
+    at_lift = max(w for r, w in res.liftable if r <= res.squeeze_depth + 1e-12)
+    assert at_lift >= res.body.weight * (1 - 1e-12)
+    fingers = {k: len(v) for k, v in res.final.contact_nodes.items()}
+    assert fingers["table"] == 0 and min(fingers["finger1"], fingers["finger2"]) >= 3
+    # the two fingers carry the weight: vertical force balance at lift-off, to round-off
+    total = sum(np.asarray(f).sum(axis=0) for f in res.final.contact_forces.values() if len(f))
+    np.testing.assert_allclose(total[2], res.body.weight, rtol=1e-9)
