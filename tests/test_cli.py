@@ -13,7 +13,7 @@ from _ux_helpers import cache_dir, cli_run, icosphere, write_stl
 
 #: Scenes whose quick variant is run to the end; the others stop when the lift test passes (--no-lift),
 #: because their simulated lift still takes minutes (issue #7).
-SLOW_LIFT = {"foam_block": ("--no-lift",), "steam_bun": ("--no-lift",)}
+SLOW_LIFT = {"foam_block": ("--no-lift",)}
 
 
 @pytest.mark.parametrize("scene", sorted(shipped_scenes()))
