@@ -120,7 +120,7 @@ def finger_contact_points(mesh: TetMesh, name: str, finger_radius: float | None 
     (``max_squeeze`` defaults to :data:`PAPER_MAX_SQUEEZE`, else 40 % of the width).
     """
     from .fingertip import DEFAULT_RADIUS
-    from .pickup import default_finger_contacts
+    from .pickup import default_finger_contacts, default_max_squeeze
     from .placement import PAPER_SQUEEZE_DIRECTIONS
     from .rest import rest
 
@@ -129,9 +129,8 @@ def finger_contact_points(mesh: TetMesh, name: str, finger_radius: float | None 
     body = Body(mesh, young, row.poisson, weight=row.weight)
     rs = rest(body, row.friction)
     d1, d2 = (np.asarray(d, float) / np.linalg.norm(d) for d in PAPER_SQUEEZE_DIRECTIONS)
-    width = float(np.ptp(rs.positions @ np.array([d1[0], d1[1], 0.0]) / np.hypot(d1[0], d1[1])))
     if max_squeeze is None:
-        max_squeeze = PAPER_MAX_SQUEEZE.get(name, 0.4 * width)
+        max_squeeze = PAPER_MAX_SQUEEZE.get(name) or default_max_squeeze(rs.positions, d1)
     ij, _ = default_finger_contacts(rs, d1, row.friction, row.friction, radius, np.stack([d1, d2]),
                                     rule=rule, max_squeeze=max_squeeze)
     return mesh.points[list(ij)]

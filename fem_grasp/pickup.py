@@ -30,9 +30,9 @@ Default scene (the paper's §IV, where it is silent our choice)
   weight.  (``placement_rule="centre-of-mass-height"``, the paper scenes'
   rule: the first valid pair from the centre of mass's height outwards whose
   rigid grasp is feasible — the fingers alone could hold a rigid body of the
-  resting shape; on the steam bun's dome the side at that height leans
-  further than the friction angle, so the fingers go lower — or the first
-  valid pair if none is.)
+  resting shape; where a dome's side leans further than the friction angle,
+  the fingers move to where it is steeper — or the first valid pair if none
+  is.)
 * maximum squeeze depth: 40 % of the object's width along ĥ;
 * squeeze increment: 1/20 of the depth ρ* = mg / (μ_ℱ k₀) at which a
   finger of the initial (point) contact stiffness k₀ would press hard enough
@@ -91,7 +91,7 @@ from .validation import (ContactNodeError, PlacementError, SceneError, check_con
 from .tracking import FINGER1, FINGER2, OBSTACLES, ContactEvent, ContactState, Tracker, TrackingError
 
 __all__ = ["DEFAULT_FRICTION", "LiftAttempt", "PickupCheckError", "PickupResult", "Snapshot", "default_finger_contacts",
-           "pickup"]
+           "default_max_squeeze", "pickup"]
 
 log = logging.getLogger(__name__)
 
@@ -402,6 +402,12 @@ class PickupResult:
 PLACEMENT_RULES = ("least-force", "centre-of-mass-height")
 
 
+def default_max_squeeze(positions: np.ndarray, direction: np.ndarray) -> float:
+    """The default maximum squeeze depth: 40 % of the object's width along ĥ, the horizontal part of d̂₁."""
+    d = np.asarray(direction, float)
+    return 0.4 * float(np.ptp(positions @ np.array([d[0], d[1], 0.0]) / max(np.hypot(d[0], d[1]), 1e-300)))
+
+
 def default_finger_contacts(rest_state: RestState, direction: np.ndarray, mu_finger: float, mu_table: float,
                             radius: float, velocities: np.ndarray | None = None, *,
                             rule: str = "least-force", max_squeeze: float | None = None
@@ -549,9 +555,8 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
     result = PickupResult(False, "", posed, rs, (-1, -1), None, mu_f, mu_t, float(finger_radius), (d1, d2),
                           float(ratio), timings=timings)
 
-    width = float(np.ptp(rs.positions @ np.array([d1[0], d1[1], 0.0]) / max(np.hypot(d1[0], d1[1]), 1e-300)))
     if max_squeeze is None:
-        max_squeeze = 0.4 * width
+        max_squeeze = default_max_squeeze(rs.positions, d1)
 
     # Step 1: force closure of p_i, p_j and the support-triangle centre.
     t0 = time.perf_counter()

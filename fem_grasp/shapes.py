@@ -17,9 +17,9 @@ football      prolate spheroid, long axis along x  0.085 x 0.045 x 0.045
 With Table I's weights these give densities of about 1.0 (tomato), 0.9 (orange),
 0.26 (steam bun) and 0.07 g/cm^3 (foam football).  The bun bulges out above
 its base, as a steamed bun does: its side is vertical 1.2 cm up, 3.5 cm tall
-in all.  (A half spheroid's side leans further than the friction angle at the
-height of its centre of mass, so that two fingers pushing slightly downward
-there cannot hold even a rigid bun.)  Axes: x is the long axis, +z
+in all.  (A half spheroid's side leans further than the friction angle at every
+height where fingertips pushing slightly downward clear the table, so that
+two fingers could not hold even a rigid bun there.)  Axes: x is the long axis, +z
 points up; ellipsoids are centred on the origin and the bun's base lies on z = 0.
 
 gmsh is an optional dependency (Debian package ``python3-gmsh``); it is imported
