@@ -98,11 +98,10 @@ def _load_scene(args: argparse.Namespace) -> Any:
     scene = load_scene(resolve_scene(args.scene), quick=args.quick)
     young = getattr(args, "young", None)
     if young is not None:
-        from .scene import SceneError, parse_quantity
+        from .scene import _positive, parse_quantity
 
         young = parse_quantity(young, "pressure", "--young")
-        if not young > 0:
-            raise SceneError(f"--young must be a positive pressure, got {args.young!r}")
+        _positive("--young", young, "Pa")
     return with_overrides(scene, backend=getattr(args, "backend", None), young=young,
                           lift=False if getattr(args, "no_lift", False) else None)
 

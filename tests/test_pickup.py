@@ -435,3 +435,35 @@ def test_the_football_scene_is_picked_up_and_every_snapshot_obeys_the_contact_la
     # the two fingers carry the weight: vertical force balance at lift-off, to round-off
     total = sum(np.asarray(f).sum(axis=0) for f in res.final.contact_forces.values() if len(f))
     np.testing.assert_allclose(total[2], res.body.weight, rtol=1e-9)
+
+
+def test_centre_of_mass_rule_skips_heights_where_no_rigid_grasp_exists():
+    """On a half-spheroid bun the side at the centre of mass's height leans beyond the friction angle
+    (μ = 0.4): two fingers could not hold even a rigid bun there, so the rule moves down to where they
+    could; if no height clearing the table allows it, the first valid pair is kept."""
+    pytest.importorskip("gmsh", reason="gmsh's Python module is not installed (Debian package python3-gmsh)")
+    from fem_grasp import placement, shapes
+    from fem_grasp.closure import surface_normals_at
+    from fem_grasp.mesh import TetMesh
+    from fem_grasp.pickup import default_finger_contacts
+    from fem_grasp.rigid import rigid_grasp
+
+    body = Body(TetMesh(*shapes.dome(0.05, 0.035, 0.008)), 1e4, 0.2, weight=0.467)
+    rs = rest(body, 0.4)
+    mesh, pos = rs.body.mesh, rs.positions
+    out = surface_normals_at(mesh, pos)
+    com = (mesh.volumes @ pos[mesh.tets].mean(axis=1)) / mesh.volume
+    d1, d2 = (np.asarray(d) / np.linalg.norm(d) for d in placement.PAPER_SQUEEZE_DIRECTIONS)
+
+    def feasible(ij):
+        return rigid_grasp(pos[list(ij)], -out[list(ij)], com, body.weight, 0.4).feasible
+
+    at_com = placement.finger_contact_nodes(mesh, com[2], d1)
+    assert not feasible(at_com)
+    low, _ = default_finger_contacts(rs, d1, 0.4, 0.4, 0.01, np.stack([d1, d2]), rule="centre-of-mass-height",
+                                     max_squeeze=0.004)
+    assert feasible(low) and pos[list(low), 2].max() < com[2] - 0.002
+    # a long squeeze keeps the fingertips high above the table: no feasible height, the first valid pair
+    high, _ = default_finger_contacts(rs, d1, 0.4, 0.4, 0.01, np.stack([d1, d2]), rule="centre-of-mass-height",
+                                      max_squeeze=0.02)
+    assert tuple(high) == tuple(at_com)
