@@ -100,9 +100,15 @@ def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 class _Contact:
-    """One contact: its start position q⁰ on a plane (normal ``up``) or a sphere (centre, radius)."""
+    """One contact: its start position q⁰ on a plane (normal ``up``) or a sphere (centre, radius).
 
-    def __init__(self, q0: np.ndarray, center: np.ndarray | None, up: np.ndarray) -> None:
+    ``ckk`` is the contact's own 3×3 stiffness block C_kk.  The local solves
+    below (:func:`_slide`, :func:`_ray_root`) run in plain float arithmetic:
+    they are called millions of times per pickup on 3-vectors, where numpy's
+    per-call overhead is most of the cost.
+    """
+
+    def __init__(self, q0: np.ndarray, center: np.ndarray | None, up: np.ndarray, ckk: np.ndarray) -> None:
         self.q0 = q0
         self.sphere = center is not None
         if self.sphere:
@@ -116,26 +122,62 @@ class _Contact:
         self._basis = tuple(tuple(float(x) for x in row) for row in self.basis)
         self._n0 = tuple(float(x) for x in self.n0)
         self._r0 = tuple(float(x) for x in self.r0) if self.sphere else None
+        self.ckk = ckk
+        self._k = tuple(float(x) for x in ckk.reshape(-1))
+        self.kmin = float(np.linalg.eigvalsh(ckk)[0])
+        self.a = self.basis @ ckk @ self.basis.T  # tangential stiffness
+        self.amax = float(np.abs(self.a).max())
 
-    def motion(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(δ, n̂, ŝ) for a tangential motion u (2,): along the great circle of length |u| on a sphere."""
-        # Scalar arithmetic: this runs millions of times per pickup, and numpy's per-call overhead on
-        # 3-vectors dominated it.
+    def motion_s(self, u0: float, u1: float) -> tuple[tuple, tuple, tuple]:
+        """(δ, n̂, ŝ) as float triples for a tangential motion (u0, u1): along the great circle on a sphere."""
         (a0, a1, a2), (b0, b1, b2) = self._basis
-        u0, u1 = float(u[0]), float(u[1])
         t0, t1, t2 = u0 * a0 + u1 * b0, u0 * a1 + u1 * b1, u0 * a2 + u1 * b2
         tl = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
         h0, h1, h2 = (t0 / tl, t1 / tl, t2 / tl) if tl > 0 else (0.0, 0.0, 0.0)
         if not self.sphere:
-            return np.array([t0, t1, t2]), self.n0, np.array([h0, h1, h2])
+            return (t0, t1, t2), self._n0, (h0, h1, h2)
         th = tl / self.radius
         c, s = math.cos(th), math.sin(th)
         # q − q⁰ = (cos θ − 1) r⁰ + R sin θ t̂, written without cancellation for small θ
         cm1, rs = -2.0 * math.sin(0.5 * th) ** 2, self.radius * s
         (r0, r1, r2), (n0, n1, n2) = self._r0, self._n0
-        return (np.array([cm1 * r0 + rs * h0, cm1 * r1 + rs * h1, cm1 * r2 + rs * h2]),
-                np.array([c * n0 + s * h0, c * n1 + s * h1, c * n2 + s * h2]),
-                np.array([c * h0 - s * n0, c * h1 - s * n1, c * h2 - s * n2]))
+        return ((cm1 * r0 + rs * h0, cm1 * r1 + rs * h1, cm1 * r2 + rs * h2),
+                (c * n0 + s * h0, c * n1 + s * h1, c * n2 + s * h2),
+                (c * h0 - s * n0, c * h1 - s * n1, c * h2 - s * n2))
+
+    def motion(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(δ, n̂, ŝ) for a tangential motion u (2,): along the great circle of length |u| on a sphere."""
+        d, n, s = self.motion_s(float(u[0]), float(u[1]))
+        return np.array(d), (self.n0 if not self.sphere else np.array(n)), np.array(s)
+
+    def force(self, fs: tuple, d: tuple) -> tuple[float, float, float]:
+        """fs + C_kk d as a float triple."""
+        k00, k01, k02, k10, k11, k12, k20, k21, k22 = self._k
+        d0, d1, d2 = d
+        return (fs[0] + k00 * d0 + k01 * d1 + k02 * d2, fs[1] + k10 * d0 + k11 * d1 + k12 * d2,
+                fs[2] + k20 * d0 + k21 * d1 + k22 * d2)
+
+    def slide_residual(self, fs: tuple, mu: float, u0: float, u1: float) -> tuple[float, float, float]:
+        """The slide equations at motion (u0, u1): f_t + μ f_n ŝ in the tangent plane there (2), and f_n."""
+        d, (n0, n1, n2), (s0, s1, s2) = self.motion_s(u0, u1)
+        f0, f1, f2 = self.force(fs, d)
+        fn = f0 * n0 + f1 * n1 + f2 * n2
+        g0, g1, g2 = f0 - fn * n0 + mu * fn * s0, f1 - fn * n1 + mu * fn * s1, f2 - fn * n2 + mu * fn * s2
+        a0, a1, a2 = self._basis[0]
+        an = a0 * n0 + a1 * n1 + a2 * n2
+        e0, e1, e2 = a0 - an * n0, a1 - an * n1, a2 - an * n2
+        el = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+        e0, e1, e2 = e0 / el, e1 / el, e2 / el
+        c0, c1, c2 = n1 * e2 - n2 * e1, n2 * e0 - n0 * e2, n0 * e1 - n1 * e0
+        return g0 * e0 + g1 * e1 + g2 * e2, g0 * c0 + g1 * c1 + g2 * c2, fn
+
+    def cone_excess(self, fs: tuple, mu: float, u0: float, u1: float) -> float:
+        """|f_t| − μ f_n at motion (u0, u1) (≤ 0: inside the cone)."""
+        d, (n0, n1, n2), _ = self.motion_s(u0, u1)
+        f0, f1, f2 = self.force(fs, d)
+        fn = f0 * n0 + f1 * n1 + f2 * n2
+        t0, t1, t2 = f0 - fn * n0, f1 - fn * n1, f2 - fn * n2
+        return math.sqrt(t0 * t0 + t1 * t1 + t2 * t2) - mu * fn
 
     def gap(self, d: np.ndarray) -> float:
         """Separation of q⁰ + d along the start normal (≥ 0: the contact lifts off).
@@ -148,23 +190,12 @@ class _Contact:
         return float(d @ self.n0)
 
 
-def _slide(c: _Contact, ckk: np.ndarray, fs: np.ndarray, mu: float, u0: np.ndarray | None,
-           tol: float, amax: float) -> np.ndarray | None:
+def _slide(c: _Contact, fs: np.ndarray, mu: float, u0: np.ndarray | None, tol: float,
+           amax: float) -> np.ndarray | None:
     """Tangential motion u with f_t = −μ f_n ŝ at the new position (f = fs + C_kk δ(u)); None if none."""
-
-    def resid(u: np.ndarray) -> tuple[np.ndarray, float]:
-        d, n, s = c.motion(u)
-        f = fs + ckk @ d
-        fn = float(f @ n)
-        g = f - fn * n + mu * fn * s
-        b1 = c.basis[0] - (c.basis[0] @ n) * n
-        b1 /= np.linalg.norm(b1)
-        b2 = _cross3(n, b1)
-        return np.array([g @ b1, g @ b2]), fn
-
-    a = c.basis @ ckk @ c.basis.T
+    fst = (float(fs[0]), float(fs[1]), float(fs[2]))
     if u0 is not None and np.any(u0):
-        return _newton2(resid, u0.copy(), a, tol)
+        return _newton2(c, fst, mu, float(u0[0]), float(u0[1]), tol)
     ft = c.basis @ fs
     ftn = float(np.linalg.norm(ft))
     if ftn == 0.0:
@@ -172,49 +203,43 @@ def _slide(c: _Contact, ckk: np.ndarray, fs: np.ndarray, mu: float, u0: np.ndarr
     # First guess: straight back against f_t, by the linearised cone equation.
     tt = ft / ftn
     fn0 = float(fs @ c.n0)
-    stiff = float(tt @ a @ tt)
-    den = stiff - mu * float(c.n0 @ ckk @ c.basis.T @ tt)
-    out = _newton2(resid, -((ftn - mu * fn0) / den if den > 0 else ftn / stiff) * tt, a, tol)
+    stiff = float(tt @ c.a @ tt)
+    den = stiff - mu * float(c.n0 @ c.ckk @ c.basis.T @ tt)
+    guess = -((ftn - mu * fn0) / den if den > 0 else ftn / stiff) * tt
+    out = _newton2(c, fst, mu, float(guess[0]), float(guess[1]), tol)
     if out is None:
-        u = _ray_root(c, ckk, fs, mu, -tt, amax)
+        u = _ray_root(c, fst, mu, -tt, amax)
         if u is None:
             return None
-        out = _newton2(resid, u, a, tol)
+        out = _newton2(c, fst, mu, float(u[0]), float(u[1]), tol)
     if out is None:
         # Strongly anisotropic C_kk: the slip turns away from −f_t.  Fixed point on the direction (the
         # friction at the new position sets it), each step a root along a ray, then Newton again.
         for _ in range(100):
             d, n, _s = c.motion(u)
-            f = fs + ckk @ d
+            f = fs + c.ckk @ d
             ft = c.basis @ (f - (f @ n) * n)
             ftn = float(np.linalg.norm(ft))
             if ftn == 0.0:
                 return None
-            u_new = _ray_root(c, ckk, fs, mu, -ft / ftn, amax)
+            u_new = _ray_root(c, fst, mu, -ft / ftn, amax)
             if u_new is None:
                 return None
             done = float(np.linalg.norm(u_new - u)) <= 1e-6 * float(np.linalg.norm(u_new))
             u = u_new
             if done:
                 break
-        out = _newton2(resid, u, a, tol)
+        out = _newton2(c, fst, mu, float(u[0]), float(u[1]), tol)
     return out
 
 
-def _ray_root(c: _Contact, ckk: np.ndarray, fs: np.ndarray, mu: float, e: np.ndarray,
-              amax: float) -> np.ndarray | None:
+def _ray_root(c: _Contact, fs: tuple, mu: float, e: np.ndarray, amax: float) -> np.ndarray | None:
     """u = α e with the smallest α > 0 at which the force reaches its cone, by bracketing and bisection."""
-
-    def excess(alpha: float) -> float:
-        d, n, _ = c.motion(alpha * e)
-        f = fs + ckk @ d
-        fn = float(f @ n)
-        return float(np.linalg.norm(f - fn * n)) - mu * fn
-
+    e0, e1 = float(e[0]), float(e[1])
     lo, hi = 0.0, None
     alpha = amax * 2.0 ** -50
     while alpha <= amax:
-        if excess(alpha) <= 0.0:
+        if c.cone_excess(fs, mu, alpha * e0, alpha * e1) <= 0.0:
             hi = alpha
             break
         lo, alpha = alpha, 2.0 * alpha
@@ -222,13 +247,13 @@ def _ray_root(c: _Contact, ckk: np.ndarray, fs: np.ndarray, mu: float, e: np.nda
         return None
     for _ in range(60):
         mid = 0.5 * (lo + hi)
-        if excess(mid) <= 0.0:
+        if c.cone_excess(fs, mu, mid * e0, mid * e1) <= 0.0:
             hi = mid
         else:
             lo = mid
         if hi - lo <= 1e-12 * hi:
             break
-    return hi * e
+    return np.array([hi * e0, hi * e1])
 
 
 def _backtrack(fun, x: np.ndarray, step: np.ndarray, norm: float, halvings: int) -> tuple[float, tuple] | None:
@@ -242,31 +267,36 @@ def _backtrack(fun, x: np.ndarray, step: np.ndarray, norm: float, halvings: int)
     return None
 
 
-def _newton2(resid, u: np.ndarray, a: np.ndarray, tol: float) -> np.ndarray | None:
+def _newton2(c: _Contact, fs: tuple, mu: float, u0: float, u1: float, tol: float) -> np.ndarray | None:
     """Newton's method (finite-difference 2×2 Jacobian, backtracking) on a contact's slide residual."""
-    g, fn = resid(u)
-    hmin = 1e-9 * tol / max(float(np.abs(a).max()), 1e-300)
+    resid = c.slide_residual
+    g0, g1, fn = resid(fs, mu, u0, u1)
+    hmin = 1e-9 * tol / max(c.amax, 1e-300)
     for _ in range(40):
-        if np.abs(g).max() <= tol:
+        if max(abs(g0), abs(g1)) <= tol:
             break
-        h = max(1e-7 * float(np.linalg.norm(u)), hmin)
-        jac = np.empty((2, 2))
-        for j in range(2):
-            e = u.copy()
-            e[j] += h
-            jac[:, j] = (resid(e)[0] - g) / h
-        try:
-            step = -np.linalg.solve(jac, g)
-        except np.linalg.LinAlgError:
+        h = max(1e-7 * math.hypot(u0, u1), hmin)
+        p0, p1, _ = resid(fs, mu, u0 + h, u1)
+        q0, q1, _ = resid(fs, mu, u0, u1 + h)
+        j00, j10, j01, j11 = (p0 - g0) / h, (p1 - g1) / h, (q0 - g0) / h, (q1 - g1) / h
+        det = j00 * j11 - j01 * j10
+        if det == 0.0:
             return None
-        found = _backtrack(resid, u, step, float(np.linalg.norm(g)), 30)
-        if found is None:
+        s0, s1 = (j01 * g1 - j11 * g0) / det, (j10 * g0 - j00 * g1) / det
+        # Armijo backtracking on the residual norm
+        norm = math.hypot(g0, g1)
+        lam = 1.0
+        for _ in range(30):
+            r0, r1, rf = resid(fs, mu, u0 + lam * s0, u1 + lam * s1)
+            if math.hypot(r0, r1) < (1.0 - 1e-4 * lam) * norm:
+                break
+            lam *= 0.5
+        else:
             return None
-        lam, (g, fn) = found
-        u = u + lam * step
-    if np.abs(g).max() > tol or fn < 0.0 or not np.any(u):
+        u0, u1, g0, g1, fn = u0 + lam * s0, u1 + lam * s1, r0, r1, rf
+    if not max(abs(g0), abs(g1)) <= tol or fn < 0.0 or (u0 == 0.0 and u1 == 0.0):
         return None
-    return u
+    return np.array([u0, u1])
 
 
 def _polish(contacts: list, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, status: np.ndarray,
@@ -410,14 +440,14 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
     f = np.array(forces, float)
     m = len(f)
     c4 = c.reshape(m, 3, m, 3)
-    contacts = [_Contact(np.asarray(positions[k], float), None if centers[k] is None else
-                         np.asarray(centers[k], float), up) for k in range(m)]
     ckk = [np.ascontiguousarray(c4[k, :, k, :]) for k in range(m)]
     cols = [np.ascontiguousarray(c4[:, :, k, :]) for k in range(m)]
     try:
         ckk_inv = np.linalg.inv(np.array(ckk))
     except np.linalg.LinAlgError:
         raise RelaxationFailure("a contact's own stiffness block C_kk is singular") from None
+    contacts = [_Contact(np.asarray(positions[k], float), None if centers[k] is None else
+                         np.asarray(centers[k], float), up, ckk[k]) for k in range(m)]
     fs_scale = max(float(force_scale), 1e-300)
     d = np.zeros((m, 3))
     u = [None] * m
@@ -449,10 +479,10 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
                     dk, st = d_free, RELEASE
                 else:
                     amax = min(max_slip, ct.radius if ct.sphere else np.inf,
-                               1e3 * float(np.abs(fs).max()) / float(np.linalg.eigvalsh(ckk[k])[0]))
-                    uk = _slide(ct, ckk[k], fs, float(mu[k]), u[k], local_tol, amax)
+                               1e3 * float(np.abs(fs).max()) / ct.kmin)
+                    uk = _slide(ct, fs, float(mu[k]), u[k], local_tol, amax)
                     if uk is None and u[k] is not None:
-                        uk = _slide(ct, ckk[k], fs, float(mu[k]), None, local_tol, amax)
+                        uk = _slide(ct, fs, float(mu[k]), None, local_tol, amax)
                     if uk is None:
                         # No local state with the neighbours frozen.  Provisionally slide it as far as its
                         # force's own cone along −f_t (a ray root) so that the coupled Newton polish can
@@ -461,7 +491,8 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
                         unsolved = (k, fs)
                         ft = ct.basis @ fs
                         ftn = float(np.linalg.norm(ft))
-                        guess = _ray_root(ct, ckk[k], fs, float(mu[k]), -ft / ftn, amax) if ftn > 0 else None
+                        guess = (_ray_root(ct, tuple(float(x) for x in fs), float(mu[k]), -ft / ftn, amax)
+                                 if ftn > 0 else None)
                         if guess is None:
                             continue
                         uk = guess
