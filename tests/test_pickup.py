@@ -393,6 +393,45 @@ def test_slip_rates_of_event_d_match_finite_differences(free):
                                atol=1e-4 * np.abs(t0.rates[sl]).max())
 
 
+@pytest.mark.parametrize("free", [False, True])
+def test_warm_started_slip_roots_are_the_homotopy_roots(free, monkeypatch):
+    """Newton from the root at a nearby parameter (continuation in t) finds the root the paper's homotopy finds."""
+    from fem_grasp.placement import PAPER_SQUEEZE_DIRECTIONS
+    from fem_grasp.squeeze import initial_state
+    from fem_grasp.tracking import run
+
+    body = _box()
+    rs = rest(body, 0.5)
+
+    def tracker():
+        t = Tracker(rs.body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)
+        t.forms = (free,)
+        return t
+
+    t = tracker()
+    vel = np.stack(PAPER_SQUEEZE_DIRECTIONS)
+    state, _ = t.settle(initial_state(t, rs, _face_centres(rs)), vel, phase="squeeze")
+    state, _, _ = run(t, state, vel, stop=0.003, step=1e-4)
+    assert state.sliding.sum() >= 3
+    big = 3.4e-3  # a third of the fingertip radius in one increment, ten nodes sliding
+    by_homotopy = tracker().trial(state, big, vel, methods=("homotopy",))
+    warm = tracker()
+    seen = []
+    orig = MixedSlipSystem.solve
+
+    def solve(self, *a, start=None, **k):
+        seen.append(start is not None)
+        return orig(self, *a, start=start, **k)
+
+    monkeypatch.setattr(MixedSlipSystem, "solve", solve)
+    for k in range(1, 9):
+        stepped = warm.trial(state, big * k / 8, vel, methods=("newton",))
+    assert seen[0] is False and all(seen[1:])  # every later trial had the previous root to start from
+    scale = np.abs(by_homotopy.state.forces).max()
+    np.testing.assert_allclose(stepped.state.forces, by_homotopy.state.forces, rtol=0, atol=1e-10 * scale)
+    np.testing.assert_allclose(stepped.state.disp, by_homotopy.state.disp, rtol=0, atol=1e-12)
+
+
 def test_a_lightly_loaded_fingertip_contact_on_a_stiff_body_slides_onto_its_cone():
     # Figures of the tomato at Table I's E = 1 GPa just after ρ = 0: a contact of 5 µN, 25 % outside its
     # cone, with an own stiffness of 5e6 N/m and R = 1 cm.  Carried as c_k (≈ 1), the fingertip unknowns
