@@ -15,12 +15,13 @@ Sections (``--only NAME``, repeatable; default all):
     factorisation, ``rest()`` and ``pickup()`` from 1k to 100k vertices; a
     pickup over ``--pickup-cap`` seconds is recorded as ``"timeout"``.
 ``objects``
-    Per-object pickup medians for the four paper objects at E = 1e4 Pa (each
-    repetition on a fresh body, so assembly and factorisation are included),
-    with import time and first-call time measured separately in a fresh
-    interpreter.
+    Per-object pickup medians for the four paper objects, each with its
+    shipped scene (``fem-grasp run NAME``: graded mesh, placement rule,
+    modulus); each repetition on a fresh body, so assembly and factorisation
+    are included; import time and first-call time measured separately in a
+    fresh interpreter.
 ``spectral``
-    One pickup of the football with the sparse and the spectral (paper)
+    One pickup of the football scene with the sparse and the spectral (paper)
     backends: time ratio and the largest difference of the results.
 
 Medians over ``--reps`` repetitions.  Prints tables and writes
@@ -292,20 +293,25 @@ IMPORT_SNIPPET = """
 import json, time
 t0 = time.perf_counter()
 import fem_grasp
-from fem_grasp import objects, pickup
+from fem_grasp.pickup import pickup
+from fem_grasp.scene import load_scene, resolve_scene
 t1 = time.perf_counter()
-body = objects.load({name!r}, young={young!r})
-res = pickup(body)
+scene = load_scene(resolve_scene({name!r}))
+res = pickup(scene.body(), **scene.pickup_kwargs())
 t2 = time.perf_counter()
 print(json.dumps({{"import_s": t1 - t0, "first_call_s": t2 - t1}}))
 """
 
 
 def one_pickup(name: str, backend: str = "sparse"):
-    from fem_grasp import objects, pickup
+    """The shipped scene ``name`` (``fem-grasp run NAME``), on a fresh body, with the given backend."""
+    from fem_grasp.pickup import pickup
+    from fem_grasp.scene import load_scene, resolve_scene
 
-    body = objects.load(name, young=YOUNG)
-    return pickup(body, backend=backend)
+    scene = load_scene(resolve_scene(name))
+    kw = scene.pickup_kwargs()
+    kw["backend"] = backend
+    return pickup(scene.body(), **kw)
 
 
 def section_objects(reps: int, budget: float) -> dict[str, Any]:
@@ -313,7 +319,7 @@ def section_objects(reps: int, budget: float) -> dict[str, Any]:
 
     rows = []
     for name in objects.NAMES:
-        proc = subprocess.run([sys.executable, "-c", IMPORT_SNIPPET.format(name=name, young=YOUNG)], cwd=ROOT,
+        proc = subprocess.run([sys.executable, "-c", IMPORT_SNIPPET.format(name=name)], cwd=ROOT,
                               capture_output=True, text=True, check=True)
         first = json.loads(proc.stdout.strip().splitlines()[-1])
         times, res = [], None
@@ -323,22 +329,25 @@ def section_objects(reps: int, budget: float) -> dict[str, Any]:
             times.append(t)
             if time.perf_counter() - start > budget:
                 break
-        rows.append({"object": name, "vertices": res.body.n_nodes, "success": bool(res.success),
-                     "events": len(res.events), "median_s": median(times), "min_s": min(times), "runs": len(times),
-                     "import_s": first["import_s"], "first_call_s": first["first_call_s"],
+        rows.append({"object": name, "vertices": res.body.n_nodes, "young": res.body.young,
+                     "success": bool(res.success), "events": len(res.events), "median_s": median(times),
+                     "min_s": min(times), "runs": len(times), "import_s": first["import_s"],
+                     "first_call_s": first["first_call_s"],
                      "phases_s": {k: float(v) for k, v in res.timings.items()}})
         log.info("pickup %s: %.3f s", name, rows[-1]["median_s"])
-    return {"rows": rows, "young": YOUNG,
+    return {"rows": rows, "scenes": "the shipped paper scenes (fem-grasp run NAME)",
             "note": "median over fresh bodies (assembly and factorisation included), in-process after import"}
 
 
 def print_objects(sec: dict[str, Any]) -> None:
-    print(f"\n(c) full pickup per paper object (E = {sec['young']:g} Pa; fresh body each run)")
-    print(f"{'object':>10s} {'vertices':>8s} {'lifted':>6s} {'events':>6s} {'median s':>9s} {'runs':>4s} "
-          f"{'import s':>8s} {'1st call s':>10s}")
+    print("\n(c) full pickup per paper object, the shipped scenes (fresh body each run)")
+    print(f"{'object':>10s} {'vertices':>8s} {'E Pa':>7s} {'lifted':>6s} {'events':>6s} {'median s':>9s} "
+          f"{'runs':>4s} {'import s':>8s} {'1st call s':>10s}  largest phases")
     for r in sec["rows"]:
-        print(f"{r['object']:>10s} {r['vertices']:8d} {str(r['success']):>6s} {r['events']:6d} {r['median_s']:9.3f} "
-              f"{r['runs']:4d} {r['import_s']:8.3f} {r['first_call_s']:10.3f}")
+        ph = sorted(((v, k) for k, v in r["phases_s"].items() if k != "total"), reverse=True)[:2]
+        print(f"{r['object']:>10s} {r['vertices']:8d} {r.get('young', float('nan')):7.0e} {str(r['success']):>6s} "
+              f"{r['events']:6d} {r['median_s']:9.3f} {r['runs']:4d} {r['import_s']:8.3f} {r['first_call_s']:10.3f}"
+              f"  {', '.join(f'{k} {v:.1f} s' for v, k in ph)}")
 
 
 # --------------------------------------------------------- spectral ratio
