@@ -120,3 +120,14 @@ def tangent_basis(normal: np.ndarray) -> np.ndarray:
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(n, e1)
     return np.stack([e1, e2])
+
+
+def tangent_bases(normals: np.ndarray) -> np.ndarray:
+    """(k, 2, 3): :func:`tangent_basis` of each row of ``normals`` (k, 3), computed for all at once."""
+    n = np.asarray(normals, dtype=float).reshape(-1, 3)
+    n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    helper = np.eye(3)[np.argmin(np.abs(n), axis=1)]
+    e1 = np.cross(helper, n)
+    e1 /= np.linalg.norm(e1, axis=1, keepdims=True)
+    e2 = np.cross(n, e1)
+    return np.stack([e1, e2], axis=1)

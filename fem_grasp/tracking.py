@@ -118,7 +118,7 @@ import scipy.linalg as la
 from . import homotopy
 from .body import Body
 from .relaxation import RELEASE, SLIDE, RelaxationFailure, relax_contacts
-from .geometry import TablePlane, tangent_basis
+from .geometry import TablePlane, tangent_bases
 from .response import CollinearContactError, ContactResponse, check_contact_set
 
 __all__ = ["FINGER1", "FINGER2", "TABLE", "OBSTACLES", "ContactState", "ContactEvent", "MixedSlipSystem",
@@ -302,47 +302,53 @@ class MixedSlipSystem:
         m = len(held_forces)
         p = len(self.sliding)
         self.finger = self.kinds != TABLE
-        self.cols: list[np.ndarray] = []
-        self.e_loc: list[np.ndarray] = []  # (3, k_j): δ_j = e_loc x[cols]
         self.n0 = np.broadcast_to(np.asarray(up, float), (p, 3)).copy()
         self.kappa = np.where(self.finger, 1.0 / self.radius, 0.0)
-        x0: list[float] = []
-        n = 0
-        for j in range(p):
-            t = self.t_held[j]
-            if self.finger[j]:
-                r = np.asarray(radii_vectors[j], dtype=float)
-                nrm = r / self.radius
-                self.n0[j] = nrm
-                if free:
-                    e1, e2 = tangent_basis(nrm)
-                    cols_e = np.stack([r, np.cross(e1, r), np.cross(e2, r)], axis=1)
-                else:
-                    axis = np.cross(nrm, t)
-                    axis /= np.linalg.norm(axis)
-                    cols_e = np.stack([r, np.cross(axis, r)], axis=1)
-                # Unknowns (γ_k, s_k) with c_k = 1 + γ_k: δ_k = γ_k r_k + s_k N̂_k × r_k carries no −r_k
-                # offset, whose product with C (~E·R) would swamp a small contact force in round-off.
-                start = [0.0] * cols_e.shape[1]
+        # Per-node layouts, built for all nodes at once: node j's unknowns are x[loc_idx[j, :k_j]] and
+        # its slip is δ_j = loc_e[j] @ x[loc_idx[j]] (index n points at a padding zero).
+        fi = np.flatnonzero(self.finger)
+        ta = np.flatnonzero(~self.finger)
+        r = np.asarray(radii_vectors, dtype=float).reshape(-1, 3)[fi] if len(fi) else np.zeros((0, 3))
+        t = self.t_held
+        self.loc_e = np.zeros((p, 3, 3))
+        if len(fi):
+            nrm = r / self.radius
+            self.n0[fi] = nrm
+            self.loc_e[fi, :, 0] = r
+            if free:
+                e12 = tangent_bases(nrm)
+                self.loc_e[fi, :, 1] = np.cross(e12[:, 0], r)
+                self.loc_e[fi, :, 2] = np.cross(e12[:, 1], r)
             else:
-                if free:
-                    e1, e2 = tangent_basis(self.n0[j])
-                    cols_e = np.stack([e1, e2], axis=1)
-                else:
-                    cols_e = -t[:, None]
-                start = [0.0] * cols_e.shape[1]
-            k = cols_e.shape[1]
-            self.cols.append(np.arange(n, n + k))
-            self.e_loc.append(cols_e)
-            x0 += start
-            n += k
+                axis = np.cross(nrm, t[fi])
+                axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+                self.loc_e[fi, :, 1] = np.cross(axis, r)
+        if len(ta):
+            if free:
+                e12 = tangent_bases(self.n0[ta])
+                self.loc_e[ta, :, 0] = e12[:, 0]
+                self.loc_e[ta, :, 1] = e12[:, 1]
+            else:
+                self.loc_e[ta, :, 0] = -t[ta]
+        # Unknowns (γ_k, s_k) with c_k = 1 + γ_k: δ_k = γ_k r_k + s_k N̂_k × r_k carries no −r_k offset, whose
+        # product with C (~E·R) would swamp a small contact force in round-off.  Every unknown starts at 0.
+        sizes = np.where(self.finger, 3 if free else 2, 2 if free else 1)
+        first = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
+        n = int(sizes.sum())
         self.n = n
-        self.x0 = np.asarray(x0, dtype=float)
+        self.x0 = np.zeros(n)
+        slot = np.arange(3)
+        valid = slot[None, :] < sizes[:, None]
+        self.loc_idx = np.where(valid, first[:, None] + slot[None, :], n)
+        self.cols = [self.loc_idx[j, :sizes[j]] for j in range(p)]
+        self.d_map = np.zeros((p, 3, n + 1))  # ∂δ_j/∂x (a padding column n, dropped below)
+        rows_j = np.repeat(np.arange(p), 3)
+        for c in range(3):
+            self.d_map[rows_j, np.tile(np.arange(3), p), np.repeat(self.loc_idx[:, c], 3)] = \
+                self.loc_e[:, :, c].reshape(-1)
+        self.d_map = np.ascontiguousarray(self.d_map[:, :, :n])
         e = np.zeros((3 * m, n))
-        self.d_map = np.zeros((p, 3, n))  # ∂δ_j/∂x
-        for j, k in enumerate(self.sliding):
-            e[3 * k:3 * k + 3, self.cols[j]] = self.e_loc[j]
-            self.d_map[j][:, self.cols[j]] = self.e_loc[j]
+        e.reshape(m, 3, n)[self.sliding] = self.d_map
         self.e = e
         self.g = stiffness @ e  # dF/dx
         self.g_sl = self.g.reshape(m, 3, n)[self.sliding]  # (p, 3, N)
@@ -353,35 +359,32 @@ class MixedSlipSystem:
         self.own = np.maximum(np.linalg.norm(held_forces[self.sliding], axis=1), 1e-12 * max(fscale, 1e-300))
         self.xscale = np.ones(n)
         gnorm = np.linalg.norm(self.g, axis=0)
-        for j in range(p):
-            if not self.finger[j]:
-                c = self.cols[j]
-                self.xscale[c] = np.where(gnorm[c] > 0, self.own[j] / np.where(gnorm[c] > 0, gnorm[c], 1.0), 1.0)
-        self.sphere_rows = np.flatnonzero(self.finger)
+        if len(ta):
+            idx = self.loc_idx[ta]
+            ok = idx < n
+            own_t = np.broadcast_to(self.own[ta, None], idx.shape)[ok]
+            g_t = gnorm[idx[ok]]
+            self.xscale[idx[ok]] = np.where(g_t > 0, own_t / np.where(g_t > 0, g_t, 1.0), 1.0)
+        self.sphere_rows = fi
         self.align_rows = np.arange(p) if free else np.zeros(0, dtype=np.int64)
         n_sph, n_al = len(self.sphere_rows), len(self.align_rows)
         if p + n_sph + n_al != n:
             raise ValueError("the slip system is not square")
-        typical = np.array([self.own[j] * (self.radius if self.finger[j] else float(np.mean(self.xscale[self.cols[j]])))
-                            for j in self.align_rows])
+        if free:
+            mean_scale = np.array([float(np.mean(self.xscale[self.cols[j]])) for j in range(p)])
+            typical = self.own * np.where(self.finger, self.radius, mean_scale)
+        else:
+            typical = np.zeros(0)
         self.row_scale = np.concatenate([1.0 / self.own**2, np.ones(n_sph), 1.0 / np.maximum(typical, 1e-300)])
         # Round-off in a force is ~ε·max|F|: a lightly loaded node's normalised rows are only
         # resolved to that relative to its own force.
         eps = np.finfo(float).eps
         self.row_noise = np.concatenate([10.0 * eps * fscale / self.own, np.zeros(n_sph),
                                          10.0 * eps * fscale / self.own[self.align_rows]])
-        # Dense per-node layouts for fast evaluation (all fingertip nodes of one system have the same
-        # number of unknowns; index n points at a padding zero).
-        self.loc_idx = np.full((p, 3), n, dtype=np.int64)
-        self.loc_e = np.zeros((p, 3, 3))
-        for j in range(p):
-            k = len(self.cols[j])
-            self.loc_idx[j, :k] = self.cols[j]
-            self.loc_e[j, :, :k] = self.e_loc[j]
-        self.sph_idx = (np.stack([self.cols[j] for j in self.sphere_rows]) if n_sph
-                        else np.zeros((0, 2), dtype=np.int64))
+        self.sph_idx = self.loc_idx[fi, :3 if free else 2] if n_sph else np.zeros((0, 2), dtype=np.int64)
         self.g_sl2 = self.g_sl.reshape(3 * p, n)
         self.base_sl = self.base.reshape(-1, 3)[self.sliding].reshape(-1)
+        self._xpad = np.zeros(n + 1)
 
     # --------------------------------------------------------------- maps
     def forces(self, x: np.ndarray) -> np.ndarray:
@@ -393,8 +396,10 @@ class MixedSlipSystem:
 
     def slips(self, x: np.ndarray) -> np.ndarray:
         """(p, 3) δ_k of the sliding nodes."""
-        xe = np.append(x, 0.0)[self.loc_idx]  # (p, 3)
-        return np.einsum("kij,kj->ki", self.loc_e, xe)
+        xp = self._xpad
+        xp[:-1] = x
+        xe = xp[self.loc_idx]  # (p, 3)
+        return (self.loc_e * xe[:, None, :]).sum(axis=2)
 
     def _sliding_forces(self, x: np.ndarray) -> np.ndarray:
         return (self.base_sl + self.g_sl2 @ x).reshape(-1, 3)

@@ -227,3 +227,13 @@ def test_table_plane_geometry():
     np.testing.assert_allclose(np.cross(e[0], e[1]), tilted.up, atol=1e-15)
     with pytest.raises(ValueError):
         TablePlane(0.0, up=[0, 0, 0])
+
+
+def test_tangent_bases_are_the_tangent_basis_of_each_normal(rng):
+    from fem_grasp.geometry import tangent_bases
+
+    normals = np.vstack([rng.normal(size=(20, 3)), np.eye(3), -np.eye(3)])
+    bases = tangent_bases(normals)
+    for n, b in zip(normals, bases):
+        np.testing.assert_array_equal(b, tangent_basis(n))
+        np.testing.assert_allclose(np.cross(b[0], b[1]), n / np.linalg.norm(n), atol=1e-15)
