@@ -11,14 +11,9 @@ from fem_grasp.scene import shipped_scenes
 
 from _ux_helpers import cache_dir, cli_run, icosphere, write_stl
 
-#: Scenes whose quick variant is run to the end; the others stop when the lift test passes (--no-lift),
-#: because their simulated lift still takes minutes (issue #7).
-SLOW_LIFT = {"foam_block": ("--no-lift",)}
-
-
 @pytest.mark.parametrize("scene", sorted(shipped_scenes()))
 def test_every_shipped_scene_runs_quick_and_the_exit_status_matches_the_result(scene):
-    code, out = cli_run(scene, *SLOW_LIFT.get(scene, ()))
+    code, out = cli_run(scene)  # to the end: squeeze, lift tests and the simulated lift
     assert code in (0, 1)
     doc = json.loads((out / "result.json").read_text())
     assert doc["exit_code"] == code and doc["summary"]["success"] == (code == 0)
