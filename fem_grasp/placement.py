@@ -34,7 +34,10 @@ def finger_contact_nodes(mesh: TetMesh, height: float, direction: np.ndarray = P
 
     Rule: among surface nodes within ``band`` × (object height) of ``height``,
     p_i minimises and p_j maximises the coordinate along the horizontal part
-    of ``direction`` (finger 1 pushes along +d̂ from the −d̂ side).
+    of ``direction`` (finger 1 pushes along +d̂ from the −d̂ side).  Ties (a
+    flat face across the squeeze direction) go to the node nearest the
+    height and the middle of the face: not an edge or corner node, where the
+    surface normal is the average of two faces'.
     """
     d = np.asarray(direction, dtype=float).copy()
     d[2] = 0.0
@@ -47,4 +50,15 @@ def finger_contact_nodes(mesh: TetMesh, height: float, direction: np.ndarray = P
     if len(near) < 2:
         raise ValueError(f"no surface nodes near height {height:g} m; the fingers would miss the object")
     s = p[near] @ d
-    return int(near[np.argmin(s)]), int(near[np.argmax(s)])
+    tie = 1e-9 * float(np.ptp(p, axis=0).max())
+    side = np.array([-d[1], d[0], 0.0])
+
+    def pick(on: np.ndarray) -> int:
+        if on.sum() == 1:
+            return int(near[on][0])
+        q = p[near[on]]
+        lateral = q @ side
+        off = (lateral - 0.5 * (lateral.min() + lateral.max())) ** 2 + (q[:, 2] - height) ** 2
+        return int(near[on][np.argmin(off)])
+
+    return pick(s <= s.min() + tie), pick(s >= s.max() - tie)

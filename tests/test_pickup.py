@@ -506,3 +506,23 @@ def test_centre_of_mass_rule_skips_heights_where_no_rigid_grasp_exists():
     high, _ = default_finger_contacts(rs, d1, 0.4, 0.4, 0.01, np.stack([d1, d2]), rule="centre-of-mass-height",
                                       max_squeeze=0.02)
     assert tuple(high) == tuple(at_com)
+
+
+@pytest.mark.parametrize("rule", ["least-force", "centre-of-mass-height"])
+def test_default_placement_on_a_box_takes_the_middle_of_the_faces_not_an_edge(rule):
+    """A flat face across the squeeze direction ties every node on it; the fingers go to the middle of the
+    face at the chosen height (an edge node's normal leans 45°, and no placement there was force closure)."""
+    from fem_grasp import placement
+    from fem_grasp.closure import surface_normals_at
+    from fem_grasp.pickup import default_finger_contacts
+
+    body = Body(box_mesh((-0.015, -0.02, 0.0), (0.015, 0.02, 0.03), (6, 8, 6)), 2e4, 0.3, weight=WEIGHT)
+    rs = rest(body, 0.5)
+    d1, d2 = (np.asarray(d) / np.linalg.norm(d) for d in placement.PAPER_SQUEEZE_DIRECTIONS)
+    ij, closure = default_finger_contacts(rs, d1, 0.5, 0.5, 0.01, np.stack([d1, d2]), rule=rule)
+    assert closure.closed
+    p = rs.positions[list(ij)]
+    np.testing.assert_allclose(p[:, 1], [-0.02, 0.02], atol=1e-4)  # on the two faces across the squeeze
+    np.testing.assert_allclose(p[:, 0], 0.0, atol=1e-4)  # in the middle of each face, not at its edges
+    out = surface_normals_at(rs.body.mesh, rs.positions)[list(ij)]
+    np.testing.assert_allclose(out, [[0, -1, 0], [0, 1, 0]], atol=1e-2)  # facing each other
