@@ -389,7 +389,8 @@ def box_mesh(lower: tuple[float, float, float] = (0.0, 0.0, 0.0), upper: tuple[f
     idx = np.arange(len(points)).reshape(nx + 1, ny + 1, nz + 1)
     i, j, k = (a.ravel() for a in np.meshgrid(np.arange(nx), np.arange(ny), np.arange(nz), indexing="ij"))
     corner = np.stack([idx[i + dx, j + dy, k + dz] for dz in (0, 1) for dy in (0, 1) for dx in (0, 1)], axis=1)
-    # The six tets of the cube around its main diagonal 0-7 (corner bits x=1, y=2, z=4).
-    kuhn = np.array([[0, 1, 3, 7], [0, 1, 5, 7], [0, 2, 3, 7], [0, 2, 6, 7], [0, 4, 5, 7], [0, 4, 6, 7]])
+    # The six tets of the cube around its main diagonal 0-7 (corner bits x=1, y=2, z=4), each listed with
+    # positive orientation (half of them would otherwise be reoriented, and logged, by TetMesh).
+    kuhn = np.array([[0, 1, 3, 7], [0, 5, 1, 7], [0, 3, 2, 7], [0, 2, 6, 7], [0, 4, 5, 7], [0, 6, 4, 7]])
     tets = corner[:, kuhn].reshape(-1, 4)
     return TetMesh(points, tets)

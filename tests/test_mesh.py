@@ -69,6 +69,7 @@ def test_box_geometry_and_closed_outward_surface():
     lo, hi = np.array([0.1, -0.2, 0.0]), np.array([0.5, 0.1, 0.2])
     m = box_mesh(lo, hi, (4, 3, 2))
     assert m.n_points == 5 * 4 * 3 and m.n_tets == 6 * 24
+    assert m.n_reoriented == 0  # every tet listed with positive orientation
     np.testing.assert_allclose(m.volume, np.prod(hi - lo), rtol=1e-13)
     np.testing.assert_allclose(m.bounds[0], lo)
     np.testing.assert_allclose(m.bounds[1], hi)
