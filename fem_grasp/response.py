@@ -165,9 +165,8 @@ class ContactResponse:
         self.dofs = contact_dofs(self.nodes)
         if backend == "sparse":
             comp = body.compliance
-            self._columns = comp.node_columns(self.nodes)  # X[:, c]
             self._null = body.orthonormal_rigid_modes
-            a = self._columns[self.dofs]
+            a = comp.contact_block(self.nodes)  # X_cc; the columns X[:, c] stay in the body's cache
             d_full = self._gravity_displacement
         else:
             spec = body.spectral
@@ -256,7 +255,7 @@ class ContactResponse:
         d = self._check_displacements(displacements)
         f, b = self._solve_bordered(d - self._d_bar, self._rhs_rigid)
         if self.backend == "sparse":
-            field = self._columns @ f + self._gravity_displacement + self._null @ b
+            field = self.body.compliance.combine(self.nodes, f) + self._gravity_displacement + self._null @ b
         else:
             field = self.body.spectral.displacement(self.dofs, f, b)
         # Restore the prescribed values exactly (they hold to round-off anyway).

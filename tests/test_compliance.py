@@ -61,6 +61,9 @@ def test_compliance_is_a_generalised_inverse(body, rng, solver):
     block = cols[(3 * nodes[:, None] + np.arange(3)).ravel()]
     assert np.abs(block - block.T).max() <= 1e-10 * np.abs(block).max()
     assert np.array_equal(comp.contact_block(nodes), block)
+    coeffs = rng.standard_normal(3 * len(nodes))
+    np.testing.assert_allclose(comp.combine(nodes, coeffs), cols @ coeffs, rtol=1e-13,
+                               atol=1e-13 * np.abs(cols).max() * np.abs(coeffs).max())
 
 
 def test_solvers_agree(body, rng):
