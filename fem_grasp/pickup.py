@@ -390,10 +390,12 @@ class PickupResult:
         }
 
     def to_json(self, path: str | Path | None = None, indent: int | None = None) -> str:
-        """The whole result as JSON; written to ``path`` when given."""
+        """The whole result as JSON; written to ``path`` when given (atomically: never half a file)."""
         text = json.dumps(self.to_dict(), indent=indent, allow_nan=True)
         if path is not None:
-            Path(path).write_text(text)
+            from .output import atomic_write_text
+
+            atomic_write_text(path, text)
         return text
 
 

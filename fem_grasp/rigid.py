@@ -126,7 +126,10 @@ def rigid_grasp(points: np.ndarray, normals: np.ndarray, center: np.ndarray, wei
     a_mat[:3, 3:] = np.eye(3)
     a_mat[3:, :3] = e @ cross_matrix(r[0])
     a_mat[3:, 3:] = e @ cross_matrix(r[1])
-    rhs = np.concatenate([weight * up, np.zeros(2)])
+    # Solved for a unit weight and scaled back at the end: the grasp is linear in mg, and _interval's
+    # tolerances compare coefficients of force, force² and 1, so they hold only in units of the weight
+    # (in newtons, every grasp of more than 1e7 N was judged infeasible).
+    rhs = np.concatenate([up, np.zeros(2)])
     sol, *_ = np.linalg.lstsq(a_mat, rhs, rcond=None)
     a, b = sol[:3], sol[3:]
     lo_i, hi_i = _interval(a, u, n[0], mu)
@@ -146,7 +149,8 @@ def rigid_grasp(points: np.ndarray, normals: np.ndarray, center: np.ndarray, wei
     if not np.isfinite(t):
         return RigidGrasp(False, np.inf, np.full((2, 3), np.nan), np.nan, np.nan,
                           "the normal force is unbounded below: the contacts do not oppose each other")
-    f = np.stack([a + t * u, b - t * u])
+    w = float(weight)
+    f = w * np.stack([a + t * u, b - t * u])
     total = float(f[0] @ n[0] + f[1] @ n[1])
     torque = float(u @ (np.cross(r[0], f[0]) + np.cross(r[1], f[1])))
-    return RigidGrasp(True, total, f, float(t), torque)
+    return RigidGrasp(True, total, f, w * float(t), torque)

@@ -147,3 +147,33 @@ def test_main_leaves_logging_as_it_found_it():
     before = (lg.level, lg.propagate, list(lg.handlers))
     assert main(["scenes", "--quiet"]) == 0 and main(["scenes", "-vv"]) == 0
     assert (lg.level, lg.propagate, list(lg.handlers)) == before
+
+
+def test_the_same_scene_writes_the_same_files_but_for_wall_times(tmp_path):
+    """Determinism (issue #8): two runs of one scene into one folder (the mesh and the resting state recomputed
+    each time) write byte-identical time series and a result.json that differs only in its creation time
+    and the timings."""
+    import hashlib
+
+    out = tmp_path / "o"
+    argv = ["run", "football", "--quick", "--no-lift", "--no-cache", "--quiet", "--out", str(out)]
+
+    def written():
+        files = {str(p.relative_to(out)): hashlib.sha256(p.read_bytes()).hexdigest()
+                 for p in sorted(out.rglob("*")) if p.is_file()}
+        doc = json.loads((out / "result.json").read_text())
+        return files, doc
+
+    assert main(argv) == 1  # --no-lift: the run stops when the lift test passes
+    first, doc1 = written()
+    assert main(argv) == 1
+    second, doc2 = written()
+    assert set(first) == set(second) and len(first) > 10
+    assert {k for k in first if first[k] != second[k]} <= {"result.json"}
+    assert doc1["summary"]["timings"]["total"] > 0
+    for doc in (doc1, doc2):
+        doc.pop("created")
+        doc["summary"].pop("timings")
+        doc["result"].pop("timings")
+    assert doc1 == doc2
+    assert doc1["result"]["events"] and doc1["result"]["snapshots"]

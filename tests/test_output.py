@@ -120,3 +120,92 @@ def test_out_dir_rules(tmp_path):
         prepare_out_dir(ours / "keep.txt")
     with pytest.raises(OutputError, match="does not exist"):
         read_result(tmp_path / "empty")
+
+
+# ------------------------------------------------------------ interrupts (issue #8)
+def _interrupted_after_half(write):
+    """A writer that writes half of its output into the temporary file, then is interrupted (Ctrl-C)."""
+
+    def half(path, *args, **kwargs):
+        write(path, *args, **kwargs)
+        data = open(path, "rb").read()
+        open(path, "wb").write(data[: len(data) // 2])
+        raise KeyboardInterrupt
+
+    return half
+
+
+def _files(folder):
+    return sorted(str(p.relative_to(folder)) for p in folder.rglob("*") if p.is_file())
+
+
+def test_an_interrupted_mesh_write_keeps_the_previous_file_and_leaves_no_temporary(tmp_path, monkeypatch):
+    from fem_grasp import box_mesh
+    from fem_grasp.output import atomic_write_mesh
+
+    old, new = box_mesh((0, 0, 0), (1, 1, 1), (1, 1, 1)), box_mesh((0, 0, 0), (2, 2, 2), (2, 2, 2))
+    dest = atomic_write_mesh(tmp_path / "object.vtu", old.to_meshio())
+    before = dest.read_bytes()
+    monkeypatch.setattr(meshio, "write", _interrupted_after_half(meshio.write))
+    with pytest.raises(KeyboardInterrupt):
+        atomic_write_mesh(dest, new.to_meshio())
+    with pytest.raises(KeyboardInterrupt):
+        atomic_write_mesh(tmp_path / "fresh.vtu", new.to_meshio())
+    monkeypatch.undo()
+    assert _files(tmp_path) == ["object.vtu"]  # no half-written fresh.vtu, no temporary file
+    assert dest.read_bytes() == before
+    np.testing.assert_array_equal(meshio.read(dest).points, old.points)
+
+
+def test_an_interrupted_json_write_keeps_the_previous_file(tmp_path, monkeypatch):
+    """``atomic_write_text`` and ``PickupResult.to_json(path)`` (which used a plain write before issue #8)."""
+    import pathlib
+
+    from fem_grasp import Body, box_mesh
+    from fem_grasp.pickup import pickup
+
+    body = Body(box_mesh((-0.015, -0.02, 0.0), (0.015, 0.02, 0.03), (3, 3, 3)), 2e4, 0.3, weight=0.3)
+    res = pickup(body, mu_finger=0.5, mu_table=0.0, contacts=(18, 30), finger_radius=0.02)  # fails at step 1
+    path = tmp_path / "pickup.json"
+    text = res.to_json(path)
+    atomic_write_text(tmp_path / "notes.txt", "complete")
+    monkeypatch.setattr(pathlib.Path, "write_bytes", _interrupted_after_half(pathlib.Path.write_bytes))
+    with pytest.raises(KeyboardInterrupt):
+        res.to_json(path, indent=2)
+    with pytest.raises(KeyboardInterrupt):
+        atomic_write_text(tmp_path / "notes.txt", "a longer replacement")
+    monkeypatch.undo()
+    assert _files(tmp_path) == ["notes.txt", "pickup.json"]
+    assert path.read_text() == text and json.loads(text)["success"] is False
+    assert (tmp_path / "notes.txt").read_text() == "complete"
+
+
+def test_an_interrupted_run_leaves_only_complete_files_and_the_folder_reusable(tmp_path, monkeypatch, capsys):
+    """Ctrl-C while the CLI writes the third file of the time series: exit 130, every file left is complete
+    (the previous run's result.json, listed in its manifest, was cleared when the run started), and the
+    next run writes the folder whole again."""
+    from fem_grasp.cli import main
+
+    out = tmp_path / "o"
+    argv = ["run", "football", "--quick", "--no-lift", "--no-cache", "--quiet", "--out", str(out)]
+    assert main(argv) == 1
+    complete = _files(out)
+    calls = []
+    real = meshio.write
+
+    def third_call_interrupted(path, *args, **kwargs):
+        calls.append(path)
+        return (_interrupted_after_half(real) if len(calls) == 3 else real)(path, *args, **kwargs)
+
+    monkeypatch.setattr(meshio, "write", third_call_interrupted)
+    assert main(argv) == 130
+    assert "interrupted" in capsys.readouterr().err
+    monkeypatch.undo()
+    left = _files(out)
+    assert "result.json" not in left and set(left) <= set(complete)  # nothing half-written, no temporary
+    for f in left:
+        if f.endswith(".vtu"):
+            assert len(meshio.read(out / f).points) > 0
+    assert main(argv) == 1
+    assert _files(out) == complete
+    assert set(json.loads((out / MARKER).read_text())["files"]) == set(complete) - {MARKER}

@@ -1,7 +1,10 @@
 """The static stick/slide/release state of all contacts at once (fem_grasp.relaxation).
 
 Checked against a hand-computed single contact, and on a real body (a box
-squeezed sideways on the table) against Coulomb's law at every contact.
+squeezed sideways on the table) against Coulomb's law at every contact.  Each
+iteration bound (steady drift, stall, a contact with no local state,
+``max_sweeps``) is driven on a load that friction cannot hold and must end in
+a :class:`RelaxationFailure` that names it, never a loop.
 """
 
 import numpy as np
@@ -100,3 +103,82 @@ def test_a_release_beyond_the_slip_bound_is_refused_not_returned():
     with pytest.raises(RelaxationFailure, match="no longer hold"):
         relax_contacts(1e-3 * np.eye(3), np.array([[0.0, 0.0, -1.0]]), np.zeros((1, 3)), [None], UP,
                        np.array([0.5]), force_scale=1.0, max_slip=1e-2)
+
+
+# ------------------------------------------------------------ every iteration bound ends in a named failure
+def _box_on_the_table_pushed_sideways(tangential):
+    """The box's 16 table contacts, each loaded by (tangential, 0, 1) N: held by μ = 0.5 only below 0.5.
+
+    C annihilates rigid translations, so the total load is the same whatever the contacts do; above
+    μ × the normal total no static state exists and the contacts slide on (gross slip).
+    """
+    body = Body(box_mesh((-0.015, -0.02, 0.0), (0.015, 0.02, 0.03), (3, 3, 3)), 2e4, 0.3, weight=0.3)
+    p = body.mesh.points
+    table = np.flatnonzero(np.isclose(p[:, 2], 0.0))
+    c = body.contact_response(table).reduced_stiffness
+    f = np.tile([tangential, 0.0, 1.0], (len(table), 1))
+    return c, f, p[table], [None] * len(table), np.full(len(table), 0.5)
+
+
+def test_a_load_friction_can_hold_sticks_at_once():
+    c, f, q, centers, mu = _box_on_the_table_pushed_sideways(0.49)
+    res = relax_contacts(c, f, q, centers, UP, mu, 1.0, max_slip=1.0)
+    assert res.sweeps == 1 and np.all(res.status == STICK) and np.all(res.displacements == 0)
+
+
+@pytest.mark.parametrize("bound, value, match", [
+    ("DRIFT_SWEEPS", 20, r"keep sliding at a steady rate after (\d+) Gauss–Seidel sweeps"),
+    ("DRIFT_SWEEPS", 300, r"keep sliding at a steady rate after (\d+) Gauss–Seidel sweeps"),  # the default
+    ("STALL_SWEEPS", 5, r"stops settling after (\d+) Gauss–Seidel sweeps \(no progress in the last 5\)"),
+])
+def test_gross_slip_ends_at_the_drift_or_stall_bound(monkeypatch, bound, value, match):
+    """0.6 N sideways per newton down, μ = 0.5: the contacts slide at a steady rate forever.  With unchanged
+    statuses a steady drift is recognised after DRIFT_SWEEPS sweeps; with no halving of the largest force
+    change in STALL_SWEEPS sweeps the sweeps stop too (here the stall bound is set below the drift one)."""
+    import re
+
+    import fem_grasp.relaxation as relaxation
+
+    monkeypatch.setattr(relaxation, bound, value)
+    c, f, q, centers, mu = _box_on_the_table_pushed_sideways(0.6)
+    with pytest.raises(RelaxationFailure, match=match) as failure:
+        relax_contacts(c, f, q, centers, UP, mu, 1.0, max_slip=1.0)
+    sweeps = int(re.search(match, str(failure.value)).group(1))
+    assert value < sweeps <= value + 5  # the statuses settle within the first sweeps, then the bound counts
+
+
+def test_max_sweeps_ends_a_slow_slide():
+    c, f, q, centers, mu = _box_on_the_table_pushed_sideways(0.6)
+    with pytest.raises(RelaxationFailure, match=r"did not settle in 100 Gauss–Seidel sweeps"):
+        relax_contacts(c, f, q, centers, UP, mu, 1.0, max_slip=1.0, max_sweeps=100)
+    # A solvable problem that needs two sweeps (the squeezed box) fails on one and passes on two.
+    c, f0, q0, centers, mu, _ = _squeezed_box()
+    fs = float(np.abs(f0).max())
+    with pytest.raises(RelaxationFailure, match=r"did not settle in 1 Gauss–Seidel sweeps"):
+        relax_contacts(c, f0, q0, centers, UP, mu, fs, max_sweeps=1)
+    assert relax_contacts(c, f0, q0, centers, UP, mu, fs, max_sweeps=2).sweeps == 2
+
+
+@pytest.mark.parametrize("stuck", [2, 5, 50])
+def test_a_contact_with_no_local_state_ends_at_the_stuck_bound(monkeypatch, stuck):
+    """1 N sideways per newton down: once the neighbours have slid far, some contact has no stick, slide or
+    release state with them frozen; after STUCK_SWEEPS such sweeps in a row the relaxation gives up
+    (50, the default, is reached before the drift bound)."""
+    import fem_grasp.relaxation as relaxation
+
+    monkeypatch.setattr(relaxation, "STUCK_SWEEPS", stuck)
+    unsolved = []
+    real_slide = relaxation._slide
+
+    def slide(*args, **kwargs):
+        out = real_slide(*args, **kwargs)
+        unsolved.append(out is None)
+        return out
+
+    monkeypatch.setattr(relaxation, "_slide", slide)
+    c, f, q, centers, mu = _box_on_the_table_pushed_sideways(1.0)
+    with pytest.raises(RelaxationFailure, match=r"contact \d+ can neither stick, slide nor lift off with its "
+                                                r"neighbours held .* μ = 0.5\): friction cannot hold it"):
+        relax_contacts(c, f, q, centers, UP, mu, 1.0, max_slip=1.0)
+    # One unsolved contact per sweep (tried twice: warm start, then cold) for STUCK_SWEEPS + 1 sweeps.
+    assert sum(unsolved) >= 2 * (stuck + 1)

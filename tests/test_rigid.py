@@ -73,3 +73,22 @@ def test_off_centre_mass_is_balanced_by_unequal_forces(rng):
         ft = np.linalg.norm(f - fn[:, None] * nrm, axis=1)
         if np.all(fn >= 0) and np.all(ft <= 0.5 * fn + 1e-12):
             assert fn.sum() >= best - 1e-9
+
+
+@pytest.mark.parametrize("weight", [1.5e-9, 1e7, 1.5e13])
+def test_the_grasp_scales_with_the_weight_at_any_magnitude(weight):
+    # The grasp is linear in mg.  The cone intervals were once decided with tolerances mixing N, N² and
+    # 1, which called every grasp above 1e7 N infeasible (found by the scaled pickups of issue #8).
+    pts = np.array([[0.002, -0.03, 0.0], [-0.001, 0.031, 0.001]])
+    nrm = np.array([[0, 1.0, 0.05], [0.02, -1.0, 0.1]])
+    com = np.array([0.0, 0.004, -0.002])
+    one = rigid_grasp(pts, nrm, com, weight=1.0, mu=0.5)
+    g = rigid_grasp(pts, nrm, com, weight=weight, mu=0.5)
+    assert g.feasible and one.feasible
+    assert g.total_normal_force == pytest.approx(weight * one.total_normal_force, rel=1e-12)
+    np.testing.assert_allclose(g.forces, weight * one.forces, rtol=1e-12, atol=1e-15 * weight)
+    assert g.squeeze == pytest.approx(weight * one.squeeze, rel=1e-12)
+    # Antipodal flat contacts: mg/μ in all, at every magnitude.
+    flat = rigid_grasp(np.array([[0, -0.03, 0.0], [0, 0.03, 0.0]]), np.array([[0, 1.0, 0], [0, -1.0, 0]]),
+                       np.zeros(3), weight=weight, mu=0.4)
+    assert flat.feasible and flat.total_normal_force == pytest.approx(weight / 0.4, rel=1e-12)
