@@ -422,6 +422,8 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _dispatch(args: argparse.Namespace) -> int:
     from .mesh import MeshError
     from .output import OutputError
+    from .friction import FrictionError
+    from .rest import RestConvergenceError
     from .scan import SurfaceError
     from .scene import SceneError
 
@@ -433,6 +435,10 @@ def _dispatch(args: argparse.Namespace) -> int:
     except ValueError as exc:  # pickup()/rest() refuse bad scene values with ValueError subclasses
         print(f"fem-grasp {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except (FrictionError, RestConvergenceError) as exc:
+        # No resting state: the object slides off or never settles on the table.  An answer, not a bug.
+        print(f"fem-grasp {args.command}: the object does not come to rest on the table: {exc}", file=sys.stderr)
+        return EXIT_FAILED
     except KeyboardInterrupt:
         print("fem-grasp: interrupted", file=sys.stderr)
         return 130

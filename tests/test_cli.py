@@ -177,3 +177,23 @@ def test_the_same_scene_writes_the_same_files_but_for_wall_times(tmp_path):
         doc["result"].pop("timings")
     assert doc1 == doc2
     assert doc1["result"]["events"] and doc1["result"]["snapshots"]
+
+
+@pytest.mark.parametrize("error", ["friction", "convergence"])
+def test_an_object_that_cannot_rest_exits_1_with_the_reason_not_as_an_internal_error(capsys, monkeypatch, tmp_path,
+                                                                                     error):
+    import fem_grasp.scene as scene_mod
+    from fem_grasp.friction import FrictionError
+    from fem_grasp.rest import RestConvergenceError
+
+    exc = (FrictionError("gross sliding on the table: 3 contacts slide without bound") if error == "friction"
+           else RestConvergenceError("the resting iteration did not settle in 2 iterations"))
+
+    def no_rest(*a, **k):
+        raise exc
+
+    monkeypatch.setattr(scene_mod, "cached_rest", no_rest)
+    code = main(["run", "football", "--quick", "--no-cache", "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 1, err
+    assert "does not come to rest on the table" in err and str(exc) in err and "internal error" not in err
