@@ -1,0 +1,112 @@
+"""Where a pickup spends its time: ``python -m bench.profile SCENE`` (issue #7).
+
+Runs one shipped scene's pickup (``fem-grasp run SCENE``) under cProfile and
+counts, around the two solvers that dominate it:
+
+* the return mappings (:func:`fem_grasp.relaxation.relax_contacts`) of the
+  lift test and of implicit increments: calls that find a static state and
+  calls that fail, with their times;
+* the slip systems of the event tracking
+  (:meth:`fem_grasp.tracking.MixedSlipSystem.solve`): Newton solves and
+  Newton-homotopy paths, by outcome.
+
+Prints the phase times, the counters and the functions with the largest
+cumulative time.  Profiling slows the run by 1.5–2×; compare runs of one
+invocation, or phases within one run.  ``--free-blas`` leaves OpenBLAS its
+threads during tracking (by default ``tracking.run`` limits BLAS to one).
+"""
+
+from __future__ import annotations
+
+import argparse
+import collections
+import cProfile
+import io
+import pstats
+import time
+from typing import Any
+
+
+def main(argv: list[str] | None = None) -> dict[str, Any]:
+    ap = argparse.ArgumentParser(prog="python -m bench.profile", description=__doc__.split("\n\n")[0])
+    ap.add_argument("scene", help="a shipped scene name or a scene file")
+    ap.add_argument("--quick", action="store_true", help="the scene's quick variant")
+    ap.add_argument("--top", type=int, default=25, help="functions to list (default 25)")
+    ap.add_argument("--free-blas", action="store_true", help="do not limit BLAS to one thread while tracking")
+    args = ap.parse_args(argv)
+
+    import contextlib
+
+    from fem_grasp import relaxation, tracking
+    from fem_grasp.pickup import pickup
+    from fem_grasp.scene import load_scene, resolve_scene
+
+    relax_stats: dict[str, list[float]] = collections.defaultdict(lambda: [0, 0.0])
+    slip_stats: dict[tuple[str, str, str], list[float]] = collections.defaultdict(lambda: [0, 0.0])
+    relax = tracking.relax_contacts
+    solve = tracking.MixedSlipSystem.solve
+
+    def counted_relax(*a: Any, **k: Any) -> Any:
+        t0 = time.perf_counter()
+        key = "found a static state"
+        try:
+            return relax(*a, **k)
+        except relaxation.RelaxationFailure:
+            key = "failed"
+            raise
+        finally:
+            relax_stats[key][0] += 1
+            relax_stats[key][1] += time.perf_counter() - t0
+
+    def counted_solve(self: Any, *a: Any, methods: Any = ("newton", "homotopy"), **k: Any) -> Any:
+        t0 = time.perf_counter()
+        outcome = "root"
+        try:
+            return solve(self, *a, methods=methods, **k)
+        except tracking.SlipFailure:
+            outcome = "no root"
+            raise
+        finally:
+            key = ("+".join(methods), "free direction" if self.free else "great circle", outcome)
+            slip_stats[key][0] += 1
+            slip_stats[key][1] += time.perf_counter() - t0
+
+    limit = getattr(tracking, "one_blas_thread", None)
+    tracking.relax_contacts = counted_relax
+    tracking.MixedSlipSystem.solve = counted_solve
+    if args.free_blas and limit is not None:
+        tracking.one_blas_thread = contextlib.nullcontext
+    scene = load_scene(resolve_scene(args.scene), quick=args.quick)
+    body = scene.body()
+    prof = cProfile.Profile()
+    t0 = time.perf_counter()
+    prof.enable()
+    try:
+        res = pickup(body, **scene.pickup_kwargs())
+    finally:
+        prof.disable()
+        tracking.relax_contacts = relax
+        tracking.MixedSlipSystem.solve = solve
+        if limit is not None:
+            tracking.one_blas_thread = limit
+    wall = time.perf_counter() - t0
+
+    print(f"scene {scene.name}{' (quick)' if args.quick else ''}: {'picked up' if res.success else res.reason}; "
+          f"{len(res.events)} events; {wall:.1f} s under cProfile"
+          f"{' (BLAS threads free)' if args.free_blas else ''}")
+    print("phases: " + ", ".join(f"{k} {v:.2f} s" for k, v in res.timings.items()))
+    print("return mappings (relax_contacts):")
+    for key, (n, t) in sorted(relax_stats.items()):
+        print(f"  {key:>22s}: {int(n):5d} calls, {t:7.2f} s, {t / max(n, 1) * 1e3:7.1f} ms each")
+    print("slip systems (MixedSlipSystem.solve):")
+    for (meth, form, outcome), (n, t) in sorted(slip_stats.items(), key=lambda kv: -kv[1][1]):
+        print(f"  {meth:>8s} {form:>14s} {outcome:>7s}: {int(n):6d} calls, {t:7.2f} s")
+    out = io.StringIO()
+    pstats.Stats(prof, stream=out).sort_stats("cumulative").print_stats(args.top)
+    print(out.getvalue())
+    return {"wall_s": wall, "timings": res.timings, "relax": dict(relax_stats),
+            "slip": {"/".join(k): v for k, v in slip_stats.items()}}
+
+
+if __name__ == "__main__":
+    main()
