@@ -654,8 +654,8 @@ class Tracker:
         self.implicit = False
         #: Above this many contacts every increment is implicit (module notes).
         self.implicit_contacts = IMPLICIT_CONTACTS
-        #: Slip roots found from the latest base state, per form: (dt, x) (warm starts for nearby dt).
-        self._warm_base: ContactState | None = None
+        #: Slip roots found from the latest base state and motion, per form: (dt, x) (warm starts for nearby dt).
+        self._warm_key: tuple | None = None
         self._warm: dict[bool, list[tuple[float, np.ndarray]]] = {}
 
     # ------------------------------------------------------------ responses
@@ -757,6 +757,8 @@ class Tracker:
         errors = []
         systems = {}
         x = None
+        # Roots are reused only for the same base state moved the same way (not, e.g., a squeeze root for a lift).
+        warm_key = (base, param, np.asarray(velocities, float).tobytes(), float(load_rate))
         # Great-circle form (the paper's) first, the free-direction form if it has no root; Newton on
         # both before the (costlier) homotopy continuation on both.
         for method in methods:
@@ -765,7 +767,7 @@ class Tracker:
                     systems[free] = MixedSlipSystem(c, fh, dfh, sl, kinds, self.mu[kinds], t_hat, r, self.up,
                                                     self.radius, free)
                 near = None
-                if method == "newton" and self._warm_base is base and self._warm.get(free):
+                if method == "newton" and self._same_motion(warm_key) and self._warm.get(free):
                     near = min(self._warm[free], key=lambda e: abs(e[0] - dt))[1]
                 try:
                     x = systems[free].solve(methods=(method,), start=near)
@@ -777,8 +779,8 @@ class Tracker:
                 break
         else:
             raise SlipFailure("; ".join(errors))
-        if self._warm_base is not base:
-            self._warm_base, self._warm = base, {}
+        if not self._same_motion(warm_key):
+            self._warm_key, self._warm = warm_key, {}
         self._warm.setdefault(system.free, []).append((dt, x))
         rates_s = system.rates(x)
         if not np.isfinite(rates_s).all():
@@ -795,6 +797,10 @@ class Tracker:
         state = replace(base, load=load, centers=centers, disp=disp, forces=forces, normals=normals,
                         positions=positions, slip=base.slip + np.abs(amounts), **kw)
         return _Trial(state, amounts, rates)
+
+    def _same_motion(self, key: tuple) -> bool:
+        old = self._warm_key
+        return old is not None and old[0] is key[0] and old[1:] == key[1:]
 
     # --------------------------------------------------------------- events
     def obstacle_gaps(self, positions: np.ndarray, centers: np.ndarray) -> np.ndarray:
