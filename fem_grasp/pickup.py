@@ -81,7 +81,7 @@ from .fingertip import DEFAULT_RADIUS
 from .geometry import TablePlane
 from .lift import lift as run_lift
 from .lift_test import LiftTest
-from .placement import PAPER_SQUEEZE_DIRECTIONS
+from .placement import DEFAULT_PLACEMENT_RULE, PAPER_SQUEEZE_DIRECTIONS, PLACEMENT_RULES
 from .response import equilibrium_residual
 from .rest import RestState, rest
 from .rigid import RigidGrasp, rigid_grasp
@@ -400,8 +400,6 @@ class PickupResult:
 
 
 # ================================================================ placement
-#: Rules for choosing the initial finger contacts (:func:`default_finger_contacts`).
-PLACEMENT_RULES = ("least-force", "centre-of-mass-height")
 
 
 def default_max_squeeze(positions: np.ndarray, direction: np.ndarray) -> float:
@@ -412,7 +410,7 @@ def default_max_squeeze(positions: np.ndarray, direction: np.ndarray) -> float:
 
 def default_finger_contacts(rest_state: RestState, direction: np.ndarray, mu_finger: float, mu_table: float,
                             radius: float, velocities: np.ndarray | None = None, *,
-                            rule: str = "least-force", max_squeeze: float | None = None
+                            rule: str = DEFAULT_PLACEMENT_RULE, max_squeeze: float | None = None
                             ) -> tuple[tuple[int, int], ClosureResult]:
     """Initial finger contacts by the rule of the module notes; returns them and their closure test.
 
@@ -505,7 +503,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
            max_squeeze: float | None = None, step: float | None = None, backend: str = "sparse",
            rest_state: RestState | None = None, lift_test_step: float | None = None,
            max_lift: float | None = None, lift: bool = True, max_lift_attempts: int = 4,
-           placement_rule: str = "least-force") -> PickupResult:
+           placement_rule: str = DEFAULT_PLACEMENT_RULE) -> PickupResult:
     """Run Algorithm 1: will two hemispherical fingers pick ``body`` up from the table?
 
     Parameters

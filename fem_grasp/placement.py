@@ -6,6 +6,11 @@ import numpy as np
 
 from .mesh import TetMesh
 
+#: Rules for choosing the initial finger contacts (:func:`fem_grasp.pickup.default_finger_contacts`).
+PLACEMENT_RULES = ("least-force", "centre-of-mass-height")
+#: ``pickup()``'s rule and a scene's when it names none (the paper scenes name "centre-of-mass-height").
+DEFAULT_PLACEMENT_RULE = "least-force"
+
 #: The paper's squeeze directions (§IV): d̂1 = (0, 0.974, −0.227), d̂2 = (0, −0.974, −0.227).
 PAPER_SQUEEZE_DIRECTIONS = (np.array([0.0, 0.974, -0.227]), np.array([0.0, -0.974, -0.227]))
 

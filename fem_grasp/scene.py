@@ -60,6 +60,7 @@ from typing import Any
 
 import numpy as np
 
+from .placement import DEFAULT_PLACEMENT_RULE, PLACEMENT_RULES
 from .validation import SceneError as _ValidationSceneError
 
 __all__ = ["SceneError", "Scene", "ObjectSpec", "load_scene", "parse_scene", "shipped_scenes", "resolve_scene",
@@ -197,7 +198,7 @@ class Scene:
     path: Path | None = None
     quick: bool = False
     expect: str | None = None
-    placement_rule: str = "least-force"
+    placement_rule: str = DEFAULT_PLACEMENT_RULE
 
     # ------------------------------------------------------------ building
     def load_mesh(self, cache_dir: Path | None = None) -> "Any":
@@ -408,7 +409,6 @@ class _Reader:
                 raise SceneError(f"{w}: expected three numbers, got {v!r}")
             return tuple(float(x) for x in v)
         if kind == "contacts":
-            from .pickup import PLACEMENT_RULES
 
             if v == "auto":
                 return None
@@ -557,7 +557,7 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
     radius = g.get("radius", DEFAULT_RADIUS)
     _positive(g.where("radius"), radius, "m")
     contacts = g.get("contacts")
-    rule = "least-force"
+    rule = DEFAULT_PLACEMENT_RULE
     if isinstance(contacts, str):
         rule, contacts = contacts, None
     directions = g.get("directions", tuple(tuple(float(x) for x in d) for d in PAPER_SQUEEZE_DIRECTIONS))
