@@ -42,7 +42,7 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-__all__ = ["SCHEMA", "SCHEMA_VERSION", "OutputError", "atomic_write_bytes", "atomic_write_text", "prepare_out_dir",
+__all__ = ["SCHEMA", "SCHEMA_VERSION", "OutputError", "atomic_write_bytes", "atomic_write_text", "json_safe", "prepare_out_dir",
            "frames_of", "fingertip_surface", "write_series", "write_result_json", "write_run", "read_result", "hemisphere",
            "contact_point_data", "write_rest", "MARKER"]
 
@@ -316,14 +316,14 @@ def write_series(out: str | Path, result: Any, progress: Callable[[int, int], No
 
 
 # ------------------------------------------------------------ JSON
-def _clean(x: Any) -> Any:
+def json_safe(x: Any) -> Any:
     """JSON-safe: numpy → Python, NaN/±inf → None (strict JSON)."""
     if isinstance(x, dict):
-        return {str(k): _clean(v) for k, v in x.items()}
+        return {str(k): json_safe(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
-        return [_clean(v) for v in x]
+        return [json_safe(v) for v in x]
     if isinstance(x, np.ndarray):
-        return _clean(x.tolist())
+        return json_safe(x.tolist())
     if isinstance(x, (np.floating, float)):
         v = float(x)
         return v if math.isfinite(v) else None
@@ -383,7 +383,7 @@ def write_result_json(out: str | Path, result: Any, scene: Any = None, series: d
     }
     doc.update(extra or {})
     path = Path(out) / "result.json"
-    atomic_write_text(path, json.dumps(_clean(doc), indent=1, allow_nan=False))
+    atomic_write_text(path, json.dumps(json_safe(doc), indent=1, allow_nan=False))
     return path
 
 
@@ -445,6 +445,6 @@ def write_rest(out: str | Path, state: Any, scene: Any = None, force: bool = Fal
            "support_triangle": state.support_triangle, "contact_nodes": state.contact_nodes,
            "contact_forces": state.contact_forces, "sliding": state.sliding}
     doc.update(extra or {})
-    atomic_write_text(out / "rest.json", json.dumps(_clean(doc), indent=1, allow_nan=False))
+    atomic_write_text(out / "rest.json", json.dumps(json_safe(doc), indent=1, allow_nan=False))
     _add_to_marker(out, ["rest.vtu", "rest.json"])
     return out

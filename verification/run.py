@@ -24,6 +24,7 @@ from typing import Any, Callable
 import numpy as np
 
 from fem_grasp import Body, TetMesh, box_mesh, solve_contact
+from fem_grasp.output import json_safe
 
 from . import crosscheck, hertz, manufactured, plots, render, report, stability
 from .dolfinx_ref import warm_up
@@ -273,22 +274,6 @@ def environment() -> dict:
     return env
 
 
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (np.floating,)):
-        return float(x)
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, float) and not np.isfinite(x):
-        return None
-    return x
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m verification.run", description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small meshes and fewer levels (< 3 minutes)")
@@ -371,7 +356,7 @@ def main(argv: list[str] | None = None) -> int:
     stage("plots", figures, lambda v: None)
     summary["checks"] = headline_checks(summary)
     summary["total_seconds"] = time.perf_counter() - t_start
-    summary = _jsonable(summary)
+    summary = json_safe(summary)
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=1), encoding="utf-8")
     path = report.write_report(summary, out_dir)
     failed = [c["name"] for c in summary["checks"] if not c["ok"]]
