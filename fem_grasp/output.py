@@ -272,6 +272,12 @@ def write_series(out: str | Path, result: Any, progress: Callable[[int, int], No
     tets = result.body.mesh.tets
     n = len(reference)
     frames = frames_of(result)
+    # Listed in the marker before they are written: a run interrupted half-way leaves no file that the
+    # next run into this folder would not clear.
+    planned = [f"series/object_{k:04d}.vtu" for k in range(len(frames))]
+    planned += [f"series/{name}_{k:04d}.vtu" for k, fr in enumerate(frames) if fr["finger_centers"] is not None
+                for name in ("finger1", "finger2")]
+    _add_to_marker(out, planned + ["object.pvd", "finger1.pvd", "finger2.pvd", "table.vtu"])
     files: list[str] = []
     entries: dict[str, list[tuple[float, str]]] = {"object": [], "finger1": [], "finger2": []}
     d1, d2 = (np.asarray(d, float) for d in result.directions)

@@ -209,3 +209,33 @@ def test_an_interrupted_run_leaves_only_complete_files_and_the_folder_reusable(t
     assert main(argv) == 1
     assert _files(out) == complete
     assert set(json.loads((out / MARKER).read_text())["files"]) == set(complete) - {MARKER}
+
+
+def test_files_of_an_interrupted_run_are_cleared_by_the_next_run_even_if_it_writes_fewer(tmp_path, monkeypatch):
+    """The series files are in the folder's manifest before they are written, so an interrupted long run
+    leaves nothing that a shorter run into the same folder would keep as a stale frame."""
+    import dataclasses
+
+    from fem_grasp import Body, box_mesh, output
+    from fem_grasp.pickup import pickup
+
+    body = Body(box_mesh((-0.015, -0.02, 0.0), (0.015, 0.02, 0.03), (4, 4, 4)), 2e4, 0.3, weight=0.3)
+    long = pickup(body, mu_finger=0.5, mu_table=0.5, finger_radius=0.01, lift=False)
+    assert len(long.snapshots) >= 4
+    short = dataclasses.replace(long, snapshots=long.snapshots[:2])
+    out = tmp_path / "o"
+    real = output.write_result_json
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt  # every frame written, result.json and the final manifest not
+
+    monkeypatch.setattr(output, "write_result_json", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        output.write_run(out, long)
+    monkeypatch.setattr(output, "write_result_json", real)
+    frames_long = {f for f in _files(out) if f.startswith("series/object_")}
+    output.write_run(out, short)
+    frames_short = {f for f in _files(out) if f.startswith("series/object_")}
+    assert len(frames_short) == len(output.frames_of(short)) < len(frames_long)
+    listed = set(json.loads((out / MARKER).read_text())["files"])
+    assert set(_files(out)) - {MARKER} == listed  # no frame of the longer run is left behind
