@@ -299,6 +299,46 @@ def _newton2(c: _Contact, fs: tuple, mu: float, u0: float, u1: float, tol: float
     return np.array([u0, u1])
 
 
+class _SlideGeometry:
+    """:meth:`_Contact.motion` and the slide projection for many sliding contacts at once (the polish)."""
+
+    def __init__(self, contacts: list, mu: np.ndarray) -> None:
+        p = len(contacts)
+        self.mu = np.asarray(mu, float)
+        self.e1 = np.array([ct.basis[0] for ct in contacts]).reshape(p, 3)
+        self.e2 = np.array([ct.basis[1] for ct in contacts]).reshape(p, 3)
+        self.n0 = np.array([ct.n0 for ct in contacts]).reshape(p, 3)
+        self.sphere = np.array([ct.sphere for ct in contacts], dtype=bool)
+        self.radius = np.array([ct.radius if ct.sphere else 1.0 for ct in contacts])
+        self.r0 = np.array([ct.r0 if ct.sphere else np.zeros(3) for ct in contacts]).reshape(p, 3)
+
+    def motion(self, us: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(δ, n̂, ŝ), each (p, 3), for tangential motions ``us`` (p, 2)."""
+        t = us[:, :1] * self.e1 + us[:, 1:] * self.e2
+        tl = np.linalg.norm(t, axis=1)
+        h = np.divide(t, tl[:, None], out=np.zeros_like(t), where=tl[:, None] > 0)
+        delta, n, s = t, self.n0.copy(), h.copy()
+        sph = self.sphere
+        if sph.any():
+            th = tl[sph] / self.radius[sph]
+            co, si = np.cos(th)[:, None], np.sin(th)[:, None]
+            cm1 = -2.0 * np.sin(0.5 * th)[:, None] ** 2
+            delta = delta.copy()
+            delta[sph] = cm1 * self.r0[sph] + (self.radius[sph][:, None] * si) * h[sph]
+            n[sph] = co * self.n0[sph] + si * h[sph]
+            s[sph] = co * h[sph] - si * self.n0[sph]
+        return delta, n, s
+
+    def projections(self, us: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(p, 2, 3) maps f ↦ slide residual at the motions ``us``, and the slips δ (p, 3)."""
+        delta, n, s = self.motion(us)
+        b1 = self.e1 - np.einsum("ki,ki->k", self.e1, n)[:, None] * n
+        b1 /= np.linalg.norm(b1, axis=1, keepdims=True)
+        b = np.stack([b1, np.cross(n, b1)], axis=1)
+        proj = _EYE3[None] - n[:, :, None] * n[:, None, :] + self.mu[:, None, None] * s[:, :, None] * n[:, None, :]
+        return b @ proj, delta
+
+
 def _polish(contacts: list, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, status: np.ndarray,
             d: np.ndarray, u: list, tol: float, stick_tol: float, max_slip: float
             ) -> tuple[np.ndarray, list, np.ndarray] | None:
@@ -318,62 +358,51 @@ def _polish(contacts: list, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, statu
     sizes = [2 if status[k] == SLIDE else 3 for k in act]
     offs = np.concatenate([[0], np.cumsum(sizes)])
     x = np.concatenate([u[k] if status[k] == SLIDE else d[k] for k in act])
+    # Per-contact data of the sliding and released contacts, for evaluations of all of them at once.
+    i_s = np.array([i for i, k in enumerate(act) if status[k] == SLIDE], dtype=np.int64)
+    i_r = np.array([i for i, k in enumerate(act) if status[k] == RELEASE], dtype=np.int64)
+    k_s = np.array([act[i] for i in i_s], dtype=np.int64)
+    k_r = np.array([act[i] for i in i_r], dtype=np.int64)
+    xs_idx = offs[i_s][:, None] + np.arange(2)[None, :]  # (p, 2) positions of u_k in x
+    xr_idx = offs[i_r][:, None] + np.arange(3)[None, :]  # (q, 3) positions of δ_k in x
+    geo = _SlideGeometry([contacts[k] for k in k_s], mu[k_s])
+    rows = np.concatenate([3 * k + np.arange(3) for k in act])
+    c_act = c[np.ix_(rows, rows)]
+    n_x, n_a = int(offs[-1]), 3 * len(act)
+    eye_r = np.broadcast_to(_EYE3, (len(i_r), 3, 3))
 
     def evaluate(x: np.ndarray, with_jacobian: bool):
+        us = x[xs_idx]
+        a, ds = geo.projections(us)
         dd = d.copy()
-        for i, k in enumerate(act):
-            xk = x[offs[i]:offs[i + 1]]
-            if status[k] == SLIDE:
-                dd[k] = contacts[k].motion(xk)[0]
-            else:
-                dd[k] = xk
+        dd[k_s] = ds
+        dd[k_r] = x[xr_idx]
         f = f0 + (c @ dd.reshape(-1)).reshape(m, 3)
-        r = np.empty(offs[-1])
-        a_blocks, d_blocks, e_blocks = [], [], []
-        for i, k in enumerate(act):
-            if status[k] == RELEASE:
-                r[offs[i]:offs[i + 1]] = f[k]
-                if with_jacobian:
-                    a_blocks.append(np.eye(3))
-                    d_blocks.append(np.eye(3))
-                    e_blocks.append(np.zeros((3, 3)))
-                continue
-            ct, xk = contacts[k], x[offs[i]:offs[i + 1]]
-
-            def proj(xv: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-                """(2, 3) map f ↦ residual at motion xv, and δ(xv)."""
-                dk, n, sv = ct.motion(xv)
-                b1 = ct.basis[0] - (ct.basis[0] @ n) * n
-                b1 /= np.linalg.norm(b1)
-                b = np.array([b1, _cross3(n, b1)])
-                return b @ (_EYE3 - n[:, None] * n[None, :] + mu[k] * sv[:, None] * n[None, :]), dk
-
-            a, dk = proj(xk)
-            r[offs[i]:offs[i + 1]] = a @ f[k]
-            if with_jacobian:
-                h = max(1e-7 * float(np.linalg.norm(xk)), 1e-30)
-                dj, ej = np.empty((3, 2)), np.empty((2, 2))
-                for j in range(2):
-                    xp = xk.copy()
-                    xp[j] += h
-                    ap, dp = proj(xp)
-                    dj[:, j] = (dp - dk) / h
-                    ej[:, j] = (ap - a) @ f[k] / h
-                a_blocks.append(a)
-                d_blocks.append(dj)
-                e_blocks.append(ej)
+        r = np.empty(n_x)
+        r[xs_idx] = np.einsum("kij,kj->ki", a, f[k_s])
+        r[xr_idx] = f[k_r]
         if not with_jacobian:
             return r, f, dd, None
-        rows = np.concatenate([3 * k + np.arange(3) for k in act])
-        n_x = offs[-1]
-        amat = np.zeros((n_x, 3 * len(act)))
-        dmat = np.zeros((3 * len(act), n_x))
+        # Geometric blocks by forward differences, all sliding contacts at once.
+        h = np.maximum(1e-7 * np.linalg.norm(us, axis=1), 1e-30)
+        dj, ej = np.empty((len(k_s), 3, 2)), np.empty((len(k_s), 2, 2))
+        for j in range(2):
+            up = us.copy()
+            up[:, j] += h
+            ap, dp = geo.projections(up)
+            dj[:, :, j] = (dp - ds) / h[:, None]
+            ej[:, :, j] = np.einsum("kij,kj->ki", ap - a, f[k_s]) / h[:, None]
+        amat = np.zeros((n_x, n_a))
+        dmat = np.zeros((n_a, n_x))
         jac = np.zeros((n_x, n_x))
-        for i in range(len(act)):
-            amat[offs[i]:offs[i + 1], 3 * i:3 * i + 3] = a_blocks[i]
-            dmat[3 * i:3 * i + 3, offs[i]:offs[i + 1]] = d_blocks[i]
-            jac[offs[i]:offs[i + 1], offs[i]:offs[i + 1]] = e_blocks[i]
-        jac += amat @ c[np.ix_(rows, rows)] @ dmat
+        cs = 3 * i_s[:, None] + np.arange(3)[None, :]
+        cr = 3 * i_r[:, None] + np.arange(3)[None, :]
+        amat[xs_idx[:, :, None], cs[:, None, :]] = a
+        amat[xr_idx[:, :, None], cr[:, None, :]] = eye_r
+        dmat[cs[:, :, None], xs_idx[:, None, :]] = dj
+        dmat[cr[:, :, None], xr_idx[:, None, :]] = eye_r
+        jac[xs_idx[:, :, None], xs_idx[:, None, :]] = ej
+        jac += amat @ c_act @ dmat
         return r, f, dd, jac
 
     r, f, dd, jac = evaluate(x, True)
