@@ -127,6 +127,7 @@ class _Contact:
         self.kmin = float(np.linalg.eigvalsh(ckk)[0])
         self.a = self.basis @ ckk @ self.basis.T  # tangential stiffness
         self.amax = float(np.abs(self.a).max())
+        self.last_ray: tuple | None = None  # (question, answer) of the last _ray_root
 
     def motion_s(self, u0: float, u1: float) -> tuple[tuple, tuple, tuple]:
         """(δ, n̂, ŝ) as float triples for a tangential motion (u0, u1): along the great circle on a sphere."""
@@ -234,8 +235,22 @@ def _slide(c: _Contact, fs: np.ndarray, mu: float, u0: np.ndarray | None, tol: f
 
 
 def _ray_root(c: _Contact, fs: tuple, mu: float, e: np.ndarray, amax: float) -> np.ndarray | None:
-    """u = α e with the smallest α > 0 at which the force reaches its cone, by bracketing and bisection."""
+    """u = α e with the smallest α > 0 at which the force reaches its cone, by bracketing and bisection.
+
+    The last answer is kept on the contact: a contact with no local state asks the same question
+    twice per sweep (in :func:`_slide` and for its provisional slide), and mostly the answer is None
+    after a scan of the whole bracket.
+    """
     e0, e1 = float(e[0]), float(e[1])
+    key = (fs, mu, e0, e1, amax)
+    if c.last_ray is not None and c.last_ray[0] == key:
+        return None if c.last_ray[1] is None else c.last_ray[1].copy()
+    out = _ray_scan(c, fs, mu, e0, e1, amax)
+    c.last_ray = (key, None if out is None else out.copy())
+    return out
+
+
+def _ray_scan(c: _Contact, fs: tuple, mu: float, e0: float, e1: float, amax: float) -> np.ndarray | None:
     lo, hi = 0.0, None
     alpha = amax * 2.0 ** -50
     while alpha <= amax:
@@ -521,7 +536,7 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
                         ft = ct.basis @ fs
                         ftn = float(np.linalg.norm(ft))
                         guess = (_ray_root(ct, tuple(float(x) for x in fs), float(mu[k]), -ft / ftn, amax)
-                                 if ftn > 0 else None)
+                                 if ftn > 0 else None)  # the question _slide asked: answered from the contact
                         if guess is None:
                             continue
                         uk = guess
