@@ -182,3 +182,37 @@ def test_a_contact_with_no_local_state_ends_at_the_stuck_bound(monkeypatch, stuc
         relax_contacts(c, f, q, centers, UP, mu, 1.0, max_slip=1.0)
     # One unsolved contact per sweep (tried twice: warm start, then cold) for STUCK_SWEEPS + 1 sweeps.
     assert sum(unsolved) >= 2 * (stuck + 1)
+
+
+def test_batched_slide_geometry_of_the_polish_equals_the_per_contact_motion(rng):
+    """The polish moves all sliding contacts at once (_SlideGeometry); the sweeps move one at a time
+    (_Contact.motion_s).  The two are the same great-circle / in-plane formula and must agree."""
+    from fem_grasp.relaxation import _Contact, _SlideGeometry
+
+    up = np.array([0.0, 0.0, 1.0])
+    contacts = []
+    for k in range(6):
+        a = rng.normal(size=(3, 3))
+        ckk = a @ a.T + 3 * np.eye(3)
+        if k % 2:
+            contacts.append(_Contact(rng.normal(size=3), None, up, ckk))  # table contact
+        else:
+            centre = rng.normal(size=3)
+            q0 = centre + 0.01 * (lambda v: v / np.linalg.norm(v))(rng.normal(size=3))
+            contacts.append(_Contact(q0, centre, up, ckk))
+    mu = rng.uniform(0.2, 0.8, size=len(contacts))
+    us = 3e-3 * rng.normal(size=(len(contacts), 2))
+    us[1] = 0.0  # no motion at all
+    geo = _SlideGeometry(contacts, mu)
+    delta, n, s = geo.motion(us)
+    a, d2 = geo.projections(us)
+    for k, c in enumerate(contacts):
+        dk, nk, sk = c.motion_s(*us[k])
+        np.testing.assert_allclose(delta[k], dk, atol=1e-15)
+        np.testing.assert_allclose(n[k], nk, atol=1e-15)
+        np.testing.assert_allclose(s[k], sk, atol=1e-15)
+        f = rng.normal(size=3)
+        # the projection maps a force to the slide residual of that force at this motion
+        fs = tuple(f - c.ckk @ np.array(dk))
+        g0, g1, _ = c.slide_residual(fs, float(mu[k]), *us[k])
+        np.testing.assert_allclose(a[k] @ f, [g0, g1], atol=1e-12 * np.abs(f).max())
