@@ -28,13 +28,14 @@ $(STAMPS)/venv: $(STAMPS)/apt pyproject.toml
 	$(SYSPY) -m venv --system-site-packages $(VENV)
 	$(SYSPY) -c "import numpy; print('numpy==' + numpy.__version__)" > $(STAMPS)/constraints.txt
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -c $(STAMPS)/constraints.txt -e ".[dev,report]"
+	$(PY) -m pip install -q -c $(STAMPS)/constraints.txt -e ".[dev,report,fast]"
 	@# Optional CHOLMOD backend: scikit-sparse compiled against Debian's SuiteSparse and the pinned numpy
 	@# (no build isolation, so Cython comes first). If it fails to build, SuperLU is used instead.
 	$(PY) -m pip install -q -c $(STAMPS)/constraints.txt "cython>=0.29" setuptools wheel && \
 	  $(PY) -m pip install -q -c $(STAMPS)/constraints.txt --no-build-isolation -e ".[cholmod]" \
 	  || echo "WARNING: scikit-sparse (CHOLMOD) did not build; fem_grasp falls back to SciPy SuperLU"
 	$(PY) -c "import dolfinx, gmsh, numpy; print('venv ok: dolfinx', dolfinx.__version__, 'numpy', numpy.__version__)"
+	$(PY) -c "from fem_grasp import jit; print('inner loops:', jit.backend_name())"
 	@touch $@
 
 test: setup

@@ -1,0 +1,70 @@
+"""The compiled (numba) and plain-Python Gauss–Seidel sweeps give the same answers (fem_grasp.jit).
+
+The sweep kernels of :mod:`fem_grasp.gauss_seidel` are one source run two
+ways; the plain-Python run happens in a subprocess with FEM_GRASP_NO_JIT=1
+(the choice is made at import).  Both must reach the same statuses in the
+same number of sweeps, with the same forces, or fail with the same message.
+"""
+
+import os
+import pickle
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fem_grasp import jit
+from fem_grasp.relaxation import RelaxationFailure, relax_contacts
+
+ROOT = Path(__file__).resolve().parents[1]
+UP = np.array([0.0, 0.0, 1.0])
+
+
+def _problems():
+    from tests.test_relaxation import _box_on_the_table_pushed_sideways, _squeezed_box
+
+    out = []
+    for mu, depth in [(0.5, 2e-3), (0.3, 2e-3), (0.5, 4e-3), (0.2, 1e-3)]:
+        c, f0, q0, centers, mu_k, _ = _squeezed_box(mu, depth)
+        out.append(((c, f0, q0, centers, UP, mu_k, float(np.abs(f0).max())), {}))
+    for tangential in (0.49, 0.6, 1.0):  # held; steady drift; a contact with no local state
+        c, f, q, centers, mu_k = _box_on_the_table_pushed_sideways(tangential)
+        out.append(((c, f, q, centers, UP, mu_k, 1.0), {"max_slip": 1.0}))
+    return out
+
+
+def solve_all():
+    """Each problem's (statuses, sweeps, forces, displacements), or its failure message."""
+    results = []
+    for args, kwargs in _problems():
+        try:
+            r = relax_contacts(*args, **kwargs)
+            results.append((r.status, r.sweeps, r.forces, r.displacements))
+        except RelaxationFailure as exc:
+            results.append(str(exc))
+    return results
+
+
+@pytest.mark.skipif(not jit.ENABLED, reason="numba is not installed (or FEM_GRASP_NO_JIT is set): "
+                                           "only the plain-Python sweeps exist here")
+def test_compiled_and_plain_python_sweeps_agree(tmp_path):
+    compiled = solve_all()
+    out = tmp_path / "python.pkl"
+    env = dict(os.environ, FEM_GRASP_NO_JIT="1")
+    code = ("import pickle, sys; from fem_grasp import jit; assert not jit.ENABLED; "
+            "from tests.test_jit import solve_all; pickle.dump(solve_all(), open(sys.argv[1], 'wb'))")
+    subprocess.run([sys.executable, "-c", code, str(out)], cwd=ROOT, env=env, check=True)
+    python = pickle.loads(out.read_bytes())
+    assert len(python) == len(compiled) == 7
+    assert sum(isinstance(r, str) for r in compiled) == 2  # the two loads friction cannot hold
+    for a, b in zip(compiled, python):
+        if isinstance(a, str) or isinstance(b, str):
+            assert a == b
+            continue
+        np.testing.assert_array_equal(a[0], b[0])
+        assert a[1] == b[1]
+        scale = np.abs(a[2]).max()
+        np.testing.assert_allclose(a[2], b[2], rtol=0, atol=1e-12 * scale)
+        np.testing.assert_allclose(a[3], b[3], rtol=0, atol=1e-12 * np.abs(a[3]).max() + 1e-300)
