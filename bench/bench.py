@@ -25,6 +25,10 @@ Sections (``--only NAME``, repeatable; default all):
 ``spectral``
     One pickup of the football scene with the sparse and the spectral (paper)
     backends: time ratio and the largest difference of the results.
+``jit``
+    One tomato pickup with the Gauss–Seidel sweeps compiled by numba and one
+    with them as plain Python (``FEM_GRASP_NO_JIT=1``), each in a fresh
+    process after a warm-up pickup: time ratio, same events.
 
 Medians over ``--reps`` repetitions.  Prints tables and writes
 ``bench/out/bench.json`` (sections run earlier are kept when ``--only`` runs
@@ -54,7 +58,7 @@ log = logging.getLogger("bench")
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "bench" / "out" / "bench.json"
-SECTIONS = ("solve", "scaling", "objects", "spectral")
+SECTIONS = ("solve", "scaling", "objects", "spectral", "jit")
 SOLVE_SIZES = (10000, 50000)
 SCALING_SIZES = (1000, 3000, 10000, 30000, 50000, 100000)
 #: SuperLU above this many vertices takes minutes and gigabytes: not timed.
@@ -94,11 +98,12 @@ def machine() -> dict[str, Any]:
         mem = float("nan")
     import scipy
 
-    from fem_grasp import compliance
+    from fem_grasp import compliance, jit
 
     return {"cpu": cpu, "cores": os.cpu_count(), "memory_gib": round(mem, 1), "python": platform.python_version(),
             "numpy": np.__version__, "scipy": scipy.__version__, "default_solver": compliance.choose_solver(),
-            "cholmod": compliance.cholmod_available(), "date": time.strftime("%Y-%m-%d")}
+            "cholmod": compliance.cholmod_available(), "inner_loops": jit.backend_name(),
+            "date": time.strftime("%Y-%m-%d")}
 
 
 def orange_body(mesh, young: float = YOUNG):
@@ -387,8 +392,44 @@ def print_spectral(sec: dict[str, Any]) -> None:
           f"positions / diameter {d.get('final_positions_over_diameter', float('nan')):.1e}")
 
 
+# ------------------------------------------------- compiled or plain Python
+JIT_SNIPPET = """
+import json, time
+from fem_grasp import jit
+from bench.bench import one_pickup
+one_pickup({name!r})  # loads (or compiles) the kernels, warms the caches
+t = time.perf_counter()
+res = one_pickup({name!r})
+print(json.dumps({{"seconds": time.perf_counter() - t, "inner_loops": jit.backend_name(),
+                  "events": [[e.kind, int(e.node)] for e in res.events], "squeeze_depth": res.squeeze_depth}}))
+"""
+
+
+def section_jit(name: str = "tomato") -> dict[str, Any]:
+    """One pickup with the Gauss–Seidel sweeps compiled by numba, one with them as plain Python
+    (FEM_GRASP_NO_JIT=1), each in its own process after a warm-up pickup."""
+    runs = {}
+    for label, extra in (("compiled", {}), ("python", {"FEM_GRASP_NO_JIT": "1"})):
+        env = {k: v for k, v in os.environ.items() if k != "FEM_GRASP_NO_JIT"}
+        proc = subprocess.run([sys.executable, "-c", JIT_SNIPPET.format(name=name)], cwd=ROOT,
+                              env=dict(env, **extra), capture_output=True, text=True, check=True)
+        runs[label] = json.loads(proc.stdout.strip().splitlines()[-1])
+        log.info("pickup %s, %s: %.3f s", name, runs[label]["inner_loops"], runs[label]["seconds"])
+    a, b = runs["compiled"], runs["python"]
+    return {"object": name, "compiled": a["inner_loops"], "compiled_s": a["seconds"], "python_s": b["seconds"],
+            "ratio": b["seconds"] / a["seconds"], "same_events": a["events"] == b["events"],
+            "squeeze_depth_rel": abs(a["squeeze_depth"] - b["squeeze_depth"]) / abs(b["squeeze_depth"])}
+
+
+def print_jit(sec: dict[str, Any]) -> None:
+    print(f"\n(e) one pickup, {sec['object']}, Gauss–Seidel sweeps compiled ({sec['compiled']}) against plain Python: "
+          f"{sec['compiled_s']:.3f} s against {sec['python_s']:.3f} s, ratio {sec['ratio']:.1f}; "
+          f"same events {sec['same_events']}, squeeze depth rel. diff. {sec['squeeze_depth_rel']:.1e}")
+
+
 # -------------------------------------------------------------------- main
-PRINTERS = {"solve": print_solve, "scaling": print_scaling, "objects": print_objects, "spectral": print_spectral}
+PRINTERS = {"solve": print_solve, "scaling": print_scaling, "objects": print_objects, "spectral": print_spectral,
+            "jit": print_jit}
 
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:
@@ -426,11 +467,13 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             data["objects"] = section_objects(args.reps, args.object_budget)
         elif name == "spectral":
             data["spectral"] = section_spectral()
+        elif name == "jit":
+            data["jit"] = section_jit()
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(json.dumps(data, indent=2, default=float))
     m = data["machine"]
     print(f"\nmachine: {m['cpu']}, {m['cores']} cores, {m['memory_gib']} GiB; Python {m['python']}, numpy {m['numpy']}, "
-          f"scipy {m['scipy']}; default sparse solver {m['default_solver']}")
+          f"scipy {m['scipy']}; default sparse solver {m['default_solver']}; inner loops {m.get('inner_loops', '?')}")
     for name in SECTIONS:
         if name in data:
             PRINTERS[name](data[name])

@@ -6,12 +6,21 @@ arrays as either numpy arrays (compiled) or nested lists (plain Python,
 where list indexing is several times cheaper than numpy's per-element
 access).  :func:`as_kernel_data` converts to whichever form is in use.
 
+numba itself (~0.13 s to import) is imported at the first call of a kernel,
+not with fem_grasp: that call replaces every kernel in its module's
+namespace by its compiled version (``cache=True``: compiled once per
+installation, then loaded from ``__pycache__``), so that kernels calling
+kernels are compiled together.
+
 Set ``FEM_GRASP_NO_JIT=1`` before importing fem_grasp to run the plain
 Python versions even when numba is installed (the tests compare the two).
 """
 
 from __future__ import annotations
 
+import functools
+import importlib.metadata
+import importlib.util
 import logging
 import os
 from typing import Any, Callable
@@ -22,20 +31,37 @@ __all__ = ["ENABLED", "jit", "as_kernel_data", "backend_name"]
 
 log = logging.getLogger(__name__)
 
-try:  # pragma: no cover - depends on the installation
-    import numba
-except ImportError:  # pragma: no cover
-    numba = None
-
 #: Whether :func:`jit` compiles (numba is installed and FEM_GRASP_NO_JIT is not set).
-ENABLED: bool = numba is not None and not os.environ.get("FEM_GRASP_NO_JIT")
+ENABLED: bool = importlib.util.find_spec("numba") is not None and not os.environ.get("FEM_GRASP_NO_JIT")
+
+_kernels: list[tuple[dict, str, Callable]] = []  # (module namespace, name, Python function)
+
+
+def _compile_all() -> None:
+    """Put the compiled version of every kernel in place of its stub (numba compiles lazily, per signature)."""
+    try:
+        import numba
+    except ImportError as exc:  # pragma: no cover - found but broken installation
+        log.warning("numba could not be imported (%s): the inner loops run as plain Python on arrays", exc)
+        numba = None
+    for namespace, name, fn in _kernels:
+        namespace[name] = fn if numba is None else numba.njit(cache=True)(fn)
+    _kernels.clear()
 
 
 def jit(fn: Callable) -> Callable:
-    """``numba.njit(cache=True)`` when :data:`ENABLED`, else ``fn`` unchanged."""
+    """``numba.njit(cache=True)`` when :data:`ENABLED` (numba imported at the first call), else ``fn``."""
     if not ENABLED:
         return fn
-    return numba.njit(cache=True)(fn)
+    namespace, name = fn.__globals__, fn.__name__
+    _kernels.append((namespace, name, fn))
+
+    @functools.wraps(fn)
+    def first_call(*args: Any) -> Any:
+        _compile_all()
+        return namespace[name](*args)
+
+    return first_call
 
 
 def as_kernel_data(a: np.ndarray, dtype: Any = float) -> Any:
@@ -46,4 +72,4 @@ def as_kernel_data(a: np.ndarray, dtype: Any = float) -> Any:
 
 def backend_name() -> str:
     """'numba x.y.z' or 'python' (for benchmark and log lines)."""
-    return f"numba {numba.__version__}" if ENABLED else "python"
+    return f"numba {importlib.metadata.version('numba')}" if ENABLED else "python"
