@@ -858,6 +858,23 @@ class Tracker:
     def _gmax(values: dict) -> float:
         return max((float(v.max()) if v.size else -np.inf) for v, _ in values.values())
 
+    @staticmethod
+    def _flat(values: dict) -> np.ndarray:
+        """Every event function's value, in one array (the same order for every trial of one motion)."""
+        return np.concatenate([v for v, _ in values.values()])
+
+    @staticmethod
+    def _first_to_fire(g_lo: np.ndarray | None, g_hi: np.ndarray | None) -> int | None:
+        """Index of the event function whose linear interpolation between a trial with no event (g_lo ≤ 0)
+        and one past an event crosses zero first; None without both."""
+        if g_lo is None or g_hi is None:
+            return None
+        fire = np.flatnonzero((g_hi > 0) & np.isfinite(g_lo) & np.isfinite(g_hi))
+        if not fire.size:
+            return None
+        frac = -g_lo[fire] / (g_hi[fire] - g_lo[fire])
+        return int(fire[np.argmin(frac)])
+
     # ------------------------------------------------------------- stepping
     def advance(self, base: ContactState, dt: float, velocities: np.ndarray, *, load_rate: float = 0.0,
                 param: str = "squeeze_depth", phase: str | None = None,
@@ -901,7 +918,8 @@ class Tracker:
         trial.values = self.event_values(trial, fscale)
         if self._gmax(trial.values) <= 0.0:
             return trial.state, []
-        # Locate the first event in (0, h] (Illinois regula falsi on the max of the event functions).
+        # Locate the first event in (0, h]: Illinois regula falsi on the event function predicted to fire
+        # first (smooth in the parameter, unlike the max of them all, which switches between functions).
         tol = TOL_LOCATE * self.diameter
         lo, g_lo = 0.0, None
         try:
@@ -914,30 +932,38 @@ class Tracker:
             hi_trial, hi = t0, 0.0
         else:
             lo_trial = t0 if g_lo is not None else None
+            all_lo = None if g_lo is None else self._flat(t0.values)
             g_lo = -1.0 if g_lo is None else g_lo
             hi, g_hi, hi_trial = h, self._gmax(trial.values), trial
-            side = 0
+            all_hi = self._flat(trial.values)
+            side, lead, w_lo, w_hi = 0, None, 1.0, 1.0
             while hi - lo > tol:
-                mid = hi - g_hi * (hi - lo) / (g_hi - g_lo) if g_hi > g_lo else 0.5 * (lo + hi)
+                new_lead = self._first_to_fire(all_lo, all_hi)
+                if new_lead != lead:
+                    lead, w_lo, w_hi = new_lead, 1.0, 1.0
+                a, b = (g_lo, g_hi) if lead is None else (w_lo * all_lo[lead], w_hi * all_hi[lead])
+                mid = hi - b * (hi - lo) / (b - a) if b > a else 0.5 * (lo + hi)
                 if not (lo < mid < hi) or (hi - lo) < 1e3 * tol:
                     mid = 0.5 * (lo + hi)
                 try:
                     tr = self.trial(base, mid, velocities, load_rate, param)
                 except SlipFailure:
-                    hi, hi_trial = mid, None
+                    hi, hi_trial, all_hi = mid, None, None
                     g_hi = 1.0
                     continue
                 tr.values = self.event_values(tr, fscale)
                 g = self._gmax(tr.values)
                 if g > 0:
-                    hi, g_hi, hi_trial = mid, g, tr
+                    hi, g_hi, hi_trial, all_hi, w_hi = mid, g, tr, self._flat(tr.values), 1.0
                     if side == 1:
                         g_lo *= 0.5
+                        w_lo *= 0.5
                     side = 1
                 else:
-                    lo, g_lo, lo_trial = mid, g, tr
+                    lo, g_lo, lo_trial, all_lo, w_lo = mid, g, tr, self._flat(tr.values), 1.0
                     if side == -1:
                         g_hi *= 0.5
+                        w_hi *= 0.5
                     side = -1
             if hi_trial is None:
                 try:
