@@ -314,6 +314,9 @@ def sweep(rec, c, f, d, u, has_u, status, mu, stick_tol, local_tol, max_slip, me
             x2 = -(g[31] * fs0 + g[32] * fs1 + g[33] * fs2)
             if not math.sqrt(x0 * x0 + x1 * x1 + x2 * x2) <= max_slip:  # also catches NaN
                 return FREE_TOO_FAR, k, change, move, unsolved
+            # Signorini's condition in the contact's own frame: it lifts off when δ·n̂⁰ ≥ 0.  On a sphere the
+            # exact distance would also grow with a purely tangential motion (|r⁰ + t| > R), letting a pressed
+            # contact "release" sideways instead of sliding; δ·n̂⁰ ≥ 0 still implies |r⁰ + δ| ≥ R.
             if x0 * n0 + x1 * n1 + x2 * n2 >= 0.0:
                 st = RELEASE
             else:

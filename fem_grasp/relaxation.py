@@ -25,9 +25,9 @@ The coupled problem is solved node by node (projected Gauss–Seidel, the
 classical solver of nonsmooth contact mechanics): each visit solves contact
 k's own problem exactly with the others frozen — a 2×2 Newton iteration for a
 slide, warm-started from the previous sweep — and updates every force by the
-rank-3 change C[:, k] Δδ_k.  The sweep itself is
-:func:`fem_grasp.gauss_seidel.sweep`, compiled by numba when it is installed.  Sweeps repeat until no force changes by more than
-``tol`` × the force scale.  For the Tresca (fixed normal force) problem this
+rank-3 change C[:, k] Δδ_k (the sweep is :func:`fem_grasp.gauss_seidel.sweep`,
+compiled by numba when it is installed).  Sweeps repeat until no force changes
+by more than ``tol`` × the force scale.  For the Tresca (fixed normal force) problem this
 is block coordinate descent on a convex energy and converges; the Coulomb
 coupling through the normal forces makes it a fixed point that converges
 when friction is not too large for the coupling, and the iteration count is
