@@ -150,6 +150,15 @@ class Body:
         return Compliance(self.stiffness, self.mesh.points, self.rigid_modes)
 
     @cached_property
+    def gravity_compliance_field(self) -> np.ndarray:
+        """X G (3n,): the grounded compliance applied to gravity (sparse backend).
+
+        The same for every contact set, so computed once per body (one full solve); each
+        :class:`~fem_grasp.response.ContactResponse` takes its D̄ of eq. (3) and its field from it.
+        """
+        return self.compliance.apply(self.gravity_loads)
+
+    @cached_property
     def spectral(self) -> "SpectralDecomposition":
         """K = VΛVᵀ and D of §II-B/C (spectral backend; dense, O(n³))."""
         from .spectral import spectral_decomposition

@@ -199,9 +199,9 @@ class ContactResponse:
             log.warning("contact set of %d nodes is nearly collinear: cond(M) ~ %.1e, forces lose accuracy",
                         len(self.nodes), self.condition_estimate)
 
-    @cached_property
+    @property
     def _gravity_displacement(self) -> np.ndarray:
-        return self.body.compliance.apply(self.body.gravity_loads)
+        return self.body.gravity_compliance_field
 
     @property
     def n_contacts(self) -> int:
