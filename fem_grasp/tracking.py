@@ -108,6 +108,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import warnings
 from dataclasses import dataclass, field, replace
 from typing import Callable, Sequence
@@ -317,12 +318,12 @@ class MixedSlipSystem:
             self.loc_e[fi, :, 0] = r
             if free:
                 e12 = tangent_bases(nrm)
-                self.loc_e[fi, :, 1] = np.cross(e12[:, 0], r)
-                self.loc_e[fi, :, 2] = np.cross(e12[:, 1], r)
+                self.loc_e[fi, :, 1] = _cross(e12[:, 0], r)
+                self.loc_e[fi, :, 2] = _cross(e12[:, 1], r)
             else:
-                axis = np.cross(nrm, t[fi])
+                axis = _cross(nrm, t[fi])
                 axis /= np.linalg.norm(axis, axis=1, keepdims=True)
-                self.loc_e[fi, :, 1] = np.cross(axis, r)
+                self.loc_e[fi, :, 1] = _cross(axis, r)
         if len(ta):
             if free:
                 e12 = tangent_bases(self.n0[ta])
@@ -410,6 +411,16 @@ class MixedSlipSystem:
 
     @np.errstate(over="ignore", invalid="ignore")
     def residual(self, x: np.ndarray) -> np.ndarray:
+        """The system's equations at x: cone (6)/(7) per sliding node, (8) per fingertip node, alignment."""
+        return self._residual(x)
+
+    @np.errstate(over="ignore", invalid="ignore")
+    def jacobian(self, x: np.ndarray) -> np.ndarray:
+        """∂residual/∂x."""
+        return self._jacobian(x)
+
+    # The raw versions run inside an errstate of the caller (solve, once, not once per evaluation).
+    def _residual(self, x: np.ndarray) -> np.ndarray:
         f = self._sliding_forces(x)
         d = self.slips(x)
         n = self.n0 + self.kappa[:, None] * d
@@ -423,8 +434,7 @@ class MixedSlipSystem:
             align = np.zeros(0)
         return np.concatenate([cone, sphere, align])
 
-    @np.errstate(over="ignore", invalid="ignore")
-    def jacobian(self, x: np.ndarray) -> np.ndarray:
+    def _jacobian(self, x: np.ndarray) -> np.ndarray:
         f = self._sliding_forces(x)
         d = self.slips(x)
         n = self.n0 + self.kappa[:, None] * d
@@ -518,7 +528,7 @@ class MixedSlipSystem:
                 return None
             if np.all(np.abs(r) <= lim):
                 return y
-            norm = float(np.linalg.norm(r))
+            norm = math.sqrt(float(r @ r))  # np.linalg.norm's own formula, without its overhead
             if norm < 0.9 * best:
                 best, since = norm, 0
             else:
@@ -535,17 +545,19 @@ class MixedSlipSystem:
             for _ in range(12):
                 y_new = y + lam * step
                 r_new = fun(y_new)
-                if np.isfinite(r_new).all() and np.linalg.norm(r_new) < (1.0 - 1e-4 * lam) * norm:
+                if np.isfinite(r_new).all() and math.sqrt(float(r_new @ r_new)) < (1.0 - 1e-4 * lam) * norm:
                     break
                 lam *= 0.5
             else:
                 y_new, r_new = y + step, fun(y + step)  # no decrease: take the full step (round-off regime)
-            stalled = np.linalg.norm(y_new - y) <= 1e-14 * (1.0 + np.linalg.norm(y_new))
+            dy = y_new - y
+            stalled = math.sqrt(float(dy @ dy)) <= 1e-14 * (1.0 + math.sqrt(float(y_new @ y_new)))
             y, r = y_new, r_new
             if stalled:
                 break
         return y if np.isfinite(r).all() and np.all(np.abs(r) <= 10.0 * lim) else None
 
+    @np.errstate(over="ignore", invalid="ignore")
     def solve(self, tol: float = 1e-12, methods: Sequence[str] = ("newton", "homotopy"),
               start: np.ndarray | None = None) -> np.ndarray:
         """The root continuously connected to the held state; raises :class:`SlipFailure`.
@@ -564,10 +576,10 @@ class MixedSlipSystem:
         rs = self.row_scale
 
         def fun(y: np.ndarray) -> np.ndarray:
-            return rs * self.residual(y * scale)
+            return rs * self._residual(y * scale)
 
         def jac(y: np.ndarray) -> np.ndarray:
-            return rs[:, None] * self.jacobian(y * scale) * scale[None, :]
+            return rs[:, None] * self._jacobian(y * scale) * scale[None, :]
 
         y0 = self.x0 / scale
         attempts: list[str] = []
