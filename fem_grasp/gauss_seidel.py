@@ -101,18 +101,24 @@ def _force(g, fs0, fs1, fs2, d0, d1, d2):
 
 
 @jit
+def _tangent_frame(g, n0, n1, n2):
+    """(ê, n̂ × ê): e₁ projected onto the tangent plane of n̂ and normalised, and its turn by 90°."""
+    a0, a1, a2 = g[0], g[1], g[2]
+    an = a0 * n0 + a1 * n1 + a2 * n2
+    e0, e1, e2 = a0 - an * n0, a1 - an * n1, a2 - an * n2
+    el = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+    e0, e1, e2 = e0 / el, e1 / el, e2 / el
+    return e0, e1, e2, n1 * e2 - n2 * e1, n2 * e0 - n0 * e2, n0 * e1 - n1 * e0
+
+
+@jit
 def slide_residual(g, fs0, fs1, fs2, mu, u0, u1):
     """The slide equations at motion (u0, u1): f_t + μ f_n ŝ in the tangent plane there (2), and f_n."""
     d0, d1, d2, n0, n1, n2, s0, s1, s2 = motion(g, u0, u1)
     f0, f1, f2 = _force(g, fs0, fs1, fs2, d0, d1, d2)
     fn = f0 * n0 + f1 * n1 + f2 * n2
     g0, g1, g2 = f0 - fn * n0 + mu * fn * s0, f1 - fn * n1 + mu * fn * s1, f2 - fn * n2 + mu * fn * s2
-    a0, a1, a2 = g[0], g[1], g[2]
-    an = a0 * n0 + a1 * n1 + a2 * n2
-    e0, e1, e2 = a0 - an * n0, a1 - an * n1, a2 - an * n2
-    el = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
-    e0, e1, e2 = e0 / el, e1 / el, e2 / el
-    c0, c1, c2 = n1 * e2 - n2 * e1, n2 * e0 - n0 * e2, n0 * e1 - n1 * e0
+    e0, e1, e2, c0, c1, c2 = _tangent_frame(g, n0, n1, n2)
     return g0 * e0 + g1 * e1 + g2 * e2, g0 * c0 + g1 * c1 + g2 * c2, fn
 
 
@@ -124,12 +130,7 @@ def slide_projection(g, mu, u0, u1):
     :mod:`fem_grasp.relaxation` applies it to the forces of all contacts.
     """
     d0, d1, d2, n0, n1, n2, s0, s1, s2 = motion(g, u0, u1)
-    a0, a1, a2 = g[0], g[1], g[2]
-    an = a0 * n0 + a1 * n1 + a2 * n2
-    e0, e1, e2 = a0 - an * n0, a1 - an * n1, a2 - an * n2
-    el = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
-    e0, e1, e2 = e0 / el, e1 / el, e2 / el
-    c0, c1, c2 = n1 * e2 - n2 * e1, n2 * e0 - n0 * e2, n0 * e1 - n1 * e0
+    e0, e1, e2, c0, c1, c2 = _tangent_frame(g, n0, n1, n2)
     # row v of (I − n̂n̂ᵀ + μ ŝn̂ᵀ) applied from the left: v − (v·n̂) n̂ + μ (v·ŝ) n̂
     pe = mu * (e0 * s0 + e1 * s1 + e2 * s2) - (e0 * n0 + e1 * n1 + e2 * n2)
     pc = mu * (c0 * s0 + c1 * s1 + c2 * s2) - (c0 * n0 + c1 * n1 + c2 * n2)
