@@ -526,3 +526,49 @@ def test_default_placement_on_a_box_takes_the_middle_of_the_faces_not_an_edge(ru
     np.testing.assert_allclose(p[:, 0], 0.0, atol=1e-4)  # in the middle of each face, not at its edges
     out = surface_normals_at(rs.body.mesh, rs.positions)[list(ij)]
     np.testing.assert_allclose(out, [[0, -1, 0], [0, 1, 0]], atol=1e-2)  # facing each other
+
+
+def test_the_event_predicted_to_fire_first_leads_the_location():
+    """Regula falsi follows the event function whose linear interpolation crosses zero first; functions that
+    do not fire, or are not defined (−inf), are ignored; without a no-event side there is no prediction."""
+    lo = np.array([-1.0, -0.1, -np.inf, -2.0, -0.5])
+    hi = np.array([1.0, 0.01, 5.0, -1.0, 2.0])
+    # crossing fractions: 0.5, 0.909, -, -, 0.2 -> index 4 first
+    assert Tracker._first_to_fire(lo, hi) == 4
+    assert Tracker._first_to_fire(lo, np.array([-1.0, 0.01, 5.0, -1.0, -0.1])) == 1
+    assert Tracker._first_to_fire(lo, np.full(5, -1.0)) is None
+    assert Tracker._first_to_fire(None, hi) is None and Tracker._first_to_fire(lo, None) is None
+
+
+def test_a_slip_form_whose_newton_failed_at_a_smaller_step_is_tried_last(monkeypatch):
+    """After the great-circle Newton finds no root at dt, later trials of the same motion at dt' ≥ dt start
+    with the free-direction form; a trial at a smaller step still tries the great circle first."""
+    from fem_grasp.placement import PAPER_SQUEEZE_DIRECTIONS
+    from fem_grasp.squeeze import initial_state
+    from fem_grasp.tracking import SlipFailure, run
+
+    body = _box()
+    rs = rest(body, 0.5)
+    t = Tracker(rs.body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)
+    vel = np.stack(PAPER_SQUEEZE_DIRECTIONS)
+    state, _ = t.settle(initial_state(t, rs, _face_centres(rs)), vel, phase="squeeze")
+    state, _, _ = run(t, state, vel, stop=0.003, step=1e-4)
+    assert state.sliding.sum() >= 3
+    order = []
+    orig = MixedSlipSystem.solve
+
+    def solve(self, *a, methods=("newton", "homotopy"), **k):
+        order.append(self.free)
+        if not self.free and methods == ("newton",):
+            raise SlipFailure("great circle made to fail")
+        return orig(self, *a, methods=methods, **k)
+
+    monkeypatch.setattr(MixedSlipSystem, "solve", solve)
+    t.trial(state, 2e-4, vel, methods=("newton",))
+    assert order == [False, True]
+    order.clear()
+    t.trial(state, 3e-4, vel, methods=("newton",))
+    assert order == [True]  # the free form found a root at once
+    order.clear()
+    t.trial(state, 1e-4, vel, methods=("newton",))  # smaller than the failing step: great circle first
+    assert order == [False, True]
