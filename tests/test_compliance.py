@@ -136,3 +136,17 @@ def test_bad_solver_names_and_inputs_are_refused(body, monkeypatch):
 def test_explicit_cholmod_without_scikit_sparse_says_how_to_install():
     with pytest.raises(ImportError, match="scikit-sparse"):
         cp.choose_solver("cholmod")
+
+
+@pytest.mark.parametrize("solver", AVAILABLE)
+def test_prefetched_columns_equal_columns_solved_one_node_at_a_time(body, solver):
+    """prefetch solves many nodes' columns at once (the rest's likely next contacts); each must equal the
+    column of its node solved alone, and be cached."""
+    batch = cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver=solver)
+    single = cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver=solver)
+    nodes = [3, 9, 40, 41, 57]
+    batch.prefetch(nodes)
+    assert all(batch.is_cached(k) for k in nodes) and not batch.is_cached(2) and batch.cached_nodes == 5
+    for k in nodes:
+        ref = single.node_columns([k])
+        np.testing.assert_allclose(batch.node_columns([k]), ref, rtol=0, atol=1e-12 * np.abs(ref).max())
