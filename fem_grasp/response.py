@@ -97,14 +97,18 @@ class ContactSolution:
     nodes : (m,) contact node indices
     forces : (m, 3) contact forces F̄ exerted on the object, newtons
     displacements : (n, 3) displacement field Δ, metres
-    strain_energy : ½ΔᵀKΔ, joules
+    strain_energy : ½ΔᵀKΔ, joules (computed when first read: contact tracking makes thousands of
+        fields and reads none of their energies)
     """
 
     nodes: np.ndarray
     forces: np.ndarray
     displacements: np.ndarray
-    strain_energy: float
     body: "Body"
+
+    @cached_property
+    def strain_energy(self) -> float:
+        return self.body.strain_energy(self.displacements)
 
     @property
     def positions(self) -> np.ndarray:
@@ -260,8 +264,7 @@ class ContactResponse:
             field = self.body.spectral.displacement(self.dofs, f, b)
         # Restore the prescribed values exactly (they hold to round-off anyway).
         field[self.dofs] = d
-        energy = self.body.strain_energy(field)
-        return ContactSolution(self.nodes, f.reshape(-1, 3), field.reshape(-1, 3), energy, self.body)
+        return ContactSolution(self.nodes, f.reshape(-1, 3), field.reshape(-1, 3), self.body)
 
 
 def solve_contact(body: "Body", nodes: np.ndarray, displacements: np.ndarray, backend: str = "sparse") -> ContactSolution:
