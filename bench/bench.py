@@ -25,10 +25,15 @@ Sections (``--only NAME``, repeatable; default all):
 ``spectral``
     One pickup of the football scene with the sparse and the spectral (paper)
     backends: time ratio and the largest difference of the results.
+``columns``
+    Compliance columns solved k at a time (k = 3, 30, 300) on the uniform
+    orange of about 31k vertices: seconds per column, the reason the rest
+    solves new contacts' columns in batches (``rest.PREFETCH_NODES``).
 ``jit``
     One tomato pickup with the Gauss–Seidel sweeps compiled by numba and one
     with them as plain Python (``FEM_GRASP_NO_JIT=1``), each in a fresh
-    process after a warm-up pickup: time ratio, same events.
+    process after a warm-up pickup: time ratio, same events; and the warm-up
+    pickup's time, which compiles the sweeps (an empty numba cache).
 
 Medians over ``--reps`` repetitions.  Prints tables and writes
 ``bench/out/bench.json`` (sections run earlier are kept when ``--only`` runs
@@ -58,7 +63,7 @@ log = logging.getLogger("bench")
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "bench" / "out" / "bench.json"
-SECTIONS = ("solve", "scaling", "objects", "spectral", "jit")
+SECTIONS = ("solve", "scaling", "objects", "spectral", "jit", "columns")
 SOLVE_SIZES = (10000, 50000)
 SCALING_SIZES = (1000, 3000, 10000, 30000, 50000, 100000)
 #: SuperLU above this many vertices takes minutes and gigabytes: not timed.
@@ -397,10 +402,12 @@ JIT_SNIPPET = """
 import json, time
 from fem_grasp import jit
 from bench.bench import one_pickup
-one_pickup({name!r})  # loads (or compiles) the kernels, warms the caches
+t = time.perf_counter()
+one_pickup({name!r})  # compiles the kernels (an empty numba cache), warms the caches
+first = time.perf_counter() - t
 t = time.perf_counter()
 res = one_pickup({name!r})
-print(json.dumps({{"seconds": time.perf_counter() - t, "inner_loops": jit.backend_name(),
+print(json.dumps({{"seconds": time.perf_counter() - t, "first_s": first, "inner_loops": jit.backend_name(),
                   "events": [[e.kind, int(e.node)] for e in res.events], "squeeze_depth": res.squeeze_depth}}))
 """
 
@@ -408,28 +415,57 @@ print(json.dumps({{"seconds": time.perf_counter() - t, "inner_loops": jit.backen
 def section_jit(name: str = "tomato") -> dict[str, Any]:
     """One pickup with the Gauss–Seidel sweeps compiled by numba, one with them as plain Python
     (FEM_GRASP_NO_JIT=1), each in its own process after a warm-up pickup."""
+    import tempfile
+
     runs = {}
     for label, extra in (("compiled", {}), ("python", {"FEM_GRASP_NO_JIT": "1"})):
         env = {k: v for k, v in os.environ.items() if k != "FEM_GRASP_NO_JIT"}
-        proc = subprocess.run([sys.executable, "-c", JIT_SNIPPET.format(name=name)], cwd=ROOT,
-                              env=dict(env, **extra), capture_output=True, text=True, check=True)
+        with tempfile.TemporaryDirectory() as cache:  # an empty numba cache: the first pickup compiles
+            proc = subprocess.run([sys.executable, "-c", JIT_SNIPPET.format(name=name)], cwd=ROOT,
+                                  env=dict(env, NUMBA_CACHE_DIR=cache, **extra), capture_output=True, text=True,
+                                  check=True)
         runs[label] = json.loads(proc.stdout.strip().splitlines()[-1])
         log.info("pickup %s, %s: %.3f s", name, runs[label]["inner_loops"], runs[label]["seconds"])
     a, b = runs["compiled"], runs["python"]
     return {"object": name, "compiled": a["inner_loops"], "compiled_s": a["seconds"], "python_s": b["seconds"],
             "ratio": b["seconds"] / a["seconds"], "same_events": a["events"] == b["events"],
+            "compiled_first_s": a["first_s"], "python_first_s": b["first_s"],
             "squeeze_depth_rel": abs(a["squeeze_depth"] - b["squeeze_depth"]) / abs(b["squeeze_depth"])}
 
 
 def print_jit(sec: dict[str, Any]) -> None:
     print(f"\n(e) one pickup, {sec['object']}, Gauss–Seidel sweeps compiled ({sec['compiled']}) against plain Python: "
           f"{sec['compiled_s']:.3f} s against {sec['python_s']:.3f} s, ratio {sec['ratio']:.1f}; "
-          f"same events {sec['same_events']}, squeeze depth rel. diff. {sec['squeeze_depth_rel']:.1e}")
+          f"same events {sec['same_events']}, squeeze depth rel. diff. {sec['squeeze_depth_rel']:.1e}; the first pickup "
+          f"in a fresh process with an empty numba cache (compiling): {sec.get('compiled_first_s', float('nan')):.3f} s "
+          f"against {sec.get('python_first_s', float('nan')):.3f} s")
+
+
+# ------------------------------------------------------- compliance columns
+def section_columns(size: int = 30000) -> dict[str, Any]:
+    """Seconds per compliance column when k columns are solved at once (unit loads on k DOFs)."""
+    from bench.meshes import cached_mesh
+
+    body = orange_body(cached_mesh("orange", size), SCALING_YOUNG)
+    comp = body.compliance
+    rows = []
+    for k in (3, 30, 300):
+        rhs = np.zeros((comp.n_dofs, k))
+        rhs[(np.arange(k) * 7) % comp.n_dofs, np.arange(k)] = 1.0
+        t, _ = timed(lambda: comp.apply(rhs))
+        rows.append({"columns": k, "seconds": t, "per_column_ms": 1e3 * t / k})
+        log.info("%d columns at once: %.3f s", k, t)
+    return {"vertices": body.n_nodes, "solver": comp.solver, "rows": rows}
+
+
+def print_columns(sec: dict[str, Any]) -> None:
+    print(f"\n(f) compliance columns solved k at a time, orange of {sec['vertices']} vertices ({sec['solver']}): "
+          + ", ".join(f"k = {r['columns']}: {r['per_column_ms']:.1f} ms per column" for r in sec["rows"]))
 
 
 # -------------------------------------------------------------------- main
 PRINTERS = {"solve": print_solve, "scaling": print_scaling, "objects": print_objects, "spectral": print_spectral,
-            "jit": print_jit}
+            "jit": print_jit, "columns": print_columns}
 
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:
@@ -469,6 +505,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             data["spectral"] = section_spectral()
         elif name == "jit":
             data["jit"] = section_jit()
+        elif name == "columns":
+            data["columns"] = section_columns()
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(json.dumps(data, indent=2, default=float))
     m = data["machine"]

@@ -14,6 +14,9 @@ Prints the phase times, the counters and the functions with the largest
 cumulative time.  Profiling slows the run by 1.5–2×; compare runs of one
 invocation, or phases within one run.  ``--free-blas`` leaves OpenBLAS its
 threads during tracking (by default ``tracking.run`` limits BLAS to one).
+``--orange N`` profiles the pickup of ``make bench``'s scaling section at
+about N vertices instead of a scene (``--sort tottime`` lists the functions
+by their own time).
 """
 
 from __future__ import annotations
@@ -29,11 +32,18 @@ from typing import Any
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap = argparse.ArgumentParser(prog="python -m bench.profile", description=__doc__.split("\n\n")[0])
-    ap.add_argument("scene", help="a shipped scene name or a scene file")
+    ap.add_argument("scene", nargs="?", help="a shipped scene name or a scene file")
+    ap.add_argument("--orange", type=int, metavar="N",
+                    help="instead of a scene, the scaling section's uniform orange of about N vertices "
+                         "(make bench; its rest is computed before profiling)")
+    ap.add_argument("--sort", default="cumulative", choices=("cumulative", "tottime"),
+                    help="order of the cProfile table (default cumulative)")
     ap.add_argument("--quick", action="store_true", help="the scene's quick variant")
     ap.add_argument("--top", type=int, default=25, help="functions to list (default 25)")
     ap.add_argument("--free-blas", action="store_true", help="do not limit BLAS to one thread while tracking")
     args = ap.parse_args(argv)
+    if (args.scene is None) == (args.orange is None):
+        ap.error("give a scene or --orange N")
 
     import contextlib
 
@@ -76,13 +86,28 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     tracking.MixedSlipSystem.solve = counted_solve
     if args.free_blas and limit is not None:
         tracking.one_blas_thread = contextlib.nullcontext
-    scene = load_scene(resolve_scene(args.scene), quick=args.quick)
-    body = scene.body()
+    if args.orange:
+        from bench.bench import SCALING_YOUNG, orange_body
+        from bench.meshes import cached_mesh
+        from fem_grasp import rest
+        from fem_grasp.objects import PAPER_PLACEMENT_RULE
+        from fem_grasp.pickup import DEFAULT_FRICTION
+
+        name = f"orange of {args.orange} vertices"
+        body = orange_body(cached_mesh("orange", args.orange), SCALING_YOUNG)
+        mu = DEFAULT_FRICTION
+        kwargs = {"mu_finger": mu, "mu_table": mu, "rest_state": rest(body, mu),
+                  "placement_rule": PAPER_PLACEMENT_RULE}
+    else:
+        scene = load_scene(resolve_scene(args.scene), quick=args.quick)
+        name = scene.name + (" (quick)" if args.quick else "")
+        body = scene.body()
+        kwargs = scene.pickup_kwargs()
     prof = cProfile.Profile()
     t0 = time.perf_counter()
     prof.enable()
     try:
-        res = pickup(body, **scene.pickup_kwargs())
+        res = pickup(body, **kwargs)
     finally:
         prof.disable()
         tracking.relax_contacts = relax
@@ -91,7 +116,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             tracking.one_blas_thread = limit
     wall = time.perf_counter() - t0
 
-    print(f"scene {scene.name}{' (quick)' if args.quick else ''}: {'picked up' if res.success else res.reason}; "
+    print(f"scene {name}: {'picked up' if res.success else res.reason}; "
           f"{len(res.events)} events; {wall:.1f} s under cProfile"
           f"{' (BLAS threads free)' if args.free_blas else ''}")
     print("phases: " + ", ".join(f"{k} {v:.2f} s" for k, v in res.timings.items()))
@@ -102,7 +127,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     for (meth, form, outcome), (n, t) in sorted(slip_stats.items(), key=lambda kv: -kv[1][1]):
         print(f"  {meth:>8s} {form:>14s} {outcome:>7s}: {int(n):6d} calls, {t:7.2f} s")
     out = io.StringIO()
-    pstats.Stats(prof, stream=out).sort_stats("cumulative").print_stats(args.top)
+    pstats.Stats(prof, stream=out).sort_stats(args.sort).print_stats(args.top)
     print(out.getvalue())
     return {"wall_s": wall, "timings": res.timings, "relax": dict(relax_stats),
             "slip": {"/".join(k): v for k, v in slip_stats.items()}}

@@ -15,3 +15,30 @@ def test_profile_counts_the_return_mappings_and_slip_solves_of_a_pickup(capsys):
     assert tracking.relax_contacts.__name__ == "relax_contacts"
     assert tracking.MixedSlipSystem.solve.__name__ == "solve"
     assert tracking.one_blas_thread.__name__ == "one_blas_thread"
+
+
+def test_replayed_return_mappings_reach_their_recorded_outcomes(tmp_path, capsys, monkeypatch):
+    """bench.replay records a pickup's return mappings and solves them again: the same code reaches the same
+    outcome on every call, and a solver that changes one verdict is reported."""
+    from bench import replay
+    from fem_grasp import relaxation
+
+    path = tmp_path / "calls.pkl"
+    calls = replay.capture("steam_bun", path, quick=True)  # ~20 return mappings, some failing
+    assert path.exists()
+    assert any(c[2][0] == "ok" for c in calls) and any(c[2][0] == "fail" for c in calls)
+    again = replay.main(["run", str(path)])
+    assert again["calls"] == len(calls) and again["changed"] == []
+
+    original = relaxation.relax_contacts
+    first = []
+
+    def one_verdict_flipped(*args, **kwargs):
+        if not first:
+            first.append(True)
+            raise relaxation.RelaxationFailure("made to fail")
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(relaxation, "relax_contacts", one_verdict_flipped)
+    flipped = replay.replay(path)
+    assert len(flipped["changed"]) == (1 if calls[0][2][0] == "ok" else 0)
