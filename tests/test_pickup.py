@@ -371,20 +371,26 @@ def test_paper_tables_format():
     assert "| tomato | 2.68 | 2.96 | 2.5 | 2.9 |" in text
 
 
-@pytest.mark.parametrize("free", [False, True])
-def test_slip_rates_of_event_d_match_finite_differences(free):
-    # Event D watches d(slip)/dρ from the implicit-function theorem; compare with the slips themselves.
+def _box_squeezed_3mm():
+    """The box on the table squeezed 3 mm by the paper's directions, with at least three nodes sliding:
+    (rest state, its tracker, the state, the finger velocities)."""
     from fem_grasp.placement import PAPER_SQUEEZE_DIRECTIONS
     from fem_grasp.squeeze import initial_state
     from fem_grasp.tracking import run
 
-    body = _box()
-    rs = rest(body, 0.5)
+    rs = rest(_box(), 0.5)
     tracker = Tracker(rs.body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)
     vel = np.stack(PAPER_SQUEEZE_DIRECTIONS)
     state, _ = tracker.settle(initial_state(tracker, rs, _face_centres(rs)), vel, phase="squeeze")
     state, _, _ = run(tracker, state, vel, stop=0.003, step=1e-4)
     assert state.sliding.sum() >= 3
+    return rs, tracker, state, vel
+
+
+@pytest.mark.parametrize("free", [False, True])
+def test_slip_rates_of_event_d_match_finite_differences(free):
+    # Event D watches d(slip)/dρ from the implicit-function theorem; compare with the slips themselves.
+    _, tracker, state, vel = _box_squeezed_3mm()
     tracker.forms = (free,)
     t0 = tracker.trial(state, 0.0, vel)
     t1 = tracker.trial(state, 1e-8, vel)
@@ -396,23 +402,13 @@ def test_slip_rates_of_event_d_match_finite_differences(free):
 @pytest.mark.parametrize("free", [False, True])
 def test_warm_started_slip_roots_are_the_homotopy_roots(free, monkeypatch):
     """Newton from the root at a nearby parameter (continuation in t) finds the root the paper's homotopy finds."""
-    from fem_grasp.placement import PAPER_SQUEEZE_DIRECTIONS
-    from fem_grasp.squeeze import initial_state
-    from fem_grasp.tracking import run
-
-    body = _box()
-    rs = rest(body, 0.5)
+    rs, _, state, vel = _box_squeezed_3mm()
 
     def tracker():
         t = Tracker(rs.body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)
         t.forms = (free,)
         return t
 
-    t = tracker()
-    vel = np.stack(PAPER_SQUEEZE_DIRECTIONS)
-    state, _ = t.settle(initial_state(t, rs, _face_centres(rs)), vel, phase="squeeze")
-    state, _, _ = run(t, state, vel, stop=0.003, step=1e-4)
-    assert state.sliding.sum() >= 3
     big = 3.4e-3  # a third of the fingertip radius in one increment, ten nodes sliding
     by_homotopy = tracker().trial(state, big, vel, methods=("homotopy",))
     warm = tracker()
@@ -543,17 +539,9 @@ def test_the_event_predicted_to_fire_first_leads_the_location():
 def test_a_slip_form_whose_newton_failed_at_a_smaller_step_is_tried_last(monkeypatch):
     """After the great-circle Newton finds no root at dt, later trials of the same motion at dt' ≥ dt start
     with the free-direction form; a trial at a smaller step still tries the great circle first."""
-    from fem_grasp.placement import PAPER_SQUEEZE_DIRECTIONS
-    from fem_grasp.squeeze import initial_state
-    from fem_grasp.tracking import SlipFailure, run
+    from fem_grasp.tracking import SlipFailure
 
-    body = _box()
-    rs = rest(body, 0.5)
-    t = Tracker(rs.body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)
-    vel = np.stack(PAPER_SQUEEZE_DIRECTIONS)
-    state, _ = t.settle(initial_state(t, rs, _face_centres(rs)), vel, phase="squeeze")
-    state, _, _ = run(t, state, vel, stop=0.003, step=1e-4)
-    assert state.sliding.sum() >= 3
+    _, t, state, vel = _box_squeezed_3mm()
     order = []
     orig = MixedSlipSystem.solve
 
