@@ -297,7 +297,8 @@ class Compliance:
         """Compute and cache the columns of every uncached node of ``nodes`` in one multi-column solve.
 
         A sparse solve streams the whole factor once whatever the number of right-hand sides, so
-        30 columns at once cost 2.6 times less per column than 3 (31k vertices, CHOLMOD).
+        30 columns at once cost several times less per column than 3 (``make bench``, section
+        ``columns``: 3.4 times at 31k vertices with CHOLMOD).
         """
         self._ensure(nodes)
 
