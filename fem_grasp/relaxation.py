@@ -300,7 +300,8 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
             raise RelaxationFailure(f"the stick/slip state stops settling after {sweep} Gauss–Seidel sweeps "
                                     f"(no progress in the last {STALL_SWEEPS}): friction cannot hold the "
                                     "contacts in a static state")
-        same = list(status) == last_status
+        now_status = list(status)
+        same = now_status == last_status
         # Once the statuses stop changing, Newton's method on their smooth system finishes the job
         # (Gauss–Seidel converges only linearly, slowly when the contacts are strongly coupled).
         if sweep >= next_polish and same:
@@ -315,13 +316,13 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
         moves.append(move)
         # Same statuses, no root for them, and the contacts move as much per sweep as 100 sweeps ago: they
         # drift together at a steady rate, which is sliding that nothing stops (gross slip).
-        uu = np.asarray(u, float)[np.asarray(has_u) != 0]
-        slid = float(np.sqrt((uu ** 2).sum(axis=1)).max()) if len(uu) else 0.0
-        if (len(moves) > DRIFT_SWEEPS and moves[-1] > 0.5 * moves[-1 - DRIFT_SWEEPS]
-                and slid > DRIFT_SLIP * max_slip):
-            raise RelaxationFailure(f"the contacts keep sliding at a steady rate after {sweep} Gauss–Seidel "
-                                    "sweeps: friction cannot hold the object (gross slip)")
-        last_status = list(status)
+        if len(moves) > DRIFT_SWEEPS and moves[-1] > 0.5 * moves[-1 - DRIFT_SWEEPS]:
+            uu = np.asarray(u, float)[np.asarray(has_u) != 0]  # (only here: a sweep costs less than this)
+            slid = float(np.sqrt((uu ** 2).sum(axis=1)).max()) if len(uu) else 0.0
+            if slid > DRIFT_SLIP * max_slip:
+                raise RelaxationFailure(f"the contacts keep sliding at a steady rate after {sweep} Gauss–Seidel "
+                                        "sweeps: friction cannot hold the object (gross slip)")
+        last_status = now_status
     else:
         raise RelaxationFailure(f"the stick/slip state did not settle in {max_sweeps} Gauss–Seidel sweeps "
                                 "(the contacts keep sliding: friction cannot hold the object here)")
