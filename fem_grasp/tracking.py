@@ -776,8 +776,7 @@ class Tracker:
         warm_key = (base, param, np.asarray(velocities, float).tobytes(), float(load_rate))
         # Great-circle form (the paper's) first, the free-direction form if it has no root; Newton on
         # both before the (costlier) homotopy continuation on both.
-        if not (self._fail_key is not None and self._fail_key[0] is warm_key[0]
-                and self._fail_key[1:] == warm_key[1:]):
+        if not self._same_motion(warm_key, self._fail_key):
             self._fail_key, self._newton_fails = warm_key, {}
         fails = self._newton_fails
         for method in methods:
@@ -790,7 +789,7 @@ class Tracker:
                     systems[free] = MixedSlipSystem(c, fh, dfh, sl, kinds, self.mu[kinds], t_hat, r, self.up,
                                                     self.radius, free)
                 near = None
-                if method == "newton" and self._same_motion(warm_key) and self._warm.get(free):
+                if method == "newton" and self._same_motion(warm_key, self._warm_key) and self._warm.get(free):
                     near = min(self._warm[free], key=lambda e: abs(e[0] - dt))[1]
                 try:
                     x = systems[free].solve(methods=(method,), start=near)
@@ -804,7 +803,7 @@ class Tracker:
                 break
         else:
             raise SlipFailure("; ".join(errors))
-        if not self._same_motion(warm_key):
+        if not self._same_motion(warm_key, self._warm_key):
             self._warm_key, self._warm = warm_key, {}
         self._warm.setdefault(system.free, []).append((dt, x))
         rates_s = system.rates(x)
@@ -823,8 +822,10 @@ class Tracker:
                         positions=positions, slip=base.slip + np.abs(amounts), **kw)
         return _Trial(state, amounts, rates)
 
-    def _same_motion(self, key: tuple) -> bool:
-        old = self._warm_key
+    @staticmethod
+    def _same_motion(key: tuple, old: tuple | None) -> bool:
+        """Whether ``key`` (base state, parameter, velocities, load rate) names the same motion as ``old``;
+        the base state by identity."""
         return old is not None and old[0] is key[0] and old[1:] == key[1:]
 
     # --------------------------------------------------------------- events
