@@ -27,7 +27,7 @@ from .geometry import tangent_bases
 from .jit import jit
 
 __all__ = ["STICK", "SLIDE", "RELEASE", "contact_records", "motion", "slide_residual", "slide_projection",
-           "slide", "sweep",
+           "slide", "outside_sphere", "sweep",
            "RECORD", "OK", "FREE_TOO_FAR", "SLIDE_TOO_FAR"]
 
 STICK, SLIDE, RELEASE = 0, 1, 2
@@ -276,6 +276,15 @@ def slide(g, fs0, fs1, fs2, mu, warm, w0, w1, tol, amax, memo):
 
 
 @jit
+def outside_sphere(g, x0, x1, x2):
+    """A fingertip contact moved by δ = x lies outside its sphere, |r⁰ + δ| ≥ R (exact Signorini); False on the table."""
+    if g[_SPHERE] == 0.0:
+        return False
+    p0, p1, p2 = g[9] + x0, g[10] + x1, g[11] + x2
+    return p0 * p0 + p1 * p1 + p2 * p2 >= g[_RADIUS] * g[_RADIUS]
+
+
+@jit
 def sweep(rec, c, f, d, u, has_u, status, mu, stick_tol, local_tol, max_slip, memo, unsolved_force):
     """One Gauss–Seidel sweep over the contacts, in place on f, d, u, has_u, status and memo.
 
@@ -317,7 +326,8 @@ def sweep(rec, c, f, d, u, has_u, status, mu, stick_tol, local_tol, max_slip, me
                 return FREE_TOO_FAR, k, change, move, unsolved
             # Signorini's condition in the contact's own frame: it lifts off when δ·n̂⁰ ≥ 0.  On a sphere the
             # exact distance would also grow with a purely tangential motion (|r⁰ + t| > R), letting a pressed
-            # contact "release" sideways instead of sliding; δ·n̂⁰ ≥ 0 still implies |r⁰ + δ| ≥ R.
+            # contact "release" sideways instead of sliding; δ·n̂⁰ ≥ 0 still implies |r⁰ + δ| ≥ R.  The exact
+            # test is the fallback when no slide exists (below).
             if x0 * n0 + x1 * n1 + x2 * n2 >= 0.0:
                 st = RELEASE
             else:
@@ -329,7 +339,11 @@ def sweep(rec, c, f, d, u, has_u, status, mu, stick_tol, local_tol, max_slip, me
                 ok, v0, v1 = slide(g, fs0, fs1, fs2, mu[k], warm, u[k][0], u[k][1], local_tol, amax, memo[k])
                 if not ok and warm:
                     ok, v0, v1 = slide(g, fs0, fs1, fs2, mu[k], False, 0.0, 0.0, local_tol, amax, memo[k])
-                if not ok:
+                if not ok and outside_sphere(g, x0, x1, x2):
+                    # No slide, but the force-free position clears the fingertip: it lifts off sideways
+                    # (a tangentially loaded node on a curved obstacle).
+                    st = RELEASE
+                elif not ok:
                     # No local state with the neighbours frozen.  Provisionally slide it as far as its
                     # force's own cone along −f_t (a ray root) so that the coupled Newton polish can look
                     # for a state in which its neighbours move too; the sweeps cannot converge while this
@@ -343,12 +357,13 @@ def sweep(rec, c, f, d, u, has_u, status, mu, stick_tol, local_tol, max_slip, me
                         ok, v0, v1 = _ray_root(g, fs0, fs1, fs2, mu[k], -e0 / en, -e1 / en, amax, memo[k])
                     if not ok:
                         continue
-                if math.hypot(v0, v1) > max_slip:
-                    return SLIDE_TOO_FAR, k, change, move, unsolved
-                u[k][0], u[k][1] = v0, v1
-                has_u[k] = 1
-                x0, x1, x2, _a, _b, _c, _d, _e, _f = motion(g, v0, v1)
-                st = SLIDE
+                if st != RELEASE:
+                    if math.hypot(v0, v1) > max_slip:
+                        return SLIDE_TOO_FAR, k, change, move, unsolved
+                    u[k][0], u[k][1] = v0, v1
+                    has_u[k] = 1
+                    x0, x1, x2, _a, _b, _c, _d, _e, _f = motion(g, v0, v1)
+                    st = SLIDE
         y0, y1, y2 = x0 - dk0, x1 - dk1, x2 - dk2
         if y0 != 0.0 or y1 != 0.0 or y2 != 0.0:
             kc = 3 * k

@@ -16,7 +16,12 @@ f = f⁰ + C δ (eq. 5).  Each contact k ends in exactly one of three states:
 
 * **stick**: δ_k = 0 with f_k in its friction cone, f·n̂ ≥ 0 and
   |f_t| ≤ μ f·n̂ (+ ``tol`` F_s: closer than that, a slip would be round-off);
-* **release**: f_k = 0 at a position outside the obstacle (event B);
+* **release**: f_k = 0 at a position outside the obstacle (event B): on the
+  table, or on a fingertip when δ_k·n̂⁰ ≥ 0; a fingertip contact with no
+  slide state also lifts off when its force-free position clears the sphere,
+  |r⁰ + δ_k| ≥ R (a node loaded along the surface of the curved tip —
+  common on fine meshes, where one node's stiffness couples its tangential
+  motion strongly to its normal force);
 * **slide**: on the obstacle (in the table plane, or on the fingertip sphere
   along the great circle of its slip, Fig. 1), with the friction on the cone
   and opposite to the slip at the new position: f_t = −μ (f·n̂) ŝ_k.
@@ -214,8 +219,8 @@ def _polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, stat
             if not (f[k] @ n > 0.0 and 0.0 < float(np.linalg.norm(xk)) <= max_slip):
                 return None
             u2[k] = xk
-        elif float(xk @ rec[k, 6:9]) < 0.0:  # Signorini in the contact's own frame (see relax_contacts)
-            return None
+        elif float(xk @ rec[k, 6:9]) < 0.0 and not gs.outside_sphere(rec[k], *map(float, xk)):
+            return None  # Signorini: in the contact's own frame, or clear of its fingertip (see the sweep)
     for k in range(m):
         if status[k] == STICK:
             n = rec[k, 6:9]

@@ -244,33 +244,34 @@ def test_frictionless_scene_file_exits_1_with_the_reason(tmp_path, capsys):
     assert doc["summary"]["success"] is False and "not force closure" in doc["summary"]["reason"]
 
 
-def test_friction_ten_completes_and_a_stalled_hanging_relaxation_counts_as_not_held(monkeypatch):
+def test_friction_ten_completes_and_a_failed_hanging_relaxation_counts_as_not_held(monkeypatch):
     """μ = 10 on fingers and table, up to the passing lift test.
 
-    At one lift test the hanging configuration's Gauss–Seidel sweeps stop converging (strong friction
-    couples the contacts): the relaxation gives up after STALL_SWEEPS without progress and that weight
-    counts as not held.  The bound is lowered from 1000 to 50 here (the stalled relaxation alone takes
-    35 s at 1000, with the same result); the full pickup with the lift takes minutes, stick/slip chatter
-    on the table (docs/limits.md).
+    Early lift tests load the hanging configuration beyond what its contacts hold: the return mapping
+    fails (a contact would have to move further than the slip bound to carry no force) and that weight
+    counts as not held, until the squeeze passes the test.  Before fingertip contacts could lift off
+    the curved tip sideways (gauss_seidel.outside_sphere), one of these relaxations stalled for
+    STALL_SWEEPS instead; the bound is lowered from 1000 to 50 so that such a return would stay cheap.
+    The full pickup with the lift takes minutes, stick/slip chatter on the table (docs/limits.md).
     """
     import fem_grasp.relaxation as relaxation
 
     monkeypatch.setattr(relaxation, "STALL_SWEEPS", 50)
-    stalls = []
+    failures = []
     original = relaxation.relax_contacts
 
     def counting(*args, **kwargs):
         try:
             return original(*args, **kwargs)
         except relaxation.RelaxationFailure as exc:
-            stalls.append("stops settling" in str(exc))
+            failures.append(str(exc))
             raise
 
     monkeypatch.setattr("fem_grasp.tracking.relax_contacts", counting)
     res = _pickup(_box(), mu=10.0, step=1.2e-4, lift=False)
     res.check()
     assert res.reason.startswith("the lift test passed") and res.liftable[-1][1] >= WEIGHT
-    assert any(stalls)
+    assert failures and any(w < WEIGHT for _, w in res.liftable[:-1])
     # Strong friction: nothing slides on the fingers, and a finger needs less normal force than at μ = 0.5
     # (the rigid comparison: two flat-faced contacts need mg/μ in all).
     final = res.final

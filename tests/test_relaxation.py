@@ -211,3 +211,24 @@ def test_the_polish_projection_is_the_slide_residual_of_the_sweeps(rng):
         fs = f - ckk[k] @ delta[k]
         g0, g1, _ = gs.slide_residual(rec[k], *fs, float(mu[k]), *us[k])
         np.testing.assert_allclose(proj[k] @ f, [g0, g1], atol=1e-12 * np.abs(f).max())
+
+
+def test_a_sideways_loaded_fingertip_contact_lifts_off_the_curved_tip():
+    """A fingertip node carrying mostly tangential force with a tensile normal part (taken from a 10k-vertex
+    orange's lift) has no slide state: no tangential motion brings its force into the cone.  Its force-free
+    position lies inside the tangent plane (δ·n̂⁰ < 0) yet outside the sphere (|r⁰ + δ| > R), so by the
+    exact Signorini condition it lifts off; the linearised test alone left it with no state at all."""
+    radius = 0.01
+    r0 = np.array([0.007290439, -0.00614403, -0.003016686])
+    r0 *= radius / np.linalg.norm(r0)
+    ckk = np.array([[95.542592, 5.754139, -1.083938], [5.754139, 62.401059, 9.654799],
+                    [-1.083938, 9.654799, 89.765847]])
+    f0 = np.array([[0.001207033731, -0.000896926887, 0.008640064297]])
+    n0 = r0 / radius
+    assert f0[0] @ n0 < 0 < np.linalg.norm(f0[0] - (f0[0] @ n0) * n0)
+    res = relax_contacts(ckk, f0, r0[None, :], [np.zeros(3)], UP, np.array([0.5]), force_scale=0.01)
+    assert res.status[0] == RELEASE
+    assert np.abs(res.forces).max() <= 1e-15
+    delta = res.displacements[0]
+    assert delta @ n0 < 0  # into the tangent plane ...
+    assert np.linalg.norm(r0 + delta) > radius  # ... but clear of the sphere
