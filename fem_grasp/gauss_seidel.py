@@ -27,7 +27,7 @@ from .geometry import tangent_bases
 from .jit import jit
 
 __all__ = ["STICK", "SLIDE", "RELEASE", "contact_records", "motion", "slide_residual", "slide_projection",
-           "slide", "outside_sphere", "sweep",
+           "slide_projections", "slide", "outside_sphere", "sweep",
            "RECORD", "OK", "FREE_TOO_FAR", "SLIDE_TOO_FAR"]
 
 STICK, SLIDE, RELEASE = 0, 1, 2
@@ -135,6 +135,15 @@ def slide_projection(g, mu, u0, u1):
     pe = mu * (e0 * s0 + e1 * s1 + e2 * s2) - (e0 * n0 + e1 * n1 + e2 * n2)
     pc = mu * (c0 * s0 + c1 * s1 + c2 * s2) - (c0 * n0 + c1 * n1 + c2 * n2)
     return (e0 + pe * n0, e1 + pe * n1, e2 + pe * n2, c0 + pc * n0, c1 + pc * n1, c2 + pc * n2, d0, d1, d2)
+
+
+@jit
+def slide_projections(rows, mu, us, out):
+    """:func:`slide_projection` of every contact k at its motion us[k], into out[k] (9 floats each)."""
+    for k in range(len(mu)):
+        a0, a1, a2, b0, b1, b2, d0, d1, d2 = slide_projection(rows[k], mu[k], us[k][0], us[k][1])
+        o = out[k]
+        o[0], o[1], o[2], o[3], o[4], o[5], o[6], o[7], o[8] = a0, a1, a2, b0, b1, b2, d0, d1, d2
 
 
 @jit

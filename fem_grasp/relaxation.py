@@ -105,13 +105,14 @@ class _SlideGeometry:
 
     def __init__(self, records: np.ndarray, mu: np.ndarray) -> None:
         self.rows = as_kernel_data(np.asarray(records, float).reshape(-1, gs.RECORD))
-        self.mu = [float(x) for x in np.asarray(mu, float)]
+        self.mu = as_kernel_data(mu)
 
     def projections(self, us: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(p, 2, 3) maps f ↦ slide residual at the motions ``us`` (p, 2), and the slips δ (p, 3)."""
         p = len(self.mu)
-        out = np.array([gs.slide_projection(g, mu, u0, u1) for g, mu, (u0, u1) in zip(self.rows, self.mu,
-                                                                                      us.tolist())]).reshape(p, 9)
+        out = as_kernel_data(np.empty((p, 9)))
+        gs.slide_projections(self.rows, self.mu, as_kernel_data(us), out)
+        out = np.asarray(out, float)
         return out[:, :6].reshape(p, 2, 3), out[:, 6:]
 
 
