@@ -147,7 +147,7 @@ class Body:
         """Factorised generalised inverse of K (sparse backend)."""
         from .compliance import Compliance
 
-        return Compliance(self.stiffness, self.mesh.points, self.rigid_modes)
+        return Compliance(self.stiffness, self.mesh.points, self.rigid_modes, surface=self.mesh.surface_nodes)
 
     @cached_property
     def gravity_compliance_field(self) -> np.ndarray:
@@ -157,6 +157,16 @@ class Body:
         :class:`~fem_grasp.response.ContactResponse` takes its D̄ of eq. (3) and its field from it.
         """
         return self.compliance.apply(self.gravity_loads)
+
+    @cached_property
+    def surface_dofs(self) -> np.ndarray:
+        """(3s,) the DOFs of ``mesh.surface_nodes``, in that order."""
+        return (3 * self.mesh.surface_nodes[:, None] + np.arange(3)).ravel()
+
+    @cached_property
+    def surface_field_terms(self) -> tuple[np.ndarray, np.ndarray]:
+        """The surface rows of X G and of the orthonormal rigid modes (sparse backend's surface fields)."""
+        return self.gravity_compliance_field[self.surface_dofs], self.orthonormal_rigid_modes[self.surface_dofs]
 
     @cached_property
     def spectral(self) -> "SpectralDecomposition":

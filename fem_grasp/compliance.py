@@ -221,6 +221,11 @@ class Compliance:
         Nodes whose rows of X are kept in the column cache (module notes,
         "Memory"); default all nodes.  With ``rows`` set,
         :meth:`node_columns` can only return rows of those nodes.
+    surface : (s,) int, optional
+        Nodes whose rows are also cached compactly, for
+        :meth:`combine_surface` (the contact tracking needs the deformed
+        surface at every trial state, the whole field far less often); must
+        be among ``rows``.
 
     Attributes
     ----------
@@ -229,7 +234,8 @@ class Compliance:
     """
 
     def __init__(self, stiffness: sp.spmatrix, points: np.ndarray, modes: np.ndarray, *,
-                 solver: str | None = None, rows: np.ndarray | None = None) -> None:
+                 solver: str | None = None, rows: np.ndarray | None = None,
+                 surface: np.ndarray | None = None) -> None:
         n = stiffness.shape[0]
         self.n_dofs = n
         self.n_nodes = n // 3
@@ -255,6 +261,9 @@ class Compliance:
         if self._position is not None:
             self._position[self.kept_nodes] = np.arange(len(self.kept_nodes))
         self._columns: dict[int, np.ndarray] = {}
+        self.surface_nodes = None if surface is None else np.unique(np.asarray(surface, dtype=np.int64))
+        self._surface_rows = None if surface is None else self._row_positions(self.surface_nodes)
+        self._surface_columns: dict[int, np.ndarray] = {}
         log.debug("factorised K (%s) with %d DOFs grounded at %s", self.solver, n, self.ground)
 
     def apply(self, load: np.ndarray) -> np.ndarray:
@@ -292,6 +301,8 @@ class Compliance:
             cols = cols[self._row_dofs]
         for j, k in enumerate(new):
             self._columns[k] = np.ascontiguousarray(cols[:, 3 * j: 3 * j + 3])
+            if self._surface_rows is not None:
+                self._surface_columns[k] = np.ascontiguousarray(cols[self._surface_rows, 3 * j: 3 * j + 3])
 
     def prefetch(self, nodes: np.ndarray) -> None:
         """Compute and cache the columns of every uncached node of ``nodes`` in one multi-column solve.
@@ -343,6 +354,17 @@ class Compliance:
             out += self._columns[int(k)] @ ak
         return out
 
+    def combine_surface(self, nodes: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
+        """:meth:`combine` on the rows of the ``surface`` nodes only: (3s,), in ``surface_nodes`` order."""
+        if self._surface_rows is None:
+            raise ValueError("this Compliance keeps no surface rows (Compliance(surface=...))")
+        self._ensure(nodes)
+        a = np.asarray(coefficients, dtype=float).reshape(-1, 3)
+        out = self._surface_columns[int(nodes[0])] @ a[0]
+        for k, ak in zip(nodes[1:], a[1:]):
+            out += self._surface_columns[int(k)] @ ak
+        return out
+
     @property
     def cached_nodes(self) -> int:
         return len(self._columns)
@@ -350,4 +372,4 @@ class Compliance:
     @property
     def cache_bytes(self) -> int:
         """Memory held by the column cache."""
-        return sum(c.nbytes for c in self._columns.values())
+        return sum(c.nbytes for c in self._columns.values()) + sum(c.nbytes for c in self._surface_columns.values())

@@ -17,7 +17,7 @@ contacts may slide, stick, establish or break like during the squeeze —
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
@@ -60,7 +60,7 @@ def lift(tracker: Tracker, state: ContactState, *, max_height: float, step: floa
          on_event: Callable[[ContactState, list[ContactEvent]], None] | None = None) -> LiftOutcome:
     """Translate both fingers upward from ``state`` until the object leaves the table (module notes)."""
     velocities = np.array([[0.0, 0.0, 1.0], [0.0, 0.0, 1.0]])
-    state = type(state)(**{**state.__dict__, "phase": "lift"})
+    state = replace(state, phase="lift")
     out = LiftOutcome(state)
     verdict: list[str] = []
 

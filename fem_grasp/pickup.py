@@ -68,7 +68,7 @@ from __future__ import annotations
 import json
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -658,7 +658,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
         log.info("lift attempt %d at ρ = %.4g m failed (%s); squeezing further", attempt,
                  sq.state.squeeze_depth, lf.reason)
         snap(lf.state, f"lift failed (attempt {attempt})")
-        state = type(sq.state)(**{**sq.state.__dict__, "phase": "squeeze"})
+        state = replace(sq.state, phase="squeeze")
         t_squeeze = time.perf_counter()
     result.success = lf.success
     result.reason = lf.reason if attempt == 1 or lf.success else (

@@ -266,6 +266,25 @@ class ContactResponse:
         field[self.dofs] = d
         return ContactSolution(self.nodes, f.reshape(-1, 3), field.reshape(-1, 3), self.body)
 
+    def surface_displacements(self, displacements: np.ndarray) -> np.ndarray:
+        """(s, 3) the displacement field of :meth:`solve` at ``mesh.surface_nodes`` only.
+
+        The sparse backend reads only the surface rows of the cached compliance columns
+        (:meth:`~fem_grasp.compliance.Compliance.combine_surface`): what the contact tracking needs
+        at every trial state, a fraction of the cost of the whole field on a large mesh.
+        """
+        d = self._check_displacements(displacements)
+        surface = self.body.mesh.surface_nodes
+        if self.backend != "sparse":
+            return self.solve(d).displacements[surface]
+        f, b = self._solve_bordered(d - self._d_bar, self._rhs_rigid)
+        grav, null = self.body.surface_field_terms
+        field = (self.body.compliance.combine_surface(self.nodes, f) + grav + null @ b).reshape(-1, 3)
+        pos = np.searchsorted(surface, self.nodes)
+        on = (pos < len(surface)) & (surface[np.minimum(pos, len(surface) - 1)] == self.nodes)
+        field[pos[on]] = d.reshape(-1, 3)[on]  # the prescribed values, exactly (as in solve)
+        return field
+
 
 def solve_contact(body: "Body", nodes: np.ndarray, displacements: np.ndarray, backend: str = "sparse") -> ContactSolution:
     """Deform ``body`` under gravity with contact nodes displaced by ``displacements`` (paper §II-C).

@@ -111,6 +111,7 @@ import logging
 import math
 import warnings
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from typing import Callable, Sequence
 
 import numpy as np
@@ -173,8 +174,9 @@ class ContactState:
     sliding : (m,) whether each contact slides (ℙ)
     forces : (m, 3) contact forces on the object, newtons
     normals : (m, 3) inward unit normals n̂ at the contacts
-    positions : (n, 3) deformed node positions p̃
+    surface_positions : (s, 3) deformed positions p̃ of the surface nodes (``mesh.surface_nodes``)
     slip : (m,) slip accumulated by each contact since it was established, metres
+    position_source : computes the (n, 3) deformed positions of every node (:attr:`positions`)
     """
 
     phase: str
@@ -188,8 +190,15 @@ class ContactState:
     sliding: np.ndarray
     forces: np.ndarray
     normals: np.ndarray
-    positions: np.ndarray
+    surface_positions: np.ndarray
     slip: np.ndarray
+    position_source: Callable[[], np.ndarray] = field(repr=False, compare=False)
+
+    @cached_property
+    def positions(self) -> np.ndarray:
+        """(n, 3) deformed node positions p̃, computed at first use: the tracking itself reads only the
+        surface, and on a large mesh the whole field costs several times more."""
+        return self.position_source()
 
     @property
     def n_contacts(self) -> int:
@@ -655,10 +664,14 @@ class Tracker:
         self.backend = backend
         self.points = body.mesh.points
         self.surface = body.mesh.surface_nodes
+        #: Each node's position in ``surface`` (−1: interior).
+        self.surface_index = np.full(len(self.points), -1, dtype=np.int64)
+        self.surface_index[self.surface] = np.arange(len(self.surface))
         self.diameter = body.mesh.diameter
         self.up = table.up if table is not None else np.array([0.0, 0.0, 1.0])
         self._responses: dict[tuple[int, ...], ContactResponse] = {}
         self._zero_fields: dict[tuple[int, ...], np.ndarray] = {}
+        self._zero_surface_fields: dict[tuple[int, ...], np.ndarray] = {}
         self.solves = 0
         #: Slip forms tried in order: False = great circle (the paper's), True = free direction.
         self.forms: tuple[bool, ...] = (False, True)
@@ -689,18 +702,33 @@ class Tracker:
 
     def field(self, nodes: np.ndarray, disp: np.ndarray, load: float) -> np.ndarray:
         """(n, 3) displacement field for prescribed contact displacements at gravity factor λ (eq. 4)."""
+        return self._at_load(nodes, disp, load, lambda r, d: r.solve(d).displacements, self._zero_fields)
+
+    def surface_field(self, nodes: np.ndarray, disp: np.ndarray, load: float) -> np.ndarray:
+        """(s, 3) :meth:`field` at the surface nodes only (what the event functions and gaps need)."""
+        return self._at_load(nodes, disp, load, lambda r, d: r.surface_displacements(d), self._zero_surface_fields)
+
+    def _at_load(self, nodes: np.ndarray, disp: np.ndarray, load: float, solve: Callable,
+                 zero_fields: dict) -> np.ndarray:
+        """solve(response, disp) at gravity factor λ: the full-gravity solution less (1 − λ) times gravity's
+        own (contacts held at zero), the latter cached per contact set."""
         resp = self.response(nodes)
-        full = resp.solve(disp).displacements
+        full = solve(resp, disp)
         if load == 1.0:
             return full
         key = tuple(int(k) for k in nodes)
-        zero = self._zero_fields.get(key)
+        zero = zero_fields.get(key)
         if zero is None:
-            zero = resp.solve(np.zeros_like(disp)).displacements
-            if len(self._zero_fields) >= 16:
-                self._zero_fields.pop(next(iter(self._zero_fields)))
-            self._zero_fields[key] = zero
+            zero = solve(resp, np.zeros_like(disp))
+            if len(zero_fields) >= 16:
+                zero_fields.pop(next(iter(zero_fields)))
+            zero_fields[key] = zero
         return full - (1.0 - load) * zero
+
+    def _position_source(self, nodes: np.ndarray, disp: np.ndarray, load: float) -> Callable[[], np.ndarray]:
+        """The deferred whole-body positions of a state (:attr:`ContactState.positions`)."""
+        nodes, disp = np.array(nodes, dtype=np.int64), np.array(disp, float)
+        return lambda: self.points + self.field(nodes, disp, load)
 
     def normals(self, owner: np.ndarray, positions: np.ndarray, centers: np.ndarray) -> np.ndarray:
         """(m, 3) inward normals of contacts at ``positions`` (m, 3)."""
@@ -721,13 +749,14 @@ class Tracker:
         resp = self.response(nodes)
         forces = (resp.reduced_stiffness @ np.asarray(disp, float).reshape(-1)).reshape(-1, 3) \
             + load * resp.gravity_forces
-        field = self.field(nodes, disp, load)
-        positions = self.points + field
-        normals = self.normals(np.asarray(owner), positions[nodes], centers)
+        surface = self.points[self.surface] + self.surface_field(nodes, disp, load)
+        # A contact node sits exactly at its prescribed position (the field restores it).
+        normals = self.normals(np.asarray(owner), self.points[nodes] + np.asarray(disp, float).reshape(-1, 3), centers)
         return ContactState(phase, float(squeeze_depth), float(lift_height), float(load), np.array(centers, float),
                             nodes, np.asarray(owner, dtype=np.int64), np.array(disp, float),
-                            np.asarray(sliding, dtype=bool), forces, normals, positions,
-                            np.zeros(len(nodes)) if slip is None else np.asarray(slip, float))
+                            np.asarray(sliding, dtype=bool), forces, normals, surface,
+                            np.zeros(len(nodes)) if slip is None else np.asarray(slip, float),
+                            self._position_source(nodes, disp, load))
 
     def trial(self, base: ContactState, dt: float, velocities: np.ndarray, load_rate: float = 0.0,
               param: str = "squeeze_depth", methods: Sequence[str] = ("newton", "homotopy")) -> _Trial:
@@ -811,15 +840,16 @@ class Tracker:
             raise SlipFailure("the slip system is singular (a limit of friction is reached)")
         disp = disp_h + system.displacements(x)
         forces = system.forces(x)
-        positions = self.points + self.field(base.nodes, disp, load)
-        normals = self.normals(base.owner, positions[base.nodes], centers)
+        surface = self.points[self.surface] + self.surface_field(base.nodes, disp, load)
+        normals = self.normals(base.owner, self.points[base.nodes] + disp, centers)
         amounts = np.zeros(m)
         rates = np.zeros(m)
         amounts[sl] = system.amounts(x)
         rates[sl] = rates_s
         kw = {} if param == "load" else {param: getattr(base, param) + dt}
         state = replace(base, load=load, centers=centers, disp=disp, forces=forces, normals=normals,
-                        positions=positions, slip=base.slip + np.abs(amounts), **kw)
+                        surface_positions=surface, position_source=self._position_source(base.nodes, disp, load),
+                        slip=base.slip + np.abs(amounts), **kw)
         return _Trial(state, amounts, rates)
 
     @staticmethod
@@ -829,9 +859,10 @@ class Tracker:
         return old is not None and old[0] is key[0] and old[1:] == key[1:]
 
     # --------------------------------------------------------------- events
-    def obstacle_gaps(self, positions: np.ndarray, centers: np.ndarray) -> np.ndarray:
-        """(s, 3) signed distance of each surface node from ℱ₁, ℱ₂ and 𝒫 (inf for no table)."""
-        p = positions[self.surface]
+    def obstacle_gaps(self, surface_positions: np.ndarray, centers: np.ndarray) -> np.ndarray:
+        """(s, 3) signed distance of each surface node (at ``surface_positions``) from ℱ₁, ℱ₂ and 𝒫 (inf for
+        no table)."""
+        p = surface_positions
         gaps = np.full((len(p), 3), np.inf)
         for f in (FINGER1, FINGER2):
             gaps[:, f] = np.linalg.norm(p - centers[f], axis=1) - self.radius
@@ -849,11 +880,10 @@ class Tracker:
         B, C, D: positions in the contact set.
         """
         st = trial.state
-        gaps = self.obstacle_gaps(st.positions, st.centers)
-        for k, o in zip(st.nodes, st.owner):
-            s = int(np.searchsorted(self.surface, k))
-            if s < len(self.surface) and self.surface[s] == k:
-                gaps[s, o] = np.inf  # its own obstacle
+        gaps = self.obstacle_gaps(st.surface_positions, st.centers)
+        own = self.surface_index[st.nodes]
+        on = own >= 0
+        gaps[own[on], st.owner[on]] = np.inf  # its own obstacle
         a_val = (-gaps / self.diameter - TOL_PENETRATION).reshape(-1)
         a_ids = np.arange(a_val.size)
         fn = st.normal_forces
@@ -1121,8 +1151,8 @@ class Tracker:
                 record("B", nodes[j], owner[j])
             keep = ~released
             nodes, owner, disp, slip, status = nodes[keep], owner[keep], disp[keep], slip[keep], status[keep]
-            positions = self.points + self.field(nodes, disp, load)
-            gaps = self.obstacle_gaps(positions, centers)
+            surface = self.points[self.surface] + self.surface_field(nodes, disp, load)
+            gaps = self.obstacle_gaps(surface, centers)
             in_contact = set(int(k) for k in nodes)
             deep = np.argwhere(-gaps / self.diameter - TOL_PENETRATION > 0)
             added = []
@@ -1135,7 +1165,7 @@ class Tracker:
                     continue
                 if any(k == a[0] for a in added):
                     continue
-                added.append((k, int(o), self._project(positions[k], int(o), centers) - self.points[k]))
+                added.append((k, int(o), self._project(surface[s_pos], int(o), centers) - self.points[k]))
                 record("A", k, int(o))
             if not added and not released.any():
                 break
@@ -1206,7 +1236,7 @@ class Tracker:
                                     f"{OBSTACLES[owner[nodes.index(k)]]}: pinched nodes are not modelled")
             if any(k == a[0] for a in added):
                 continue
-            added.append((k, o, self._project(st.positions[k], o, st.centers) - self.points[k]))
+            added.append((k, o, self._project(st.surface_positions[s], o, st.centers) - self.points[k]))
             record("A", k, o)
         keep = [j for j in range(len(nodes)) if j not in remove]
         nodes = [nodes[j] for j in keep] + [a[0] for a in added]
