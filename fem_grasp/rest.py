@@ -275,12 +275,13 @@ class RestState:
 
 @dataclass(frozen=True)
 class _State:
-    """Contact forces and displacement field at the solver's load factor."""
+    """Contact forces and the displacement field on the surface (``mesh.surface_nodes`` order) at the solver's
+    load factor: the events of the resting iteration look at surface nodes only."""
 
     forces: np.ndarray
-    displacements: np.ndarray
-    positions: np.ndarray
-    gravity_displacements: np.ndarray  # ∂Δ/∂λ: the field of full gravity with the contacts held at zero
+    displacements: np.ndarray  # (s, 3)
+    positions: np.ndarray  # (s, 3)
+    gravity_displacements: np.ndarray | None  # (s, 3) ∂Δ/∂λ: full gravity with the contacts held at zero
 
 
 class _Solver:
@@ -300,6 +301,7 @@ class _Solver:
         self.force_tol = FORCE_TOL * body.weight
         self.points = body.mesh.points
         self.surface = body.mesh.surface_nodes
+        self._surface_points = self.points[self.surface]
         self.contacts: list[int] = []
         self.disp: dict[int, np.ndarray] = {}
         self.sliding: set[int] = set()
@@ -317,7 +319,7 @@ class _Solver:
     def prescribed(self) -> np.ndarray:
         return np.array([self.disp[k] for k in self.contacts])
 
-    def prefetch_columns(self, nodes: np.ndarray, positions: np.ndarray) -> None:
+    def prefetch_columns(self, nodes: np.ndarray, surface_positions: np.ndarray) -> None:
         """With the sparse backend, when new contact ``nodes`` lack their compliance columns, compute them
         together with those of the lowest free surface nodes (the likely next contacts): PREFETCH_NODES
         in one solve."""
@@ -325,8 +327,9 @@ class _Solver:
         comp = self.body.compliance
         if self.backend != "sparse" or all(comp.is_cached(k) for k in nodes):
             return
-        free = self.surface[~np.isin(self.surface, np.concatenate([self.contacts, nodes]))]
-        height = self.table.signed_distance(positions[free])
+        free_at = ~np.isin(self.surface, np.concatenate([self.contacts, nodes]))
+        free = self.surface[free_at]
+        height = self.table.signed_distance(surface_positions[free_at])
         near = free[np.argsort(height, kind="stable")[:max(PREFETCH_NODES - len(nodes), 0)]]
         comp.prefetch(np.concatenate([nodes, near]))
 
@@ -353,12 +356,13 @@ class _Solver:
         if self.mu == 0.0:
             self._frictionless(resp)
         d = self.prescribed()
-        full = resp.solve(d)
-        grav = resp.solve(np.zeros_like(d)) if self.lam != 1.0 else None
-        if grav is None:
-            return _State(full.forces, full.displacements, full.positions, None)
-        field = full.displacements - (1.0 - self.lam) * grav.displacements
-        return _State(full.forces - (1.0 - self.lam) * grav.forces, field, self.points + field, grav.displacements)
+        forces, field = resp.forces(d), resp.surface_displacements(d)
+        if self.lam == 1.0:
+            return _State(forces, field, self._surface_points + field, None)
+        zero = np.zeros_like(d)
+        grav = resp.surface_displacements(zero)
+        field = field - (1.0 - self.lam) * grav
+        return _State(forces - (1.0 - self.lam) * resp.forces(zero), field, self._surface_points + field, grav)
 
     def solution(self) -> ContactSolution:
         """The final :class:`ContactSolution` (λ = 1)."""
@@ -417,7 +421,7 @@ class _Solver:
     def deepest(self, state: _State) -> tuple[int, float]:
         """The non-contact surface node furthest below the table and its depth (0 if none is below)."""
         in_contact = np.isin(self.surface, self.contacts)
-        height = self.table.signed_distance(state.positions[self.surface])
+        height = self.table.signed_distance(state.positions)
         height[in_contact] = np.inf
         j = int(np.argmin(height))
         return int(self.surface[j]), float(max(-height[j], 0.0))
@@ -430,9 +434,10 @@ class _Solver:
         touching values agree to 1e-12 touch together.  Returns (inf, []) when
         no node would touch.
         """
-        free = self.surface[~np.isin(self.surface, self.contacts)]
-        h = self.table.signed_distance(state.positions[free])
-        rate = state.gravity_displacements[free] @ self.table.up
+        free_at = ~np.isin(self.surface, self.contacts)
+        free = self.surface[free_at]
+        h = self.table.signed_distance(state.positions[free_at])
+        rate = state.gravity_displacements[free_at] @ self.table.up
         down = rate < 0
         if not down.any():
             return np.inf, np.zeros(0, dtype=np.int64)
@@ -582,7 +587,7 @@ def rest(body: Body, mu_table: float, *, down: np.ndarray | None = None, table_z
         if depth > tol:  # step 5, event A: the deepest node lands on the table
             new = [deepest]
             solver.prefetch_columns([deepest], state.positions)
-            solver.add(deepest, state.displacements[deepest])
+            solver.add(deepest, state.displacements[np.searchsorted(solver.surface, deepest)])
             log.debug("event A: node %d was %.3g m below the table (λ = %.4g)", deepest, depth, solver.lam)
         elif not unsettled:  # raise the load to the next touch (event A at the new λ) or to 1
             lam_next, touching = solver.next_touch(state)
@@ -590,10 +595,10 @@ def rest(body: Body, mu_table: float, *, down: np.ndarray | None = None, table_z
                 lam_next, touching = 1.0, touching[:0]
             solver.lam = lam_next
             if len(touching):
-                field = solver.solve().displacements
-                solver.prefetch_columns(touching, solver.points + field)
+                moved = solver.solve()
+                solver.prefetch_columns(touching, moved.positions)
                 for k in touching:
-                    solver.add(int(k), field[k])
+                    solver.add(int(k), moved.displacements[np.searchsorted(solver.surface, k)])
                 new = [int(k) for k in touching]
                 log.debug("event A: %d node(s) touch the table at λ = %.6g", len(new), lam_next)
         released: list[int] = []
