@@ -187,3 +187,38 @@ def test_numerically_collinear_contacts_are_refused_not_silently_wrong(caplog):
     assert "nearly collinear" in caplog.text
     with pytest.raises(CollinearContactError, match="numerically singular"):
         response(1e-6)
+
+
+@pytest.mark.parametrize("backend", ["sparse", "spectral"])
+def test_the_surface_field_is_the_whole_fields_surface_rows(body, rng, backend):
+    """surface_displacements (what the tracking reads at every trial) equals the surface rows of solve()'s
+    field, the prescribed contact values exactly, also with an interior node in the contact set."""
+    surface = body.mesh.surface_nodes
+    interior = np.setdiff1d(np.arange(body.n_nodes), surface)
+    assert len(interior)
+    nodes = np.concatenate([contact_set(body), interior[:1]])
+    resp = body.contact_response(nodes, backend=backend)
+    disp = 1e-3 * rng.standard_normal((len(nodes), 3))
+    whole = resp.solve(disp).displacements
+    part = resp.surface_displacements(disp)
+    assert part.shape == (len(surface), 3)
+    assert np.abs(part - whole[surface]).max() <= 1e-14 * np.abs(whole).max()
+    on = np.isin(nodes, surface)
+    np.testing.assert_array_equal(part[np.searchsorted(surface, nodes[on])], disp[on])
+
+
+def test_tracked_states_compute_the_whole_field_only_when_asked(body):
+    """A tracked state holds the deformed surface; ContactState.positions solves the whole field on first use
+    and agrees with it on the surface."""
+    from fem_grasp.tracking import FINGER1, TABLE, Tracker
+
+    tracker = Tracker(body, radius=0.01, mu_finger=0.5, mu_table=0.5, table=None)
+    nodes = contact_set(body)
+    owner = np.array([TABLE] * (len(nodes) - 1) + [FINGER1])
+    state = tracker.make_state(phase="squeeze", squeeze_depth=0.0, lift_height=0.0, load=0.5,
+                               centers=np.zeros((2, 3)), nodes=nodes, owner=owner,
+                               disp=1e-4 * np.ones((len(nodes), 3)), sliding=np.zeros(len(nodes), bool))
+    assert "positions" not in state.__dict__
+    whole = state.positions
+    assert whole.shape == (body.n_nodes, 3) and "positions" in state.__dict__
+    np.testing.assert_array_equal(whole[body.mesh.surface_nodes], state.surface_positions)
