@@ -108,7 +108,6 @@ from __future__ import annotations
 
 import contextlib
 import logging
-import math
 import warnings
 from dataclasses import dataclass, field, replace
 from functools import cached_property
@@ -117,7 +116,7 @@ from typing import Callable, Sequence
 import numpy as np
 import scipy.linalg as la
 
-from . import homotopy
+from . import homotopy, slip_newton
 from .body import Body
 from .relaxation import RELEASE, SLIDE, RelaxationFailure, relax_contacts
 from .geometry import TablePlane, tangent_bases
@@ -395,6 +394,11 @@ class MixedSlipSystem:
         self.g_sl2 = self.g_sl.reshape(3 * p, n)
         self.base_sl = self.base.reshape(-1, 3)[self.sliding].reshape(-1)
         self._xpad = np.zeros(n + 1)
+        # The arguments of the slip_newton kernels after x.
+        self._kernel_args = (np.ascontiguousarray(self.base_sl), np.ascontiguousarray(self.g_sl2),
+                             self.d_map.reshape(3 * p, n), np.ascontiguousarray(self.n0),
+                             np.ascontiguousarray(self.kappa), np.ascontiguousarray(self.mu),
+                             np.ascontiguousarray(self.sph_idx, dtype=np.int64), self.free)
 
     # --------------------------------------------------------------- maps
     def forces(self, x: np.ndarray) -> np.ndarray:
@@ -430,41 +434,10 @@ class MixedSlipSystem:
 
     # The raw versions run inside an errstate of the caller (solve, once, not once per evaluation).
     def _residual(self, x: np.ndarray) -> np.ndarray:
-        f = self._sliding_forces(x)
-        d = self.slips(x)
-        n = self.n0 + self.kappa[:, None] * d
-        fn = (f * n).sum(axis=1)
-        cone = (1.0 + self.mu**2) * fn**2 - (f * f).sum(axis=1)
-        xs = x[self.sph_idx]
-        sphere = 2.0 * xs[:, 0] + (xs**2).sum(axis=1)  # (1 + γ)² + s² − 1 without cancellation
-        if len(self.align_rows):
-            align = (n * _cross(f, d)).sum(axis=1)
-        else:
-            align = np.zeros(0)
-        return np.concatenate([cone, sphere, align])
+        return slip_newton.residual(np.ascontiguousarray(x, dtype=float), *self._kernel_args)
 
     def _jacobian(self, x: np.ndarray) -> np.ndarray:
-        f = self._sliding_forces(x)
-        d = self.slips(x)
-        n = self.n0 + self.kappa[:, None] * d
-        fn = (f * n).sum(axis=1)
-        g = self.g_sl
-        dn = self.kappa[:, None, None] * self.d_map
-        rows = (2.0 * (1.0 + self.mu**2) * fn)[:, None] * (np.einsum("ki,kij->kj", n, g)
-                                                           + np.einsum("ki,kij->kj", f, dn))
-        rows -= 2.0 * np.einsum("ki,kij->kj", f, g)
-        sphere = np.zeros((len(self.sphere_rows), self.n))
-        if len(self.sphere_rows):
-            xs = 2.0 * x[self.sph_idx]
-            xs[:, 0] += 2.0
-            np.put_along_axis(sphere, self.sph_idx, xs, axis=1)
-        out = [rows, sphere]
-        if len(self.align_rows):
-            # ∂[n·(f×δ)] = ∂n·(f×δ) + ∂f·(δ×n) + ∂δ·(n×f)
-            align = (np.einsum("kij,ki->kj", dn, _cross(f, d)) + np.einsum("kij,ki->kj", g, _cross(d, n))
-                     + np.einsum("kij,ki->kj", self.d_map, _cross(n, f)))
-            out.append(align)
-        return np.vstack(out)
+        return slip_newton.jacobian(np.ascontiguousarray(x, dtype=float), *self._kernel_args)
 
     def residual_rate(self, x: np.ndarray) -> np.ndarray:
         """∂residual/∂t at fixed x (held forces move at ``force_rate``)."""
@@ -521,50 +494,16 @@ class MixedSlipSystem:
         return bool(np.all((fn <= 0) | (along >= -1e-6 * np.linalg.norm(ft, axis=1))))
 
     @np.errstate(over="ignore", invalid="ignore")
-    def _newton(self, fun: Callable, jac: Callable, y: np.ndarray, tol: float, max_iter: int = 40) -> np.ndarray | None:
-        """Damped Newton's method (backtracking on ‖P‖).
+    def _newton(self, y: np.ndarray, tol: float, max_iter: int = 40) -> np.ndarray | None:
+        """Damped Newton's method on the scaled system (:func:`fem_grasp.slip_newton.newton`); None if it fails.
 
         Converged when every row |P_j| ≤ max(tol, noise_j) (rows of lightly
         loaded nodes are only resolved to round-off), or when the step
         stalls within 10 times that.
         """
-        y = y.copy()
-        lim = np.maximum(tol, self.row_noise)
-        r = fun(y)
-        best, since = np.inf, 0
-        for _ in range(max_iter):
-            if not np.isfinite(r).all():
-                return None
-            if np.all(np.abs(r) <= lim):
-                return y
-            norm = math.sqrt(float(r @ r))  # np.linalg.norm's own formula, without its overhead
-            if norm < 0.9 * best:
-                best, since = norm, 0
-            else:
-                since += 1
-                if since >= 6:  # no progress: no root near here (fail fast, the caller falls back)
-                    break
-            try:
-                step = np.linalg.solve(jac(y), -r)
-                if not np.isfinite(step).all():
-                    return None
-            except np.linalg.LinAlgError:
-                return None
-            lam = 1.0
-            for _ in range(12):
-                y_new = y + lam * step
-                r_new = fun(y_new)
-                if np.isfinite(r_new).all() and math.sqrt(float(r_new @ r_new)) < (1.0 - 1e-4 * lam) * norm:
-                    break
-                lam *= 0.5
-            else:
-                y_new, r_new = y + step, fun(y + step)  # no decrease: take the full step (round-off regime)
-            dy = y_new - y
-            stalled = math.sqrt(float(dy @ dy)) <= 1e-14 * (1.0 + math.sqrt(float(y_new @ y_new)))
-            y, r = y_new, r_new
-            if stalled:
-                break
-        return y if np.isfinite(r).all() and np.all(np.abs(r) <= 10.0 * lim) else None
+        ok, y = slip_newton.newton(np.array(y, dtype=float), np.maximum(tol, self.row_noise), max_iter, self.xscale,
+                                   self.row_scale, *self._kernel_args)
+        return y if ok else None
 
     @np.errstate(over="ignore", invalid="ignore")
     def solve(self, tol: float = 1e-12, methods: Sequence[str] = ("newton", "homotopy"),
@@ -594,7 +533,7 @@ class MixedSlipSystem:
         attempts: list[str] = []
         y = None
         if "newton" in methods:
-            y = self._newton(fun, jac, y0, tol)
+            y = self._newton(y0, tol)
             if y is not None:
                 x = y * scale
                 if self.admissible(x):
@@ -603,7 +542,7 @@ class MixedSlipSystem:
             else:
                 attempts.append("Newton did not converge")
             if start is not None and len(start) == self.n and np.isfinite(start).all():
-                y = self._newton(fun, jac, start / scale, tol)
+                y = self._newton(start / scale, tol)
                 if y is not None and self.admissible(y * scale):
                     return y * scale
                 attempts.append("Newton from the nearby root did not converge")
@@ -612,7 +551,7 @@ class MixedSlipSystem:
             try:
                 res = homotopy.track(fun, jac, y0, start=lambda y: fun(y) - p0, start_jac=jac, tol=1e-8,
                                      initial_step=0.25, max_step=1.0, max_steps=200, min_step=1e-6)
-                y = self._newton(fun, jac, np.asarray(res.x, dtype=float), tol)
+                y = self._newton(np.asarray(res.x, dtype=float), tol)
                 if y is not None and self.admissible(y * scale):
                     return y * scale
                 attempts.append("homotopy reached a non-physical root")

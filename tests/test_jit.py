@@ -1,9 +1,11 @@
-"""The compiled (numba) and plain-Python Gauss–Seidel sweeps give the same answers (fem_grasp.jit).
+"""The compiled (numba) and plain-Python kernels give the same answers (fem_grasp.jit).
 
-The sweep kernels of :mod:`fem_grasp.gauss_seidel` are one source run two
-ways; the plain-Python run happens in a subprocess with FEM_GRASP_NO_JIT=1
-(the choice is made at import).  Both must reach the same statuses in the
-same number of sweeps, with the same forces, or fail with the same message.
+The sweep kernels of :mod:`fem_grasp.gauss_seidel` and the slip-system
+kernels of :mod:`fem_grasp.slip_newton` are one source run two ways; the
+plain-Python run happens in a subprocess with FEM_GRASP_NO_JIT=1 (the choice
+is made at import).  The sweeps must reach the same statuses in the same
+number of sweeps, with the same forces, or fail with the same message; the
+slip systems the same roots.
 """
 
 import os
@@ -47,16 +49,39 @@ def solve_all():
     return results
 
 
-@pytest.mark.skipif(not jit.ENABLED, reason="numba is not installed (or FEM_GRASP_NO_JIT is set): "
-                                           "only the plain-Python sweeps exist here")
-def test_compiled_and_plain_python_sweeps_agree(tmp_path):
-    compiled = solve_all()
-    out = tmp_path / "python.pkl"
+def slip_trials():
+    """Trial states of the squeezed box (three or more nodes sliding) in both slip forms, over a range of
+    increments up to a third of the fingertip radius: each trial's (disp, forces, slip amounts)."""
+    from tests.test_pickup import _box_squeezed_3mm
+
+    _, tracker, state, vel = _box_squeezed_3mm()
+    out = []
+    for free in (False, True):
+        tracker.forms = (free,)
+        for dt in (1e-6, 1e-4, 1e-3, 3.4e-3):
+            t = tracker.trial(state, dt, vel, methods=("newton",))
+            out.append((t.state.disp, t.state.forces, t.amounts))
+    return out
+
+
+def in_plain_python(name: str, tmp_path: Path):
+    """tests.test_jit.<name>() run in a subprocess with FEM_GRASP_NO_JIT=1."""
+    out = tmp_path / f"{name}.pkl"
     env = dict(os.environ, FEM_GRASP_NO_JIT="1")
     code = ("import pickle, sys; from fem_grasp import jit; assert not jit.ENABLED; "
-            "from tests.test_jit import solve_all; pickle.dump(solve_all(), open(sys.argv[1], 'wb'))")
+            f"from tests.test_jit import {name}; pickle.dump({name}(), open(sys.argv[1], 'wb'))")
     subprocess.run([sys.executable, "-c", code, str(out)], cwd=ROOT, env=env, check=True)
-    python = pickle.loads(out.read_bytes())
+    return pickle.loads(out.read_bytes())
+
+
+NEEDS_NUMBA = pytest.mark.skipif(not jit.ENABLED, reason="numba is not installed (or FEM_GRASP_NO_JIT is set): "
+                                                        "only the plain-Python kernels exist here")
+
+
+@NEEDS_NUMBA
+def test_compiled_and_plain_python_sweeps_agree(tmp_path):
+    compiled = solve_all()
+    python = in_plain_python("solve_all", tmp_path)
     assert len(python) == len(compiled) == 7
     assert sum(isinstance(r, str) for r in compiled) == 2  # the two loads friction cannot hold
     for a, b in zip(compiled, python):
@@ -68,3 +93,13 @@ def test_compiled_and_plain_python_sweeps_agree(tmp_path):
         scale = np.abs(a[2]).max()
         np.testing.assert_allclose(a[2], b[2], rtol=0, atol=1e-12 * scale)
         np.testing.assert_allclose(a[3], b[3], rtol=0, atol=1e-12 * np.abs(a[3]).max() + 1e-300)
+
+
+@NEEDS_NUMBA
+def test_compiled_and_plain_python_slip_systems_agree(tmp_path):
+    compiled = slip_trials()
+    python = in_plain_python("slip_trials", tmp_path)
+    assert len(compiled) == len(python) == 8
+    for a, b in zip(compiled, python):
+        for u, v in zip(a, b):
+            np.testing.assert_allclose(u, v, rtol=0, atol=1e-12 * np.abs(v).max())
