@@ -35,7 +35,8 @@ $(STAMPS)/venv: $(STAMPS)/apt pyproject.toml
 	  $(PY) -m pip install -q -c $(STAMPS)/constraints.txt --no-build-isolation -e ".[cholmod]" \
 	  || echo "WARNING: scikit-sparse (CHOLMOD) did not build; fem_grasp falls back to SciPy SuperLU"
 	$(PY) -c "import dolfinx, gmsh, numpy; print('venv ok: dolfinx', dolfinx.__version__, 'numpy', numpy.__version__)"
-	$(PY) -c "from fem_grasp import jit; print('inner loops:', jit.backend_name())"
+	@# Compile the numba kernels once here (cached), not in the first pickup.
+	$(PY) -c "from fem_grasp import jit; t = jit.warm_up(); print('inner loops:', jit.backend_name(), f'(compiled in {t:.1f} s)')"
 	@touch $@
 
 test: setup

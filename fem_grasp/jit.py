@@ -27,7 +27,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-__all__ = ["ENABLED", "jit", "as_kernel_data", "backend_name"]
+__all__ = ["ENABLED", "jit", "as_kernel_data", "backend_name", "warm_up"]
 
 log = logging.getLogger(__name__)
 
@@ -73,3 +73,46 @@ def as_kernel_data(a: np.ndarray, dtype: Any = float) -> Any:
 def backend_name() -> str:
     """'numba x.y.z' or 'python' (for benchmark and log lines)."""
     return f"numba {importlib.metadata.version('numba')}" if ENABLED else "python"
+
+
+def warm_up() -> float:
+    """Compile every kernel now, through each of its entry points from Python; seconds taken.
+
+    numba caches what it compiles, so this costs once per installation (``make setup`` calls it);
+    without it the first pickup pays the compilation, several seconds.
+    """
+    import time
+
+    from . import gauss_seidel as gs
+    from .relaxation import _SlideGeometry, relax_contacts
+    from .tracking import FINGER1, TABLE, MixedSlipSystem
+
+    if not ENABLED:
+        return 0.0
+    t0 = time.perf_counter()
+    up = np.array([0.0, 0.0, 1.0])
+    stiffness = 100.0 * np.eye(6)
+    forces = np.array([[0.8, 0.0, 1.0], [0.0, 0.8, 1.0]])
+    mu = np.array([0.5, 0.5])
+    centre = np.array([0.0, 0.0, 0.02])
+    positions = np.array([[0.0, 0.0, 0.0], centre - [0.0, 0.0, 0.01]])
+    # The return mapping: its sweep, and what its Newton polish and its end call per contact.
+    relax_contacts(stiffness, forces, positions, [None, centre], up, mu, 1.0)
+    records = gs.contact_records(positions, [None, centre], up, np.stack([np.eye(3), np.eye(3)]))
+    _SlideGeometry(records, mu).projections(np.zeros((2, 2)))
+    gs.outside_sphere(records[1], 0.0, 0.0, 0.0)
+    gs.motion(records[1], 0.0, 0.0)
+    # The slip systems of both forms: Newton, and the residual and Jacobian called on their own.
+    for free in (False, True):
+        system = MixedSlipSystem(stiffness, forces, np.zeros((2, 3)), np.array([0, 1]), np.array([TABLE, FINGER1]),
+                                 mu, np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), positions - [np.zeros(3), centre],
+                                 up, 0.01, free)
+        system._newton(system.x0 / system.xscale, 1e-12)  # root or not: only the compilation matters
+        system.residual(system.x0)
+        system.jacobian(system.x0)
+    return time.perf_counter() - t0
+
+
+#: The kernels called from Python (the others are compiled into them): what :func:`warm_up` must reach.
+ENTRY_POINTS = {"fem_grasp.gauss_seidel": ("sweep", "motion", "slide_projections", "outside_sphere"),
+                "fem_grasp.slip_newton": ("residual", "jacobian", "newton")}

@@ -103,3 +103,26 @@ def test_compiled_and_plain_python_slip_systems_agree(tmp_path):
     for a, b in zip(compiled, python):
         for u, v in zip(a, b):
             np.testing.assert_allclose(u, v, rtol=0, atol=1e-12 * np.abs(v).max())
+
+
+def test_warm_up_compiles_every_entry_point(tmp_path):
+    """``make setup`` compiles the kernels with jit.warm_up: in a fresh process (an empty numba cache),
+    every kernel called from Python must then have a compiled signature, and none is left for a pickup
+    to compile."""
+    import importlib
+
+    for module, names in jit.ENTRY_POINTS.items():
+        mod = importlib.import_module(module)
+        assert all(callable(getattr(mod, n)) for n in names)
+    if not jit.ENABLED:
+        assert jit.warm_up() == 0.0
+        return
+    code = ("import importlib, json, sys; from fem_grasp import jit; jit.warm_up(); "
+            "print(json.dumps({m: {n: len(getattr(importlib.import_module(m), n).signatures) for n in names} "
+            "for m, names in jit.ENTRY_POINTS.items()}))")
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, check=True, capture_output=True, text=True)
+    import json
+
+    counts = json.loads(out.stdout.strip().splitlines()[-1])
+    assert all(n >= 1 for names in counts.values() for n in names.values()), counts
