@@ -347,22 +347,20 @@ class Compliance:
         A contact response calls this for every displacement field; keeping a
         (3n, 3m) block per contact set instead took 4 GiB at 10k vertices.
         """
-        self._ensure(nodes)
-        a = np.asarray(coefficients, dtype=float).reshape(-1, 3)
-        out = self._columns[int(nodes[0])] @ a[0]
-        for k, ak in zip(nodes[1:], a[1:]):
-            out += self._columns[int(k)] @ ak
-        return out
+        return self._combine(self._columns, nodes, coefficients)
 
     def combine_surface(self, nodes: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
         """:meth:`combine` on the rows of the ``surface`` nodes only: (3s,), in ``surface_nodes`` order."""
         if self._surface_rows is None:
             raise ValueError("this Compliance keeps no surface rows (Compliance(surface=...))")
+        return self._combine(self._surface_columns, nodes, coefficients)
+
+    def _combine(self, columns: dict[int, np.ndarray], nodes: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
         self._ensure(nodes)
         a = np.asarray(coefficients, dtype=float).reshape(-1, 3)
-        out = self._surface_columns[int(nodes[0])] @ a[0]
+        out = columns[int(nodes[0])] @ a[0]
         for k, ak in zip(nodes[1:], a[1:]):
-            out += self._surface_columns[int(k)] @ ak
+            out += columns[int(k)] @ ak
         return out
 
     @property
