@@ -70,7 +70,8 @@ import logging
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Sequence
+from functools import cached_property
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -124,38 +125,65 @@ class Snapshot:
     label : "initial", "event", "lift start", "lift-off", "final", …
     phase : "squeeze" or "lift"
     squeeze_depth, lift_height : metres
-    positions : (n, 3) deformed node positions, in the frame of the posed body
+    surface_nodes : (s,) the body's surface nodes (``mesh.surface_nodes``)
+    surface_positions : (s, 3) their deformed positions, in the frame of the posed body
     finger_centers : (2, 3) fingertip centres
     finger_radius : metres
     contact_nodes : {"finger1", "finger2", "table"} → (k,) node indices
     contact_forces : same keys → (k, 3) forces on the object, newtons
     sliding : same keys → (k,) bool
     events : the events that produced this snapshot
+    position_source : computes the (n, 3) deformed positions of every node (:attr:`positions`)
     """
 
     label: str
     phase: str
     squeeze_depth: float
     lift_height: float
-    positions: np.ndarray
+    surface_nodes: np.ndarray
+    surface_positions: np.ndarray
     finger_centers: np.ndarray
     finger_radius: float
     contact_nodes: dict[str, np.ndarray]
     contact_forces: dict[str, np.ndarray]
     sliding: dict[str, np.ndarray]
     events: tuple[ContactEvent, ...] = ()
+    position_source: Callable[[], np.ndarray] | None = field(default=None, repr=False, compare=False)
+
+    @cached_property
+    def positions(self) -> np.ndarray:
+        """(n, 3) deformed positions of every node, computed at first use (outputs need them; the checks,
+        normals and forces do not, and on a large mesh each costs a sparse solve or a pass over many
+        cached columns)."""
+        return np.array(self.position_source(), dtype=float)
+
+    def node_positions(self, nodes: np.ndarray) -> np.ndarray:
+        """(k, 3) deformed positions of ``nodes``, from the surface when they all lie on it."""
+        nodes = np.asarray(nodes, dtype=np.int64)
+        idx = np.minimum(np.searchsorted(self.surface_nodes, nodes), len(self.surface_nodes) - 1)
+        if len(nodes) and not np.array_equal(self.surface_nodes[idx], nodes):
+            return self.positions[nodes]
+        return self.surface_positions[idx]
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled with its positions computed (the source is a closure over the tracker)."""
+        self.positions  # noqa: B018 - computed and cached in __dict__
+        return {**self.__dict__, "position_source": None}
 
     @classmethod
-    def from_state(cls, state: ContactState, radius: float, label: str,
-                   events: Sequence[ContactEvent] = ()) -> "Snapshot":
+    def from_state(cls, state: ContactState, radius: float, label: str, events: Sequence[ContactEvent] = (),
+                   *, surface_nodes: np.ndarray) -> "Snapshot":
+        """The snapshot of a tracked state; ``surface_nodes`` are the body's (those of ``state.surface_positions``)."""
         nodes, forces, sliding = {}, {}, {}
         for code, name in enumerate(OBSTACLES):
             on = state.owner == code
             nodes[name] = state.nodes[on].copy()
             forces[name] = state.forces[on].copy()
             sliding[name] = state.sliding[on].copy()
-        return cls(label, state.phase, state.squeeze_depth, state.lift_height, state.positions.copy(),
-                   state.centers.copy(), radius, nodes, forces, sliding, tuple(events))
+        return cls(label, state.phase, state.squeeze_depth, state.lift_height, surface_nodes,
+                   state.surface_positions.copy(), state.centers.copy(), radius, nodes, forces, sliding, tuple(events),
+                   state.position_source)
+
 
     @property
     def all_nodes(self) -> np.ndarray:
@@ -169,7 +197,7 @@ class Snapshot:
         """Inward normals n̂ at the contacts of each body."""
         out = {}
         for f, name in ((FINGER1, "finger1"), (FINGER2, "finger2")):
-            d = self.positions[self.contact_nodes[name]] - self.finger_centers[f]
+            d = self.node_positions(self.contact_nodes[name]) - self.finger_centers[f]
             out[name] = d / np.linalg.norm(d, axis=1, keepdims=True) if len(d) else np.zeros((0, 3))
         out["table"] = np.broadcast_to(table.up, (len(self.contact_nodes["table"]), 3)).copy()
         return out
@@ -189,7 +217,7 @@ class Snapshot:
         f_res, t_res = equilibrium_residual(body, self.all_nodes, forces)
         fs = body.weight + float(np.abs(forces).max(initial=0.0))
         surf = body.mesh.surface_nodes
-        p = self.positions[surf]
+        p = self.surface_positions if np.array_equal(surf, self.surface_nodes) else self.positions[surf]
         own = {int(k): name for name in OBSTACLES for k in self.contact_nodes[name]}
         pen = 0.0
         for f, name in ((FINGER1, "finger1"), (FINGER2, "finger2")):
@@ -208,7 +236,7 @@ class Snapshot:
             k = self.contact_nodes[name]
             if not len(k):
                 continue
-            q = self.positions[k]
+            q = self.node_positions(k)
             g = (np.linalg.norm(q - self.finger_centers[f], axis=1) - self.finger_radius if name != "table"
                  else table.signed_distance(q))
             contact_gap = max(contact_gap, float(np.abs(g).max()))
@@ -596,8 +624,10 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
     hanging = Tracker(posed, radius=finger_radius, mu_finger=mu_f, mu_table=mu_t, table=None, backend=backend)
     velocities = np.stack([d1, ratio * d2])
 
+    surface = posed.mesh.surface_nodes
+
     def snap(st: ContactState, label: str, events: Sequence[ContactEvent] = ()) -> None:
-        result.snapshots.append(Snapshot.from_state(st, finger_radius, label, events))
+        result.snapshots.append(Snapshot.from_state(st, finger_radius, label, events, surface_nodes=surface))
 
     try:
         state = initial_state(tracker, rs, ij)
@@ -628,7 +658,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
         if not sq.passed:
             result.reason = sq.reason + "".join(
                 f"; lift attempt at ρ = {a.squeeze_depth:.4g} m failed: {a.reason}" for a in result.lift_attempts)
-            result.final = Snapshot.from_state(sq.state, finger_radius, "final")
+            result.final = Snapshot.from_state(sq.state, finger_radius, "final", surface_nodes=surface)
             result.finger_normal_force = result.final.finger_normal_force(table)
             timings["total"] = time.perf_counter() - t_start
             return result
@@ -663,7 +693,8 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
     result.success = lf.success
     result.reason = lf.reason if attempt == 1 or lf.success else (
         f"{lf.reason} (after {attempt} lift attempts from ρ = {result.lift_attempts[0].squeeze_depth:.4g} m)")
-    result.final = Snapshot.from_state(lf.state, finger_radius, "lift-off" if lf.success else "final")
+    result.final = Snapshot.from_state(lf.state, finger_radius, "lift-off" if lf.success else "final",
+                                       surface_nodes=surface)
     result.snapshots.append(result.final)
     result.finger_normal_force = result.final.finger_normal_force(table)
     timings["total"] = time.perf_counter() - t_start

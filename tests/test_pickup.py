@@ -131,6 +131,25 @@ def test_the_same_scene_gives_the_same_json_but_for_wall_times(lifted):
     assert without_times(again) == without_times(lifted)  # bit-identical numbers, events and snapshots
 
 
+def test_snapshots_solve_the_whole_field_only_when_read_and_pickle_with_it():
+    """A snapshot holds the deformed surface; its whole field is solved on first read (outputs), equal on the
+    surface to what it holds, and a pickled snapshot carries the field instead of the tracker's closure."""
+    import pickle
+
+    res = _pickup(0.5)
+    assert res.check()
+    fresh = [s for s in res.snapshots if "positions" not in s.__dict__]
+    assert len(fresh) == len(res.snapshots)  # the pickup and its checks never needed a whole field
+    snap = res.snapshots[len(res.snapshots) // 2]
+    whole = fresh[0].positions
+    np.testing.assert_array_equal(whole[fresh[0].surface_nodes], fresh[0].surface_positions)
+    k = fresh[0].all_nodes
+    np.testing.assert_array_equal(fresh[0].node_positions(k), whole[k])
+    again = pickle.loads(pickle.dumps(snap))
+    assert again.position_source is None
+    np.testing.assert_array_equal(again.positions, snap.positions)
+
+
 def test_rigid_comparison_is_reported(lifted):
     # Table III: the rigid body with the same shape and contacts, two frictional point contacts.
     assert lifted.rigid.feasible
