@@ -33,8 +33,10 @@ By default a cached column holds all 3n rows of X (what
 displacement field).  At 100k vertices that is 7 MB per contact node.  With
 ``rows=`` a set of nodes (typically ``mesh.surface_nodes``, about a tenth of
 the nodes of a large mesh), only those nodes' rows are cached; the whole field
-is then recovered when needed by one more solve, :meth:`Compliance.apply` of
-the load ``E_c F̄ + G`` (the contact forces placed at their DOFs plus gravity).
+is then recovered when needed by one more solve (:meth:`Compliance.combine`
+applies X to the contact forces placed at their DOFs).  :class:`~fem_grasp.body.Body`
+does this above ``body.FULL_COLUMNS_MAX_NODES`` vertices: the contact tracking
+reads only the surface (``surface=``, :meth:`Compliance.combine_surface`).
 """
 
 from __future__ import annotations
@@ -264,6 +266,9 @@ class Compliance:
         self.surface_nodes = None if surface is None else np.unique(np.asarray(surface, dtype=np.int64))
         self._surface_rows = None if surface is None else self._row_positions(self.surface_nodes)
         self._surface_columns: dict[int, np.ndarray] = {}
+        if self._surface_rows is not None and self.kept_nodes is not None \
+                and np.array_equal(self.surface_nodes, self.kept_nodes):
+            self._surface_columns = self._columns  # the kept rows are the surface rows: one cache
         log.debug("factorised K (%s) with %d DOFs grounded at %s", self.solver, n, self.ground)
 
     def apply(self, load: np.ndarray) -> np.ndarray:
@@ -301,7 +306,7 @@ class Compliance:
             cols = cols[self._row_dofs]
         for j, k in enumerate(new):
             self._columns[k] = np.ascontiguousarray(cols[:, 3 * j: 3 * j + 3])
-            if self._surface_rows is not None:
+            if self._surface_rows is not None and self._surface_columns is not self._columns:
                 self._surface_columns[k] = np.ascontiguousarray(cols[self._surface_rows, 3 * j: 3 * j + 3])
 
     def prefetch(self, nodes: np.ndarray) -> None:
@@ -342,11 +347,16 @@ class Compliance:
         return self.node_columns(nodes, rows=nodes)
 
     def combine(self, nodes: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
-        """X[:, c] @ coefficients for the DOFs c of ``nodes``, from the cached columns (no (3n, 3m) copy).
+        """X[:, c] @ coefficients for the DOFs c of ``nodes``: (3n,), from the cached columns (no (3n, 3m) copy),
+        or by one solve when only some rows are kept (``rows=``).
 
         A contact response calls this for every displacement field; keeping a
         (3n, 3m) block per contact set instead took 4 GiB at 10k vertices.
         """
+        if self.kept_nodes is not None:
+            load = np.zeros(self.n_dofs)
+            load[_node_dofs(np.asarray(nodes, dtype=np.int64))] = np.asarray(coefficients, dtype=float).reshape(-1)
+            return self.apply(load)
         return self._combine(self._columns, nodes, coefficients)
 
     def combine_surface(self, nodes: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
@@ -370,4 +380,5 @@ class Compliance:
     @property
     def cache_bytes(self) -> int:
         """Memory held by the column cache."""
-        return sum(c.nbytes for c in self._columns.values()) + sum(c.nbytes for c in self._surface_columns.values())
+        extra = self._surface_columns.values() if self._surface_columns is not self._columns else ()
+        return sum(c.nbytes for c in self._columns.values()) + sum(c.nbytes for c in extra)

@@ -222,3 +222,21 @@ def test_tracked_states_compute_the_whole_field_only_when_asked(body):
     whole = state.positions
     assert whole.shape == (body.n_nodes, 3) and "positions" in state.__dict__
     np.testing.assert_array_equal(whole[body.mesh.surface_nodes], state.surface_positions)
+
+
+def test_a_large_body_caches_surface_rows_and_solves_for_whole_fields(body, rng, monkeypatch):
+    """Above FULL_COLUMNS_MAX_NODES vertices the compliance keeps only surface rows (one cache serves the
+    surface fields) and a whole field costs a sparse solve: the same forces and fields as the full columns."""
+    import fem_grasp.body as body_module
+
+    monkeypatch.setattr(body_module, "FULL_COLUMNS_MAX_NODES", body.n_nodes - 1)
+    lean = body.with_material()
+    nodes = contact_set(body)
+    disp = 1e-3 * rng.standard_normal((len(nodes), 3))
+    a, b = solve_contact(lean, nodes, disp), solve_contact(body, nodes, disp)
+    comp = lean.compliance
+    assert np.array_equal(comp.kept_nodes, body.mesh.surface_nodes)
+    assert comp.cache_bytes == comp.cached_nodes * (3 * len(comp.kept_nodes)) * 3 * 8  # no second copy
+    assert rel(a.forces, b.forces) <= 1e-12 and rel(a.displacements, b.displacements) <= 1e-12
+    surface = lean.contact_response(nodes).surface_displacements(disp)
+    assert rel(surface, a.displacements[body.mesh.surface_nodes]) <= 1e-12
