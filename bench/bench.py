@@ -249,7 +249,7 @@ def scaling_worker(size: int) -> None:
     emit(phase="rest", seconds=t, contacts=len(rs.contact_nodes), maxrss_mib=maxrss_mib())
     t, res = timed(lambda: pickup(body, mu_finger=mu, mu_table=mu, rest_state=rs, placement_rule=PAPER_PLACEMENT_RULE))
     emit(phase="pickup", seconds=t, success=bool(res.success), reason=res.reason, events=len(res.events),
-         cached_columns=body.compliance.cached_nodes, maxrss_mib=maxrss_mib())
+         cached_columns=res.body.compliance.cached_nodes, maxrss_mib=maxrss_mib())
 
 
 def section_scaling(sizes: list[int], cap: float) -> dict[str, Any]:
@@ -289,7 +289,7 @@ def section_scaling(sizes: list[int], cap: float) -> dict[str, Any]:
 def print_scaling(sec: dict[str, Any]) -> None:
     print(f"\n(b) cost against vertex count (orange, E = {sec.get('young', YOUNG):g} Pa, uniform meshes; one process per "
           f"size, cap {sec['cap_s']:.0f} s)")
-    print(f"{'vertices':>9s} {'assembly s':>10s} {'factor s':>9s} {'rest s':>8s} {'pickup s':>9s} "
+    print(f"{'vertices':>9s} {'assembly s':>10s} {'factor s':>9s} {'rest s':>8s} {'pickup s':>9s} {'lifted':>7s} "
           f"{'peak MiB':>9s} {'after':>14s}")
 
     def s(v: Any) -> str:
@@ -301,8 +301,9 @@ def print_scaling(sec: dict[str, Any]) -> None:
             if isinstance(r.get(phase), dict):
                 mem, where = r[phase]["maxrss_mib"], phase
         verts = r["mesh"]["vertices"] if isinstance(r.get("mesh"), dict) else r["target"]
+        lifted = str(r["pickup"]["success"]) if isinstance(r.get("pickup"), dict) else "-"
         print(f"{verts:9d} {s(r['assembly']):>10s} {s(r['factorisation']):>9s} {s(r['rest']):>8s} "
-              f"{s(r['pickup']):>9s} {mem:9.0f} {where:>14s}")
+              f"{s(r['pickup']):>9s} {lifted:>7s} {mem:9.0f} {where:>14s}")
 
 
 # ---------------------------------------------------------- (c) objects
