@@ -414,8 +414,8 @@ print(json.dumps({{"seconds": time.perf_counter() - t, "first_s": first, "inner_
 
 
 def section_jit(name: str = "tomato") -> dict[str, Any]:
-    """One pickup with the Gauss–Seidel sweeps compiled by numba, one with them as plain Python
-    (FEM_GRASP_NO_JIT=1), each in its own process after a warm-up pickup."""
+    """One pickup with the kernels (Gauss–Seidel sweeps, slip-system Newton) compiled by numba, one with them
+    run by Python and numpy (FEM_GRASP_NO_JIT=1), each in its own process after a warm-up pickup."""
     import tempfile
 
     runs = {}
@@ -435,7 +435,8 @@ def section_jit(name: str = "tomato") -> dict[str, Any]:
 
 
 def print_jit(sec: dict[str, Any]) -> None:
-    print(f"\n(e) one pickup, {sec['object']}, Gauss–Seidel sweeps compiled ({sec['compiled']}) against plain Python: "
+    print(f"\n(e) one pickup, {sec['object']}, kernels (Gauss–Seidel sweeps, slip-system Newton) compiled "
+          f"({sec['compiled']}) against plain Python: "
           f"{sec['compiled_s']:.3f} s against {sec['python_s']:.3f} s, ratio {sec['ratio']:.1f}; "
           f"same events {sec['same_events']}, squeeze depth rel. diff. {sec['squeeze_depth_rel']:.1e}; the first pickup "
           f"in a fresh process with an empty numba cache (compiling): {sec.get('compiled_first_s', float('nan')):.3f} s "
