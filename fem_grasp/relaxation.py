@@ -48,6 +48,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -127,10 +128,11 @@ def _backtrack(fun, x: np.ndarray, step: np.ndarray, norm: float, halvings: int)
     return None
 
 
-def _polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, status: np.ndarray,
-            d: np.ndarray, u: np.ndarray, tol: float, stick_tol: float, max_slip: float
-            ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """Newton's method on the smooth system of fixed statuses; None unless it converges and they hold.
+def _polish_system(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, status: np.ndarray,
+                   d: np.ndarray, u: np.ndarray) -> tuple[list[int], np.ndarray, np.ndarray, Callable] | None:
+    """The smooth system of fixed statuses that :func:`_polish` solves: (active contacts, offsets of their
+    unknowns in x, the current x, ``evaluate(x, with_jacobian) -> (residual, forces, δ, Jacobian or None)``);
+    None when no contact slides or is released.
 
     Unknowns: u_k (2) of each sliding contact, δ_k (3) of each released one.
     Equations: f_t + μ f_n ŝ = 0 in the tangent plane at the new position
@@ -195,6 +197,19 @@ def _polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, stat
         jac[xs_idx[:, :, None], xs_idx[:, None, :]] += ej
         return r, f, dd, jac
 
+    return act, offs, x, evaluate
+
+
+def _polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, status: np.ndarray,
+            d: np.ndarray, u: np.ndarray, tol: float, stick_tol: float, max_slip: float
+            ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Newton's method on the smooth system of fixed statuses (:func:`_polish_system`); None unless it
+    converges and the statuses still hold."""
+    system = _polish_system(rec, c, f0, mu, status, d, u)
+    if system is None:
+        return None
+    act, offs, x, evaluate = system
+    m = len(rec)
     r, f, dd, jac = evaluate(x, True)
     for _ in range(20):
         norm = float(np.linalg.norm(r))

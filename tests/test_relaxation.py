@@ -232,3 +232,32 @@ def test_a_sideways_loaded_fingertip_contact_lifts_off_the_curved_tip():
     delta = res.displacements[0]
     assert delta @ n0 < 0  # into the tangent plane ...
     assert np.linalg.norm(r0 + delta) > radius  # ... but clear of the sphere
+
+
+def test_the_polish_jacobian_matches_finite_differences(rng):
+    """The polish's Newton Jacobian (coupling blocks ∂R/∂f C ∂δ/∂x assembled contact by contact, plus each
+    sliding contact's own geometric block) against central differences of its residual, on the squeezed box
+    with table and fingertip contacts sliding, one table contact released and the rest sticking."""
+    from fem_grasp import gauss_seidel as gs
+    from fem_grasp.relaxation import _polish_system
+
+    c, f0, q0, centers, mu, radius = _squeezed_box()
+    m = len(f0)
+    ckk = np.array([c[3 * k:3 * k + 3, 3 * k:3 * k + 3] for k in range(m)])
+    rec = gs.contact_records(q0, centers, UP, ckk)
+    status = np.full(m, STICK)
+    status[[0, 2, m - 2, m - 1]] = SLIDE  # two table contacts and both fingertip contacts
+    status[1] = RELEASE
+    u = np.zeros((m, 2))
+    u[status == SLIDE] = 1e-4 * rng.normal(size=(4, 2))
+    d = np.zeros((m, 3))
+    d[1] = 1e-4 * rng.normal(size=3)
+    act, offs, x, evaluate = _polish_system(rec, c, f0, mu, status, d, u)
+    assert act == [0, 1, 2, m - 2, m - 1] and len(x) == 2 + 3 + 2 + 2 + 2
+    x = x + 1e-5 * rng.normal(size=len(x))
+    jac = evaluate(x, True)[3]
+    h = 1e-8
+    fd = np.stack([(evaluate(x + h * e, False)[0] - evaluate(x - h * e, False)[0]) / (2 * h)
+                   for e in np.eye(len(x))], axis=1)
+    np.testing.assert_allclose(jac, fd, rtol=0, atol=1e-5 * np.abs(fd).max())
+    assert np.abs(jac).max() > 0 and np.count_nonzero(np.abs(jac) > 1e-6 * np.abs(jac).max()) > len(x)
