@@ -296,6 +296,13 @@ class TetMesh:
         return np.unique(self.surface_faces)
 
     @cached_property
+    def surface_index(self) -> np.ndarray:
+        """(n,) each vertex's position in :attr:`surface_nodes`, −1 for interior vertices."""
+        index = np.full(self.n_points, -1, dtype=np.int64)
+        index[self.surface_nodes] = np.arange(len(self.surface_nodes))
+        return index
+
+    @cached_property
     def surface_normals(self) -> np.ndarray:
         """(n, 3) outward unit normal at each vertex (area-weighted; zero off the surface)."""
         return vertex_normals(self.points, self.surface_faces)

@@ -280,8 +280,8 @@ class ContactResponse:
         f, b = self._solve_bordered(d - self._d_bar, self._rhs_rigid)
         grav, null = self.body.surface_field_terms
         field = (self.body.compliance.combine_surface(self.nodes, f) + grav + null @ b).reshape(-1, 3)
-        pos = np.searchsorted(surface, self.nodes)
-        on = (pos < len(surface)) & (surface[np.minimum(pos, len(surface) - 1)] == self.nodes)
+        pos = self.body.mesh.surface_index[self.nodes]
+        on = pos >= 0
         field[pos[on]] = d.reshape(-1, 3)[on]  # the prescribed values, exactly (as in solve)
         return field
 

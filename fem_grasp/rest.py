@@ -587,7 +587,7 @@ def rest(body: Body, mu_table: float, *, down: np.ndarray | None = None, table_z
         if depth > tol:  # step 5, event A: the deepest node lands on the table
             new = [deepest]
             solver.prefetch_columns([deepest], state.positions)
-            solver.add(deepest, state.displacements[np.searchsorted(solver.surface, deepest)])
+            solver.add(deepest, state.displacements[posed.mesh.surface_index[deepest]])
             log.debug("event A: node %d was %.3g m below the table (λ = %.4g)", deepest, depth, solver.lam)
         elif not unsettled:  # raise the load to the next touch (event A at the new λ) or to 1
             lam_next, touching = solver.next_touch(state)
@@ -598,7 +598,7 @@ def rest(body: Body, mu_table: float, *, down: np.ndarray | None = None, table_z
                 moved = solver.solve()
                 solver.prefetch_columns(touching, moved.positions)
                 for k in touching:
-                    solver.add(int(k), moved.displacements[np.searchsorted(solver.surface, k)])
+                    solver.add(int(k), moved.displacements[posed.mesh.surface_index[k]])
                 new = [int(k) for k in touching]
                 log.debug("event A: %d node(s) touch the table at λ = %.6g", len(new), lam_next)
         released: list[int] = []

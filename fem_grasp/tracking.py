@@ -603,9 +603,7 @@ class Tracker:
         self.backend = backend
         self.points = body.mesh.points
         self.surface = body.mesh.surface_nodes
-        #: Each node's position in ``surface`` (−1: interior).
-        self.surface_index = np.full(len(self.points), -1, dtype=np.int64)
-        self.surface_index[self.surface] = np.arange(len(self.surface))
+        self.surface_index = body.mesh.surface_index  # each node's position in ``surface`` (−1: interior)
         self.diameter = body.mesh.diameter
         self.up = table.up if table is not None else np.array([0.0, 0.0, 1.0])
         self._responses: dict[tuple[int, ...], ContactResponse] = {}

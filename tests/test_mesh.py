@@ -123,3 +123,12 @@ def test_transformed_is_rigid_and_rejects_reflection():
     assert moved.n_reoriented == 0
     with pytest.raises(ValueError, match="reflection"):
         m.transformed(np.diag([1.0, 1.0, -1.0]))
+
+
+def test_surface_index_maps_surface_nodes_to_their_positions_and_interior_to_minus_one():
+    mesh = box_mesh((0, 0, 0), (1, 1, 1), (3, 3, 3))
+    surf = mesh.surface_nodes
+    idx = mesh.surface_index
+    assert np.array_equal(idx[surf], np.arange(len(surf)))
+    interior = np.setdiff1d(np.arange(mesh.n_points), surf)
+    assert len(interior) == 8 and np.all(idx[interior] == -1)
