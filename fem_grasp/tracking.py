@@ -622,6 +622,9 @@ class Tracker:
         #: For one base state and motion, the smallest dt at which Newton found no root, per form.
         self._fail_key: tuple | None = None
         self._newton_fails: dict[bool, float] = {}
+        #: The trial whose state the latest advance or settle returned: the zero increment of the next advance
+        #: from that state (its event values, rates), which need not be solved again.
+        self._returned: _Trial | None = None
 
     # ------------------------------------------------------------ responses
     def response(self, nodes: np.ndarray) -> ContactResponse:
@@ -855,6 +858,21 @@ class Tracker:
         frac = -g_lo[fire] / (g_hi[fire] - g_lo[fire])
         return int(fire[np.argmin(frac)])
 
+    @staticmethod
+    def _interpolated_root(points: list[tuple[float, float]]) -> float | None:
+        """Zero of the event function through its latest trials ``points`` [(t, g), …], newest first: inverse
+        quadratic interpolation through three, the secant through two; None if they do not define one."""
+        if len(points) >= 3:
+            (a, fa), (b, fb), (c, fc) = points[:3]
+            if fa != fb and fa != fc and fb != fc:
+                return (a * fb * fc / ((fa - fb) * (fa - fc)) + b * fa * fc / ((fb - fa) * (fb - fc))
+                        + c * fa * fb / ((fc - fa) * (fc - fb)))
+        if len(points) >= 2:
+            (a, fa), (b, fb) = points[:2]
+            if fa != fb:
+                return a - fa * (a - b) / (fa - fb)
+        return None
+
     # ------------------------------------------------------------- stepping
     def advance(self, base: ContactState, dt: float, velocities: np.ndarray, *, load_rate: float = 0.0,
                 param: str = "squeeze_depth", phase: str | None = None,
@@ -897,13 +915,15 @@ class Tracker:
                     return self._turning_point(t0, exc, velocities, phase, load_rate, param)
         trial.values = self.event_values(trial, fscale)
         if self._gmax(trial.values) <= 0.0:
+            self._returned = trial
             return trial.state, []
-        # Locate the first event in (0, h]: Illinois regula falsi on the event function predicted to fire
-        # first (smooth in the parameter, unlike the max of them all, which switches between functions).
+        # Locate the first event in (0, h] on the event function predicted to fire first (smooth in the
+        # parameter, unlike the max of them all, which switches between functions): interpolation through
+        # its latest trials, safeguarded by Illinois regula falsi on the bracket.
         tol = TOL_LOCATE * self.diameter
         lo, g_lo = 0.0, None
         try:
-            t0 = self.trial(base, 0.0, velocities, load_rate, param)
+            t0 = self._zero_trial(base, velocities, load_rate, param)
             t0.values = self.event_values(t0, fscale)
             g_lo = self._gmax(t0.values)
         except SlipFailure:
@@ -916,35 +936,52 @@ class Tracker:
             g_lo = -1.0 if g_lo is None else g_lo
             hi, g_hi, hi_trial = h, self._gmax(trial.values), trial
             all_hi = self._flat(trial.values)
+            history = [(h, all_hi)] + ([(0.0, all_lo)] if all_lo is not None else [])  # newest first
+            widths = [hi - lo]
             side, lead, w_lo, w_hi = 0, None, 1.0, 1.0
             while hi - lo > tol:
                 new_lead = self._first_to_fire(all_lo, all_hi)
                 if new_lead != lead:
                     lead, w_lo, w_hi = new_lead, 1.0, 1.0
-                a, b = (g_lo, g_hi) if lead is None else (w_lo * all_lo[lead], w_hi * all_hi[lead])
-                mid = hi - b * (hi - lo) / (b - a) if b > a else 0.5 * (lo + hi)
-                if not (lo < mid < hi) or (hi - lo) < 1e3 * tol:
+                mid = None
+                # Interpolation while it shrinks the bracket at least twofold every two trials (Brent's rule).
+                if lead is not None and (len(widths) < 3 or widths[-1] <= 0.5 * widths[-3]):
+                    pts = [(t, float(v[lead])) for t, v in history if np.isfinite(v[lead])]
+                    mid = self._interpolated_root(pts)
+                if mid is None or not (lo < mid < hi):
+                    a, b = (g_lo, g_hi) if lead is None else (w_lo * all_lo[lead], w_hi * all_hi[lead])
+                    mid = hi - b * (hi - lo) / (b - a) if b > a else 0.5 * (lo + hi)
+                if not (lo < mid < hi) or (hi - lo) < 4.0 * tol:
                     mid = 0.5 * (lo + hi)
+                elif mid - lo < 0.9 * tol:
+                    # The estimate is within tol of an end (it is accurate far below the bracket): a trial
+                    # just past it, on the far side of the root, closes the bracket.
+                    mid += 0.1 * tol
+                elif hi - mid < 0.9 * tol:
+                    mid -= 0.1 * tol
                 try:
                     tr = self.trial(base, mid, velocities, load_rate, param)
                 except SlipFailure:
                     hi, hi_trial, all_hi = mid, None, None
                     g_hi = 1.0
+                    widths.append(hi - lo)
                     continue
                 tr.values = self.event_values(tr, fscale)
                 g = self._gmax(tr.values)
+                history.insert(0, (mid, self._flat(tr.values)))
                 if g > 0:
-                    hi, g_hi, hi_trial, all_hi, w_hi = mid, g, tr, self._flat(tr.values), 1.0
+                    hi, g_hi, hi_trial, all_hi, w_hi = mid, g, tr, history[0][1], 1.0
                     if side == 1:
                         g_lo *= 0.5
                         w_lo *= 0.5
                     side = 1
                 else:
-                    lo, g_lo, lo_trial, all_lo, w_lo = mid, g, tr, self._flat(tr.values), 1.0
+                    lo, g_lo, lo_trial, all_lo, w_lo = mid, g, tr, history[0][1], 1.0
                     if side == -1:
                         g_hi *= 0.5
                         w_hi *= 0.5
                     side = -1
+                widths.append(hi - lo)
             if hi_trial is None:
                 try:
                     hi_trial = self.trial(base, hi, velocities, load_rate, param)
@@ -955,6 +992,14 @@ class Tracker:
         state, events = self._apply(hi_trial, phase)
         state, more = self.settle(state, velocities, phase=phase, load_rate=load_rate, param=param)
         return state, events + more
+
+    def _zero_trial(self, base: ContactState, velocities: np.ndarray, load_rate: float, param: str) -> _Trial:
+        """The zero increment from ``base``: the trial that produced it, if an advance or settle just returned
+        it (a re-solve agrees with it to round-off), else :meth:`trial` at dt = 0."""
+        made = self._returned
+        if made is not None and made.state is base:
+            return _Trial(made.state, made.amounts, made.rates)
+        return self.trial(base, 0.0, velocities, load_rate, param)
 
     def _turning_point(self, trial: _Trial | None, exc: Exception, velocities: np.ndarray, phase: str,
                        load_rate: float, param: str) -> tuple[ContactState, list[ContactEvent]]:
@@ -1008,6 +1053,7 @@ class Tracker:
                 return state, events + ev
             tr.values = self.event_values(tr, self.force_scale(tr.state))
             if self._gmax(tr.values) <= 0.0:
+                self._returned = tr
                 return tr.state, events
             state, ev = self._apply(tr, phase)
             events += ev

@@ -123,15 +123,21 @@ def _assert_similar(a: PickupResult, ea: float, la: float, b: PickupResult, eb: 
                                    rtol=1e-12, atol=located)
     assert a.squeeze_depth / la == pytest.approx(b.squeeze_depth / lb, rel=1e-9)
     assert a.step / la == pytest.approx(b.step / lb, rel=1e-12)
-    np.testing.assert_allclose(np.array(a.liftable) / [la, fa], np.array(b.liftable) / [lb, fb], rtol=1e-9)
+    # The lift tests are made at located events: their depths are resolved to the location tolerance.
+    lift_a, lift_b = np.array(a.liftable), np.array(b.liftable)
+    np.testing.assert_allclose(lift_a[:, 0] / la, lift_b[:, 0] / lb, rtol=1e-12, atol=located)
+    np.testing.assert_allclose(lift_a[:, 1] / fa, lift_b[:, 1] / fb, rtol=1e-9)
     for s, t in zip(a.snapshots, b.snapshots):
-        scale = np.abs(t.all_forces).max() / fb
+        # Round-off, and an event located δρ ≤ ``located`` apart, which moves the loading forces (F ∝ ρ at
+        # first) by F δρ / ρ.
+        rho = t.squeeze_depth / lb
+        force_tol = np.abs(t.all_forces).max() / fb * (1e-9 + (located / rho if rho > 0 else 0.0))
         for k in s.contact_nodes:  # the same contacts (listed in any order) carrying the same forces
             order_s, order_t = np.argsort(s.contact_nodes[k]), np.argsort(t.contact_nodes[k])
             np.testing.assert_array_equal(s.contact_nodes[k][order_s], t.contact_nodes[k][order_t])
             np.testing.assert_array_equal(s.sliding[k][order_s], t.sliding[k][order_t])
             np.testing.assert_allclose(s.contact_forces[k][order_s] / fa, t.contact_forces[k][order_t] / fb,
-                                       rtol=0, atol=1e-9 * scale)
+                                       rtol=0, atol=force_tol)
         np.testing.assert_allclose(s.positions / la, t.positions / lb, rtol=0, atol=1e-11)
     assert a.finger_normal_force / fa == pytest.approx(b.finger_normal_force / fb, rel=1e-9)
     assert a.rigid.total_normal_force / fa == pytest.approx(b.rigid.total_normal_force / fb, rel=1e-9)
