@@ -31,8 +31,10 @@ displacements, F̄ = C Δ̄ + λ F̄₀ (eq. 5, :class:`~fem_grasp.response.Cont
    24 s to 6 s (756 homotopy paths to 24).
 
 The event tests are evaluated at the end of every increment; when one fires,
-the event's t is located by a safeguarded secant (Illinois) iteration on the
-continuous event functions — the "Newton polish" of §III-C — and the
+the event's t is located to ``TOL_LOCATE`` × diameter by interpolation
+(inverse quadratic, secant) of the continuous event function predicted to
+fire first, safeguarded by Illinois regula falsi on the bracket — the
+"Newton polish" of §III-C; about four trials per event — and the
 configuration is updated there.  Several events at the same t (symmetric
 bodies give pairs) are applied together, and cascades (a release that makes
 a neighbour tensile) are settled at the same t.
