@@ -76,10 +76,13 @@ def _validate(points: Any, tets: Any) -> tuple[np.ndarray, np.ndarray, int]:
     bad = (np.diff(srt, axis=1) == 0).any(axis=1)
     if bad.any():
         raise MeshError(f"{bad.sum()} tet(s) repeat a vertex (degenerate); first is tet {_first(bad)}")
-    _, first_idx, counts = np.unique(srt, axis=0, return_index=True, return_counts=True)
-    if (counts > 1).any():
-        dup = np.sort(first_idx[counts > 1])
-        raise MeshError(f"{int((counts - 1).sum())} duplicate tet(s); first duplicated is tet {int(dup[0])}")
+    # Duplicates by a lexicographic sort of the sorted vertex quadruples (np.unique(axis=0) sorts them as
+    # opaque records, 1 s at 100k vertices).
+    order = np.lexsort(srt.T[::-1])
+    same = (srt[order[1:]] == srt[order[:-1]]).all(axis=1)
+    if same.any():
+        first = order[:-1][same & np.concatenate([[True], ~same[:-1]])]  # lexsort is stable: lowest index
+        raise MeshError(f"{int(same.sum())} duplicate tet(s); first duplicated is tet {int(first.min())}")
 
     vol = signed_volumes(points, tets)
     edge = np.linalg.norm(points[tets[:, [1, 2, 3, 2, 3, 3]]] - points[tets[:, [0, 0, 0, 1, 1, 2]]], axis=2).mean(axis=1)
@@ -283,8 +286,7 @@ class TetMesh:
     def surface_faces(self) -> np.ndarray:
         """(f, 3) boundary triangles, ordered so their normals point out of the body."""
         faces = self.tets[:, _TET_FACES].reshape(-1, 3)
-        key = np.sort(faces, axis=1)
-        _, inv, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+        _, inv, counts = np.unique(_face_keys(faces, self.n_points), return_inverse=True, return_counts=True)
         inv = inv.reshape(-1)
         if (counts > 2).any():
             raise MeshError(f"{int((counts > 2).sum())} triangle(s) are shared by more than two tets (non-manifold)")
