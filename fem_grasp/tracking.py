@@ -351,13 +351,10 @@ class MixedSlipSystem:
         slot = np.arange(3)
         valid = slot[None, :] < sizes[:, None]
         self.loc_idx = np.where(valid, first[:, None] + slot[None, :], n)
-        self.cols = [self.loc_idx[j, :sizes[j]] for j in range(p)]
-        self.d_map = np.zeros((p, 3, n + 1))  # ∂δ_j/∂x (a padding column n, dropped below)
-        rows_j = np.repeat(np.arange(p), 3)
-        for c in range(3):
-            self.d_map[rows_j, np.tile(np.arange(3), p), np.repeat(self.loc_idx[:, c], 3)] = \
-                self.loc_e[:, :, c].reshape(-1)
-        self.d_map = np.ascontiguousarray(self.d_map[:, :, :n])
+        # ∂δ_j/∂x: column loc_idx[j, c] of node j's block is loc_e[j, :, c] (padding column n, dropped).
+        d_map = np.zeros((p, n + 1, 3))
+        d_map[np.arange(p)[:, None], self.loc_idx] = self.loc_e.transpose(0, 2, 1)
+        self.d_map = np.ascontiguousarray(d_map[:, :n].transpose(0, 2, 1))
         e = np.zeros((3 * m, n))
         e.reshape(m, 3, n)[self.sliding] = self.d_map
         self.e = e
@@ -382,7 +379,8 @@ class MixedSlipSystem:
         if p + n_sph + n_al != n:
             raise ValueError("the slip system is not square")
         if free:
-            mean_scale = np.array([float(np.mean(self.xscale[self.cols[j]])) for j in range(p)])
+            xs = np.append(self.xscale, 0.0)[self.loc_idx]  # padding slots read 0
+            mean_scale = xs.sum(axis=1) / sizes
             typical = self.own * np.where(self.finger, self.radius, mean_scale)
         else:
             typical = np.zeros(0)
