@@ -8,7 +8,9 @@ counts, around the two solvers that dominate it:
   calls that fail, with their times;
 * the slip systems of the event tracking
   (:meth:`fem_grasp.tracking.MixedSlipSystem.solve`): Newton solves and
-  Newton-homotopy paths, by outcome.
+  Newton-homotopy paths, by outcome;
+* the trial states of the event tracking (:meth:`fem_grasp.tracking.Tracker.trial`,
+  one slip-system solve and surface field each) per event.
 
 Prints the phase times, the counters and the functions with the largest
 cumulative time.  Profiling slows the run by 1.5–2×; compare runs of one
@@ -55,6 +57,12 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     slip_stats: dict[tuple[str, str, str], list[float]] = collections.defaultdict(lambda: [0, 0.0])
     relax = tracking.relax_contacts
     solve = tracking.MixedSlipSystem.solve
+    trial = tracking.Tracker.trial
+    trials = [0]
+
+    def counted_trial(*a: Any, **k: Any) -> Any:
+        trials[0] += 1
+        return trial(*a, **k)
 
     def counted_relax(*a: Any, **k: Any) -> Any:
         t0 = time.perf_counter()
@@ -84,6 +92,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     limit = getattr(tracking, "one_blas_thread", None)
     tracking.relax_contacts = counted_relax
     tracking.MixedSlipSystem.solve = counted_solve
+    tracking.Tracker.trial = counted_trial
     if args.free_blas and limit is not None:
         tracking.one_blas_thread = contextlib.nullcontext
     if args.orange:
@@ -112,6 +121,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         prof.disable()
         tracking.relax_contacts = relax
         tracking.MixedSlipSystem.solve = solve
+        tracking.Tracker.trial = trial
         if limit is not None:
             tracking.one_blas_thread = limit
     wall = time.perf_counter() - t0
@@ -120,6 +130,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
           f"{len(res.events)} events; {wall:.1f} s under cProfile"
           f"{' (BLAS threads free)' if args.free_blas else ''}")
     print("phases: " + ", ".join(f"{k} {v:.2f} s" for k, v in res.timings.items()))
+    print(f"trial states (Tracker.trial): {trials[0]}, {trials[0] / max(len(res.events), 1):.1f} per event")
     print("return mappings (relax_contacts):")
     for key, (n, t) in sorted(relax_stats.items()):
         print(f"  {key:>22s}: {int(n):5d} calls, {t:7.2f} s, {t / max(n, 1) * 1e3:7.1f} ms each")
@@ -129,7 +140,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     out = io.StringIO()
     pstats.Stats(prof, stream=out).sort_stats(args.sort).print_stats(args.top)
     print(out.getvalue())
-    return {"wall_s": wall, "timings": res.timings, "relax": dict(relax_stats),
+    return {"wall_s": wall, "timings": res.timings, "trials": trials[0], "events": len(res.events), "relax": dict(relax_stats),
             "slip": {"/".join(k): v for k, v in slip_stats.items()}}
 
 

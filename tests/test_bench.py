@@ -11,9 +11,12 @@ def test_profile_counts_the_return_mappings_and_slip_solves_of_a_pickup(capsys):
     calls = sum(int(n) for n, _ in out["slip"].values())
     assert calls > 0  # the squeeze tracks slip, so the slip systems were solved and counted
     assert all(t >= 0 for _, t in out["slip"].values()) and out["timings"]["total"] > 0
+    # every slip solve belongs to a trial state, and each event takes at least the trial that fired it
+    assert calls >= out["trials"] >= out["events"] > 0 and "per event" in text
     # the solvers are restored afterwards
     assert tracking.relax_contacts.__name__ == "relax_contacts"
     assert tracking.MixedSlipSystem.solve.__name__ == "solve"
+    assert tracking.Tracker.trial.__name__ == "trial"
     assert tracking.one_blas_thread.__name__ == "one_blas_thread"
 
 
