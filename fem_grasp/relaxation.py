@@ -69,6 +69,8 @@ DRIFT_SLIP = 0.01
 STUCK_SWEEPS = 50
 #: Sweeps without halving the largest force change (statuses that keep cycling) before it gives up.
 STALL_SWEEPS = 1000
+#: Halvings of a polish Newton step (down to 1/8) before the polish gives up and the sweeps continue.
+POLISH_HALVINGS = 4
 
 
 class RelaxationFailure(RuntimeError):
@@ -219,7 +221,10 @@ def _polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, stat
             step = -np.linalg.solve(jac, r)
         except np.linalg.LinAlgError:
             return None
-        found = _backtrack(lambda y: evaluate(y, False), x, step, norm, 10)
+        # A Newton step cut below 1/8 means the statuses are wrong (the sweeps go on): in the steam bun's
+        # return mappings 3 of 220 polishes that converged ever cut a step below 1/8, 306 of 572 that failed
+        # did so within three steps (halving on to 1/512 only delayed the failure).
+        found = _backtrack(lambda y: evaluate(y, False), x, step, norm, POLISH_HALVINGS)
         if found is None:
             return None
         x = x + found[0] * step
