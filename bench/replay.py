@@ -56,8 +56,36 @@ def capture(scene_name: str, out: Path, quick: bool = False) -> list[tuple]:
     return calls
 
 
-def replay(path: Path, force_tol: float = 1e-9) -> dict[str, Any]:
-    """Solve the recorded calls again; times by outcome and the calls whose outcome changed."""
+def _watch_polish(relaxation: Any) -> tuple[list[tuple[bool, list]], Any]:
+    """Wrap the relaxation's polish to record, per attempt, whether it converged and the step fractions
+    its line search took (None: no decrease); returns the records and a function that unwraps."""
+    polish, backtrack = relaxation._polish, relaxation._backtrack
+    records: list[tuple[bool, list]] = []
+    steps: list = []
+
+    def watched_backtrack(*args: Any) -> Any:
+        found = backtrack(*args)
+        steps.append(None if found is None else found[0])
+        return found
+
+    def watched_polish(*args: Any, **kwargs: Any) -> Any:
+        steps.clear()
+        out = polish(*args, **kwargs)
+        records.append((out is not None, list(steps)))
+        return out
+
+    relaxation._polish, relaxation._backtrack = watched_polish, watched_backtrack
+
+    def unwrap() -> None:
+        relaxation._polish, relaxation._backtrack = polish, backtrack
+
+    return records, unwrap
+
+
+def replay(path: Path, force_tol: float = 1e-9, polish_halvings: int | None = None) -> dict[str, Any]:
+    """Solve the recorded calls again; times by outcome, the calls whose outcome changed, and how the
+    Newton polish of the return mappings fared (``polish_halvings`` overrides
+    ``relaxation.POLISH_HALVINGS`` for the replay)."""
     from fem_grasp import relaxation
 
     if hasattr(relaxation, "as_kernel_data"):  # the sweeps of fem_grasp.gauss_seidel
@@ -69,14 +97,26 @@ def replay(path: Path, force_tol: float = 1e-9) -> dict[str, Any]:
     calls = pickle.loads(path.read_bytes())
     times = {"ok": 0.0, "fail": 0.0}
     changed: list[str] = []
-    for i, (args, kwargs, before) in enumerate(calls):
-        t = time.perf_counter()
-        try:
-            res = relaxation.relax_contacts(*args, **kwargs)
-            now: tuple = ("ok", res.status, res.sweeps, res.forces)
-        except relaxation.RelaxationFailure as exc:
-            now = ("fail", str(exc))
-        times[now[0]] += time.perf_counter() - t
+    outcomes = []
+    halvings = getattr(relaxation, "POLISH_HALVINGS", None)
+    if polish_halvings is not None:
+        relaxation.POLISH_HALVINGS = polish_halvings
+    records, unwrap = _watch_polish(relaxation)
+    try:
+        for args, kwargs, _ in calls:
+            t = time.perf_counter()
+            try:
+                res = relaxation.relax_contacts(*args, **kwargs)
+                now: tuple = ("ok", res.status, res.sweeps, res.forces)
+            except relaxation.RelaxationFailure as exc:
+                now = ("fail", str(exc))
+            times[now[0]] += time.perf_counter() - t
+            outcomes.append(now)
+    finally:
+        unwrap()
+        if halvings is not None:
+            relaxation.POLISH_HALVINGS = halvings
+    for i, ((_, _, before), now) in enumerate(zip(calls, outcomes)):
         if now[0] != before[0]:
             changed.append(f"call {i}: {before[0]} -> {now[0]}")
         elif now[0] == "ok":
@@ -93,7 +133,20 @@ def replay(path: Path, force_tol: float = 1e-9) -> dict[str, Any]:
           f"{len(changed)} with another outcome")
     for line in changed[:20]:
         print("  " + line)
-    return {"calls": len(calls), "times": times, "changed": changed}
+    converged = [st for ok, st in records if ok]
+    failed = [st for ok, st in records if not ok]
+
+    def cut(st: list, first: int | None = None) -> bool:  # a step cut below 1/8, or none decreasing
+        return any(x is None or x < 0.125 for x in st[:first])
+
+    polish = {"attempts": len(records), "converged": len(converged),
+              "converged_cut_below_eighth": sum(cut(st) for st in converged),
+              "failed_cut_below_eighth_in_three_steps": sum(cut(st, 3) for st in failed)}
+    print(f"polish (Newton on fixed statuses, steps halved {halvings if polish_halvings is None else polish_halvings}"
+          f" times at most): {polish['attempts']} attempts, {polish['converged']} converged; a step cut below 1/8 "
+          f"in {polish['converged_cut_below_eighth']} that converged, within three steps in "
+          f"{polish['failed_cut_below_eighth_in_three_steps']} that failed")
+    return {"calls": len(calls), "times": times, "changed": changed, "polish": polish}
 
 
 def main(argv: list[str] | None = None) -> dict[str, Any] | list:
@@ -106,10 +159,12 @@ def main(argv: list[str] | None = None) -> dict[str, Any] | list:
     run = sub.add_parser("run", help="replay recorded return mappings")
     run.add_argument("file", type=Path)
     run.add_argument("--force-tol", type=float, default=1e-9)
+    run.add_argument("--polish-halvings", type=int,
+                     help="halvings of a polish step before the polish gives up (default: the library's)")
     args = ap.parse_args(argv)
     if args.cmd == "capture":
         return capture(args.scene, args.out or OUT / f"relaxations_{args.scene}.pkl", args.quick)
-    return replay(args.file, args.force_tol)
+    return replay(args.file, args.force_tol, args.polish_halvings)
 
 
 if __name__ == "__main__":

@@ -32,6 +32,12 @@ def test_replayed_return_mappings_reach_their_recorded_outcomes(tmp_path, capsys
     assert any(c[2][0] == "ok" for c in calls) and any(c[2][0] == "fail" for c in calls)
     again = replay.main(["run", str(path)])
     assert again["calls"] == len(calls) and again["changed"] == []
+    polish = again["polish"]  # the sweeps hand over to Newton's method; some attempts converge
+    assert polish["attempts"] >= polish["converged"] > 0 and polish["converged_cut_below_eighth"] == 0
+    # a replay with another polish setting leaves the library's own in place
+    default = relaxation.POLISH_HALVINGS
+    replay.main(["run", str(path), "--polish-halvings", "10"])
+    assert relaxation.POLISH_HALVINGS == default and relaxation._polish.__name__ == "_polish"
 
     original = relaxation.relax_contacts
     first = []
