@@ -84,9 +84,18 @@ class Body:
                     self.poisson if poisson is None else poisson, density=self.density, gravity=self.gravity)
 
     def transformed(self, rotation: np.ndarray | None = None, translation: np.ndarray | None = None) -> "Body":
-        """The same body rigidly moved (see :meth:`TetMesh.transformed`)."""
-        return Body(self.mesh.transformed(rotation, translation), self.young, self.poisson,
-                    density=self.density, gravity=self.gravity)
+        """The same body rigidly moved (see :meth:`TetMesh.transformed`).
+
+        If this body's sparse compliance is already factorised, the moved body shares that
+        factorisation, turned with it (:meth:`~fem_grasp.compliance.Compliance.rotated`), instead of
+        factorising its own: the resting pose of a factorised body costs no second factorisation, and
+        holds no second factor.
+        """
+        moved = Body(self.mesh.transformed(rotation, translation), self.young, self.poisson,
+                     density=self.density, gravity=self.gravity)
+        if "compliance" in self.__dict__:
+            moved.__dict__["compliance"] = self.compliance.rotated(np.eye(3) if rotation is None else rotation)
+        return moved
 
     # ------------------------------------------------------------ physics
     @property

@@ -41,6 +41,7 @@ reads only the surface (``surface=``, :meth:`Compliance.combine_surface`).
 
 from __future__ import annotations
 
+import copy
 import logging
 import os
 from typing import Callable
@@ -193,6 +194,12 @@ def grounding_dofs(points: np.ndarray, modes: np.ndarray) -> np.ndarray:
     return np.sort(cand[piv[:6]])
 
 
+def _rotate_nodes(v: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+    """Each node's 3-vector of ``v`` ((3n,) or (3n, k)) turned by ``rotation``: Q v with Q = diag(R, …, R)."""
+    blocks = v.reshape(-1, 3, *v.shape[1:])
+    return np.einsum("ij,nj...->ni...", rotation, blocks).reshape(v.shape)
+
+
 def _node_dofs(nodes: np.ndarray) -> np.ndarray:
     return (3 * np.asarray(nodes, dtype=np.int64)[:, None] + np.arange(3)).ravel()
 
@@ -263,6 +270,7 @@ class Compliance:
         if self._position is not None:
             self._position[self.kept_nodes] = np.arange(len(self.kept_nodes))
         self._columns: dict[int, np.ndarray] = {}
+        self._rotation: np.ndarray | None = None  # see rotated()
         self.surface_nodes = None if surface is None else np.unique(np.asarray(surface, dtype=np.int64))
         self._surface_rows = None if surface is None else self._row_positions(self.surface_nodes)
         self._surface_columns: dict[int, np.ndarray] = {}
@@ -276,9 +284,29 @@ class Compliance:
         load = np.asarray(load, dtype=float)
         if load.shape[0] != self.n_dofs:
             raise ValueError(f"expected a load with {self.n_dofs} rows, got shape {load.shape}")
+        if self._rotation is not None:
+            load = _rotate_nodes(load, self._rotation.T)  # Qᵀ load: into the factorised body's frame
         out = np.zeros_like(load)
         out[self.free] = self._solve(np.ascontiguousarray(load[self.free]))
-        return out
+        return out if self._rotation is None else _rotate_nodes(out, self._rotation)
+
+    def rotated(self, rotation: np.ndarray) -> "Compliance":
+        """The compliance of the same body rigidly rotated by ``rotation`` (3, 3), sharing this factorisation.
+
+        With Q = diag(R, …, R) the rotated body's stiffness is Q K Qᵀ (K depends on the points only through
+        their differences, and its blocks turn with them), so X' = Q X Qᵀ is a generalised inverse of it
+        with the same property, K' X' F = F for every load F orthogonal to its rigid modes: the contact
+        forces and fields of eq. (3) follow from it unchanged (module notes).  Its column caches start
+        empty; its grounded DOFs are this one's, in the unrotated frame.
+        """
+        rotation = np.asarray(rotation, dtype=float)
+        if rotation.shape != (3, 3) or not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-10):
+            raise ValueError("rotation must be a 3x3 orthogonal matrix")
+        new = copy.copy(self)  # shares the factor, the free DOFs and the kept rows
+        new._rotation = rotation if self._rotation is None else rotation @ self._rotation
+        new._columns = {}
+        new._surface_columns = new._columns if self._surface_columns is self._columns else {}
+        return new
 
     def _row_positions(self, nodes: np.ndarray) -> np.ndarray:
         """Positions, within the cached rows, of the DOFs of ``nodes``."""

@@ -150,3 +150,38 @@ def test_prefetched_columns_equal_columns_solved_one_node_at_a_time(body, solver
     for k in nodes:
         ref = single.node_columns([k])
         np.testing.assert_allclose(batch.node_columns([k]), ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+
+
+def test_a_rigidly_moved_body_shares_the_factorisation_and_solves_the_same(monkeypatch, rng):
+    """Body.transformed of a factorised body turns its compliance (X' = Q X Qᵀ) instead of factorising again:
+    contact forces and fields equal a fresh factorisation of the moved mesh, and X' inverts the moved K on
+    balanced loads."""
+    from fem_grasp.pose import rotation_between
+
+    body = Body(perturbed_box(np.random.default_rng(11), divisions=(4, 3, 3)), 3e4, 0.35, weight=1.5)
+    body.compliance
+    calls = []
+    factorize = cp.factorize
+    monkeypatch.setattr(cp, "factorize", lambda *a, **k: calls.append(1) or factorize(*a, **k))
+    rot = rotation_between(np.array([0.3, -0.5, 0.8]), np.array([0.0, 0.0, -1.0]))
+    moved = body.transformed(rot, np.array([0.1, -0.2, 0.05]))
+    twice = moved.transformed(rot.T)  # a rotation of a rotated compliance composes
+    nodes, disp = np.array([0, 17, 33, 47]), 1e-3 * rng.standard_normal((4, 3))
+    for turned, total in ((moved, rot), (twice, np.eye(3))):
+        fresh = Body(turned.mesh, body.young, body.poisson, weight=1.5)
+        got, want = turned.contact_response(nodes).solve(disp), fresh.contact_response(nodes).solve(disp)
+        assert calls == [1] * (1 + (turned is twice))  # only the fresh bodies were factorised
+        np.testing.assert_allclose(got.forces, want.forces, rtol=0, atol=1e-12 * np.abs(want.forces).max())
+        np.testing.assert_allclose(got.displacements, want.displacements, rtol=0,
+                                   atol=1e-12 * np.abs(want.displacements).max())
+        np.testing.assert_allclose(turned.contact_response(nodes).surface_displacements(disp),
+                                   got.displacements[turned.mesh.surface_nodes], rtol=0,
+                                   atol=1e-12 * np.abs(want.displacements).max())
+        load = rng.standard_normal(3 * body.n_nodes)
+        modes = turned.orthonormal_rigid_modes
+        load -= modes @ (modes.T @ load)
+        np.testing.assert_allclose(turned.stiffness @ turned.compliance.apply(load), load, rtol=0,
+                                   atol=1e-10 * np.abs(load).max())
+        np.testing.assert_allclose(turned.compliance._rotation, total, atol=1e-15)
+    with pytest.raises(ValueError, match="orthogonal"):
+        body.compliance.rotated(2.0 * np.eye(3))
