@@ -284,11 +284,16 @@ class Compliance:
         load = np.asarray(load, dtype=float)
         if load.shape[0] != self.n_dofs:
             raise ValueError(f"expected a load with {self.n_dofs} rows, got shape {load.shape}")
-        if self._rotation is not None:
-            load = _rotate_nodes(load, self._rotation.T)  # Qᵀ load: into the factorised body's frame
+        if self._rotation is None:
+            return self._apply_unturned(load)
+        # Q X Qᵀ load: into the factorised body's frame and back.
+        return _rotate_nodes(self._apply_unturned(_rotate_nodes(load, self._rotation.T)), self._rotation)
+
+    def _apply_unturned(self, load: np.ndarray) -> np.ndarray:
+        """X @ load in the frame of the factorised body (:meth:`rotated`)."""
         out = np.zeros_like(load)
         out[self.free] = self._solve(np.ascontiguousarray(load[self.free]))
-        return out if self._rotation is None else _rotate_nodes(out, self._rotation)
+        return out
 
     def rotated(self, rotation: np.ndarray) -> "Compliance":
         """The compliance of the same body rigidly rotated by ``rotation`` (3, 3), sharing this factorisation.
@@ -327,11 +332,14 @@ class Compliance:
         if bad:
             raise ValueError(f"node {bad[0]} is not a node of the body (0 … {self.n_nodes - 1})")
         rhs = np.zeros((self.n_dofs, 3 * len(new)))
+        unit = np.eye(3) if self._rotation is None else self._rotation.T  # Qᵀ of the node's unit loads
         for j, k in enumerate(new):
-            rhs[3 * k: 3 * k + 3, 3 * j: 3 * j + 3] = np.eye(3)
-        cols = self.apply(rhs)
+            rhs[3 * k: 3 * k + 3, 3 * j: 3 * j + 3] = unit
+        cols = self._apply_unturned(rhs)
         if self._row_dofs is not None:
             cols = cols[self._row_dofs]
+        if self._rotation is not None:  # Q on the kept rows only (whole node blocks): a tenth of them above 20k
+            cols = _rotate_nodes(cols, self._rotation)
         for j, k in enumerate(new):
             self._columns[k] = np.ascontiguousarray(cols[:, 3 * j: 3 * j + 3])
             if self._surface_rows is not None and self._surface_columns is not self._columns:

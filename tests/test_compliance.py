@@ -183,5 +183,12 @@ def test_a_rigidly_moved_body_shares_the_factorisation_and_solves_the_same(monke
         np.testing.assert_allclose(turned.stiffness @ turned.compliance.apply(load), load, rtol=0,
                                    atol=1e-10 * np.abs(load).max())
         np.testing.assert_allclose(turned.compliance._rotation, total, atol=1e-15)
+    # Kept rows (large bodies): the columns are turned on the kept rows only, and equal the full ones there.
+    surface = body.mesh.surface_nodes
+    kept = cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, rows=surface, surface=surface)
+    turned_kept = kept.rotated(rot)
+    full = moved.compliance.node_columns(nodes)
+    dofs = (3 * surface[:, None] + np.arange(3)).ravel()
+    np.testing.assert_allclose(turned_kept.node_columns(nodes), full[dofs], rtol=0, atol=1e-12 * np.abs(full).max())
     with pytest.raises(ValueError, match="orthogonal"):
         body.compliance.rotated(2.0 * np.eye(3))
