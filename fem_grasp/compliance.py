@@ -41,9 +41,11 @@ reads only the surface (``surface=``, :meth:`Compliance.combine_surface`).
 
 from __future__ import annotations
 
+import atexit
 import copy
 import logging
 import os
+import weakref
 from typing import Callable
 
 import numpy as np
@@ -92,7 +94,32 @@ def choose_solver(solver: str | None = None) -> str:
     return solver
 
 
+#: Every live CHOLMOD factor, by the id of the solve function that owns it (see _cholmod).
+_LIVE_FACTORS: dict[int, object] = {}
+
+
+def _keep_factors_at_exit() -> None:
+    """At interpreter exit, leave the live factors to the operating system (see _cholmod)."""
+    import ctypes
+
+    for factor in _LIVE_FACTORS.values():
+        ctypes.pythonapi.Py_IncRef(ctypes.py_object(factor))
+
+
+atexit.register(_keep_factors_at_exit)
+
+
 def _cholmod(matrix: sp.csc_matrix) -> Callable[[np.ndarray], np.ndarray]:
+    """CHOLMOD's factorisation and its solve function.
+
+    scikit-sparse's ``Factor`` frees itself through its ``Common`` in ``__dealloc__``; if the garbage
+    collector breaks a reference cycle that holds a factor by clearing the factor first, the ``Common``
+    is gone by then and the process crashes (at exit, or at any collection).  So each factor is also
+    held by the module's registry until the solve function that owns it is collected (a weakref
+    finalizer, which the collector runs before it clears anything): a factor is then never garbage
+    itself, and dies by reference counting with its ``Common`` intact.  At exit the factors still
+    alive are kept for the operating system to reclaim.
+    """
     from sksparse.cholmod import cholesky  # type: ignore
 
     factor = cholesky(matrix)
@@ -101,6 +128,8 @@ def _cholmod(matrix: sp.csc_matrix) -> Callable[[np.ndarray], np.ndarray]:
         return factor(np.asarray(b, dtype=float))
 
     solve.factor = factor  # type: ignore[attr-defined]
+    _LIVE_FACTORS[id(solve)] = factor
+    weakref.finalize(solve, _LIVE_FACTORS.pop, id(solve), None).atexit = False
     return solve
 
 

@@ -192,3 +192,30 @@ def test_a_rigidly_moved_body_shares_the_factorisation_and_solves_the_same(monke
     np.testing.assert_allclose(turned_kept.node_columns(nodes), full[dofs], rtol=0, atol=1e-12 * np.abs(full).max())
     with pytest.raises(ValueError, match="orthogonal"):
         body.compliance.rotated(2.0 * np.eye(3))
+
+
+@pytest.mark.skipif(not cp.cholmod_available(), reason="scikit-sparse is not installed (SuperLU has no such issue)")
+def test_factors_held_in_reference_cycles_are_freed_without_a_crash(tmp_path):
+    """scikit-sparse's Factor crashes the process if the garbage collector clears it before its Common: a
+    factor reached twice from cyclic garbage (a moved body's compliance shares it) did so, at a collection
+    or at exit.  The module's registry keeps factors out of the garbage; bodies in cycles die cleanly."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "cycles.py"
+    script.write_text(
+        "import copy, gc\n"
+        "from fem_grasp import Body, box_mesh\n"
+        "for i in range(20):\n"
+        "    b = Body(box_mesh((0, 0, 0), (0.04, 0.03, 0.02), (4, 3, 3)), 5e4, 0.3, weight=1.0)\n"
+        "    holder = {'body': b, 'solve': b.compliance._solve, 'copy': copy.copy(b.compliance)}\n"
+        "    holder['self'] = holder\n"
+        "    if i % 5 == 4:\n"
+        "        gc.collect()\n"
+        "from fem_grasp import compliance\n"
+        "gc.collect()\n"
+        "print(len(compliance._LIVE_FACTORS))\n")
+    env = {**__import__("os").environ, "FEM_GRASP_SOLVER": "cholmod"}
+    run = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120, env=env)
+    assert run.returncode == 0, (run.returncode, run.stderr[-2000:])
+    assert int(run.stdout.split()[-1]) <= 1  # the collected bodies' factors left the registry
