@@ -34,7 +34,7 @@ The event tests are evaluated at the end of every increment; when one fires,
 the event's t is located to ``TOL_LOCATE`` × diameter by interpolation
 (inverse quadratic, secant) of the continuous event function predicted to
 fire first, safeguarded by Illinois regula falsi on the bracket — the
-"Newton polish" of §III-C; about four trials per event — and the
+"Newton polish" of §III-C; about four trials per located event — and the
 configuration is updated there.  Several events at the same t (symmetric
 bodies give pairs) are applied together, and cascades (a release that makes
 a neighbour tensile) are settled at the same t.
@@ -969,6 +969,7 @@ class Tracker:
                 tr.values = self.event_values(tr, fscale)
                 g = self._gmax(tr.values)
                 history.insert(0, (mid, self._flat(tr.values)))
+                del history[3:]  # the interpolation reads the latest three
                 if g > 0:
                     hi, g_hi, hi_trial, all_hi, w_hi = mid, g, tr, history[0][1], 1.0
                     if side == 1:
@@ -995,7 +996,8 @@ class Tracker:
 
     def _zero_trial(self, base: ContactState, velocities: np.ndarray, load_rate: float, param: str) -> _Trial:
         """The zero increment from ``base``: the trial that produced it, if an advance or settle just returned
-        it (a re-solve agrees with it to round-off), else :meth:`trial` at dt = 0."""
+        it, else :meth:`trial` at dt = 0.  A re-solve would reach the same state and differ only in its slip
+        rates, anchored on the new increment's held forces (an O(step) difference)."""
         made = self._returned
         if made is not None and made.state is base:
             return _Trial(made.state, made.amounts, made.rates)
