@@ -53,6 +53,8 @@ import scipy.linalg as la
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .mesh import check_rotation
+
 log = logging.getLogger(__name__)
 
 #: Sparse solvers of :func:`factorize`.
@@ -333,9 +335,7 @@ class Compliance:
         forces and fields of eq. (3) follow from it unchanged (module notes).  Its column caches start
         empty; its grounded DOFs are this one's, in the unrotated frame.
         """
-        rotation = np.asarray(rotation, dtype=float)
-        if rotation.shape != (3, 3) or not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-10):
-            raise ValueError("rotation must be a 3x3 orthogonal matrix")
+        rotation = check_rotation(rotation)
         new = copy.copy(self)  # shares the factor, the free DOFs and the kept rows
         new._rotation = rotation if self._rotation is None else rotation @ self._rotation
         new._columns = {}

@@ -101,6 +101,16 @@ def _validate(points: Any, tets: Any) -> tuple[np.ndarray, np.ndarray, int]:
     return points, tets, n_neg
 
 
+def check_rotation(rotation: Any) -> np.ndarray:
+    """``rotation`` as a (3, 3) float array; ValueError unless it is a proper rotation (orthogonal, det +1)."""
+    rotation = np.asarray(rotation, dtype=float)
+    if rotation.shape != (3, 3) or not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-10):
+        raise ValueError("rotation must be a 3x3 orthogonal matrix")
+    if np.linalg.det(rotation) < 0:
+        raise ValueError("rotation must be proper (det = +1), not a reflection")
+    return rotation
+
+
 def _face_keys(tri: np.ndarray, n: int) -> np.ndarray:
     """One integer per unordered vertex triple (or pair, for (k, 2) input)."""
     s = np.sort(tri, axis=1)
@@ -335,12 +345,7 @@ class TetMesh:
         """A new mesh with points mapped to ``rotation @ p + translation``."""
         p = self.points
         if rotation is not None:
-            rotation = np.asarray(rotation, dtype=float)
-            if rotation.shape != (3, 3) or not np.allclose(rotation.T @ rotation, np.eye(3), atol=1e-10):
-                raise ValueError("rotation must be a 3x3 orthogonal matrix")
-            if np.linalg.det(rotation) < 0:
-                raise ValueError("rotation must be proper (det = +1), not a reflection")
-            p = p @ rotation.T
+            p = p @ check_rotation(rotation).T
         if translation is not None:
             p = p + np.asarray(translation, dtype=float)
         return TetMesh(p, self.tets)
