@@ -26,9 +26,11 @@ Sections (``--only NAME``, repeatable; default all):
     One pickup of the football scene with the sparse and the spectral (paper)
     backends: time ratio and the largest difference of the results.
 ``columns``
-    Compliance columns solved k at a time (k = 3, 30, 300) on the uniform
-    orange of about 31k vertices: seconds per column, the reason the rest
-    solves new contacts' columns in batches (``rest.PREFETCH_NODES``).
+    Compliance columns solved k at a time (k = 3, 30, 90, 300) on the uniform
+    orange of about 31k vertices, with BLAS on all its threads and on one:
+    seconds per column, the reason new contacts' columns are solved in
+    batches (``compliance.PREFETCH_NODES``) on all threads, also inside the
+    tracking's one-thread limit (:mod:`fem_grasp.threads`).
 ``jit``
     One tomato pickup with the Gauss–Seidel sweeps compiled by numba and one
     with them as plain Python (``FEM_GRASP_NO_JIT=1``), each in a fresh
@@ -445,24 +447,33 @@ def print_jit(sec: dict[str, Any]) -> None:
 
 # ------------------------------------------------------- compliance columns
 def section_columns(size: int = 30000) -> dict[str, Any]:
-    """Seconds per compliance column when k columns are solved at once (unit loads on k DOFs)."""
+    """Seconds per compliance column when k columns are solved at once (unit loads on k DOFs), with BLAS on
+    all its threads and on one (as the tracking has it, ``threads.one_blas_thread``)."""
+    from threadpoolctl import threadpool_limits
+
     from bench.meshes import cached_mesh
 
     body = orange_body(cached_mesh("orange", size), SCALING_YOUNG)
     comp = body.compliance
     rows = []
-    for k in (3, 30, 300):
-        rhs = np.zeros((comp.n_dofs, k))
-        rhs[(np.arange(k) * 7) % comp.n_dofs, np.arange(k)] = 1.0
-        t, _ = timed(lambda: comp.apply(rhs))
-        rows.append({"columns": k, "seconds": t, "per_column_ms": 1e3 * t / k})
-        log.info("%d columns at once: %.3f s", k, t)
+    for threads in (None, 1):
+        for k in (3, 30, 90, 300):
+            rhs = np.zeros((comp.n_dofs, k))
+            rhs[(np.arange(k) * 7) % comp.n_dofs, np.arange(k)] = 1.0
+            with threadpool_limits(limits=threads, user_api="blas"):  # not one_blas_thread: apply lifts that
+                t, _ = timed(lambda: comp.apply(rhs))
+            rows.append({"columns": k, "blas_threads": threads or os.cpu_count(), "seconds": t,
+                         "per_column_ms": 1e3 * t / k})
+            log.info("%d columns at once (%s BLAS threads): %.3f s", k, threads or "all", t)
     return {"vertices": body.n_nodes, "solver": comp.solver, "rows": rows}
 
 
 def print_columns(sec: dict[str, Any]) -> None:
-    print(f"\n(f) compliance columns solved k at a time, orange of {sec['vertices']} vertices ({sec['solver']}): "
-          + ", ".join(f"k = {r['columns']}: {r['per_column_ms']:.1f} ms per column" for r in sec["rows"]))
+    print(f"\n(f) compliance columns solved k at a time, orange of {sec['vertices']} vertices ({sec['solver']}), "
+          "ms per column:")
+    for threads in sorted({r.get("blas_threads", 0) for r in sec["rows"]}, reverse=True):
+        print(f"    {threads} BLAS thread(s): " + ", ".join(f"k = {r['columns']}: {r['per_column_ms']:.1f}"
+                                                       for r in sec["rows"] if r.get("blas_threads", 0) == threads))
 
 
 # -------------------------------------------------------------------- main

@@ -54,6 +54,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .mesh import check_rotation
+from .threads import sparse_solve_threads
 
 log = logging.getLogger(__name__)
 
@@ -61,6 +62,9 @@ log = logging.getLogger(__name__)
 SOLVERS = ("cholmod", "superlu", "mumps")
 #: Environment variable naming the solver (``auto`` or one of :data:`SOLVERS`).
 SOLVER_ENV = "FEM_GRASP_SOLVER"
+#: Nodes whose columns are solved for together when a new contact needs its own (:meth:`Compliance.prefetch`;
+#: ``make bench``, section ``columns``: 90 columns at once cost a third less per column than 30).
+PREFETCH_NODES = 30
 
 
 def cholmod_available() -> bool:
@@ -283,6 +287,7 @@ class Compliance:
         free = np.ones(n, dtype=bool)
         free[self.ground] = False
         self.free = np.flatnonzero(free)
+        self._free_position = np.where(free, np.cumsum(free) - 1, -1)  # each DOF's row in K_g (−1: grounded)
         self.solver = choose_solver(solver)
         kff = _remove_dofs(stiffness, self.ground)
         # verification.linalg swaps `factorize` for a one-argument MUMPS variant: call it that way by default.
@@ -323,7 +328,8 @@ class Compliance:
     def _apply_unturned(self, load: np.ndarray) -> np.ndarray:
         """X @ load in the frame of the factorised body (:meth:`rotated`)."""
         out = np.zeros_like(load)
-        out[self.free] = self._solve(np.ascontiguousarray(load[self.free]))
+        with sparse_solve_threads():  # inside the tracking's one-thread limit too
+            out[self.free] = self._solve(np.ascontiguousarray(load[self.free]))
         return out
 
     def rotated(self, rotation: np.ndarray) -> "Compliance":
@@ -360,13 +366,19 @@ class Compliance:
         bad = [k for k in new if not 0 <= k < self.n_nodes]
         if bad:
             raise ValueError(f"node {bad[0]} is not a node of the body (0 … {self.n_nodes - 1})")
-        rhs = np.zeros((self.n_dofs, 3 * len(new)))
-        unit = np.eye(3) if self._rotation is None else self._rotation.T  # Qᵀ of the node's unit loads
+        # The unit loads (Qᵀ of them when rotated) on the free DOFs only, and only the kept rows of the
+        # solution: at 100k vertices each (3n, 90) array is 225 MB.
+        unit = np.eye(3) if self._rotation is None else self._rotation.T
+        rhs = np.zeros((len(self.free), 3 * len(new)))
         for j, k in enumerate(new):
-            rhs[3 * k: 3 * k + 3, 3 * j: 3 * j + 3] = unit
-        cols = self._apply_unturned(rhs)
-        if self._row_dofs is not None:
-            cols = cols[self._row_dofs]
+            at = self._free_position[3 * k: 3 * k + 3]
+            rhs[at[at >= 0], 3 * j: 3 * j + 3] = unit[at >= 0]
+        with sparse_solve_threads():  # inside the tracking's one-thread limit too
+            sol = self._solve(rhs)
+        del rhs
+        rows = self._free_position if self._row_dofs is None else self._free_position[self._row_dofs]
+        cols = np.where((rows >= 0)[:, None], sol[np.maximum(rows, 0)], 0.0)
+        del sol
         if self._rotation is not None:  # Q on the kept rows only (whole node blocks): a tenth of them above 20k
             cols = _rotate_nodes(cols, self._rotation)
         for j, k in enumerate(new):
@@ -374,14 +386,27 @@ class Compliance:
             if self._surface_rows is not None and self._surface_columns is not self._columns:
                 self._surface_columns[k] = np.ascontiguousarray(cols[self._surface_rows, 3 * j: 3 * j + 3])
 
-    def prefetch(self, nodes: np.ndarray) -> None:
-        """Compute and cache the columns of every uncached node of ``nodes`` in one multi-column solve.
+    def prefetch(self, nodes: np.ndarray, likely: np.ndarray | None = None, count: int = 0) -> None:
+        """Compute and cache the columns of every uncached node of ``nodes`` in one multi-column solve,
+        with those of the first uncached nodes of ``likely`` (the likely next contacts, most likely
+        first) up to ``count`` nodes in all.
 
         A sparse solve streams the whole factor once whatever the number of right-hand sides, so
-        30 columns at once cost several times less per column than 3 (``make bench``, section
-        ``columns``: 3.4 times at 31k vertices with CHOLMOD).
+        90 columns at once cost several times less per column than 3 (``make bench``, section
+        ``columns``).
         """
-        self._ensure(nodes)
+        nodes = [k for k in dict.fromkeys(int(k) for k in np.asarray(nodes).tolist()) if k not in self._columns]
+        if not nodes:
+            return
+        if likely is not None and len(nodes) < count:
+            chosen = set(nodes)
+            for k in np.asarray(likely).tolist():
+                if len(nodes) >= count:
+                    break
+                if k not in chosen and k not in self._columns:
+                    nodes.append(int(k))
+                    chosen.add(k)
+        self._ensure(np.asarray(nodes, dtype=np.int64))
 
     def is_cached(self, node: int) -> bool:
         return int(node) in self._columns

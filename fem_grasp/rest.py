@@ -72,6 +72,7 @@ import numpy as np
 
 from . import friction
 from .body import Body
+from .compliance import PREFETCH_NODES
 from .geometry import TablePlane
 from .pose import RestingPose, resting_pose
 from .response import (CollinearContactError, ContactResponse, ContactSolution, check_contact_set,
@@ -85,8 +86,6 @@ log = logging.getLogger(__name__)
 PENETRATION_TOL = 1e-9
 #: Force round-off tolerance, relative to the weight (see ``_Solver.force_tol``).
 FORCE_TOL = 1e-10
-#: Nodes whose compliance columns are solved for together when a new contact needs its own (sparse backend).
-PREFETCH_NODES = 10
 #: Tolerances used by :meth:`RestState.check`.
 CHECK_TOLERANCES: dict[str, float] = {
     "penetration": 1e-9,  # × diameter
@@ -321,17 +320,15 @@ class _Solver:
 
     def prefetch_columns(self, nodes: np.ndarray, surface_positions: np.ndarray) -> None:
         """With the sparse backend, when new contact ``nodes`` lack their compliance columns, compute them
-        together with those of the lowest free surface nodes (the likely next contacts): PREFETCH_NODES
-        in one solve."""
+        together with those of the lowest uncached free surface nodes (the likely next contacts):
+        PREFETCH_NODES in one solve."""
         nodes = np.asarray(nodes, dtype=np.int64)
         comp = self.body.compliance
         if self.backend != "sparse" or all(comp.is_cached(k) for k in nodes):
             return
         free_at = ~np.isin(self.surface, np.concatenate([self.contacts, nodes]))
-        free = self.surface[free_at]
         height = self.table.signed_distance(surface_positions[free_at])
-        near = free[np.argsort(height, kind="stable")[:max(PREFETCH_NODES - len(nodes), 0)]]
-        comp.prefetch(np.concatenate([nodes, near]))
+        comp.prefetch(nodes, likely=self.surface[free_at][np.argsort(height, kind="stable")], count=PREFETCH_NODES)
 
     def add(self, node: int, displacement: np.ndarray) -> None:
         d = np.array(displacement, dtype=float)

@@ -108,7 +108,6 @@ parameters are located to ``1e-10 L`` in t (well inside the 1e-9 L geometric che
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import warnings
 from dataclasses import dataclass, field, replace
@@ -120,9 +119,11 @@ import scipy.linalg as la
 
 from . import homotopy, slip_newton
 from .body import Body
+from .compliance import PREFETCH_NODES
 from .relaxation import RELEASE, SLIDE, RelaxationFailure, relax_contacts
 from .geometry import TablePlane, tangent_bases
 from .response import CollinearContactError, ContactResponse, check_contact_set
+from .threads import one_blas_thread
 
 __all__ = ["FINGER1", "FINGER2", "TABLE", "OBSTACLES", "ContactState", "ContactEvent", "MixedSlipSystem",
            "SlipFailure", "Tracker", "TrackingError"]
@@ -640,6 +641,18 @@ class Tracker:
             self._responses[key] = resp
         return resp
 
+    def prefetch_columns(self, nodes: Sequence[int], surface_positions: np.ndarray, centers: np.ndarray) -> None:
+        """With the sparse backend, when new contact ``nodes`` lack their compliance columns, compute them
+        together with those of the uncached surface nodes nearest an obstacle (the likely next contacts):
+        ``compliance.PREFETCH_NODES`` in one solve (a new contact's own three columns alone cost
+        several times more per column)."""
+        comp = self.body.compliance if self.backend == "sparse" else None
+        if comp is None or all(comp.is_cached(k) for k in nodes):
+            return
+        gap = self.obstacle_gaps(surface_positions, centers).min(axis=1)
+        comp.prefetch(np.asarray(nodes, dtype=np.int64), likely=self.surface[np.argsort(gap, kind="stable")],
+                      count=PREFETCH_NODES)
+
     def field(self, nodes: np.ndarray, disp: np.ndarray, load: float) -> np.ndarray:
         """(n, 3) displacement field for prescribed contact displacements at gravity factor λ (eq. 4)."""
         return self._at_load(nodes, disp, load, lambda r, d: r.solve(d).displacements, self._zero_fields)
@@ -1154,6 +1167,7 @@ class Tracker:
                 record("A", k, int(o))
             if not added and not released.any():
                 break
+            self.prefetch_columns([a[0] for a in added], surface, centers)
             nodes = np.concatenate([nodes, [a[0] for a in added]]).astype(np.int64)
             owner = np.concatenate([owner, [a[1] for a in added]]).astype(np.int64)
             disp = np.vstack([disp] + [a[2][None, :] for a in added])
@@ -1223,6 +1237,7 @@ class Tracker:
                 continue
             added.append((k, o, self._project(st.surface_positions[s], o, st.centers) - self.points[k]))
             record("A", k, o)
+        self.prefetch_columns([a[0] for a in added], st.surface_positions, st.centers)
         keep = [j for j in range(len(nodes)) if j not in remove]
         nodes = [nodes[j] for j in keep] + [a[0] for a in added]
         owner = [owner[j] for j in keep] + [a[1] for a in added]
@@ -1248,21 +1263,6 @@ class Tracker:
         p_c = self.points[new_state.nodes] + new_state.disp
         new_state = replace(new_state, normals=self.normals(own, p_c, st.centers))
         return new_state, events
-
-
-def one_blas_thread() -> contextlib.AbstractContextManager:
-    """BLAS limited to one thread (threadpoolctl, when installed) while contacts are tracked.
-
-    Tracking solves tens of thousands of small dense systems (3×3 to ~100×100),
-    for which OpenBLAS's threads cost more than they give: 20 % of a tomato
-    pickup on a loaded 2-core machine, and a 3×3 inverse took 16× longer.
-    The sparse factorisation is done before tracking starts and keeps its threads.
-    """
-    try:
-        from threadpoolctl import threadpool_limits
-    except ImportError:  # optional: the core needs only numpy and scipy
-        return contextlib.nullcontext()
-    return threadpool_limits(limits=1, user_api="blas")
 
 
 def run(tracker: Tracker, state: ContactState, velocities: np.ndarray, *, stop: float, step: float,

@@ -152,6 +152,65 @@ def test_prefetched_columns_equal_columns_solved_one_node_at_a_time(body, solver
         np.testing.assert_allclose(batch.node_columns([k]), ref, rtol=0, atol=1e-12 * np.abs(ref).max())
 
 
+def test_prefetch_fills_up_with_the_likely_next_contacts_in_one_solve(body):
+    comp = cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver="superlu")
+    calls = []
+    inner = comp._solve
+    comp._solve = lambda b: calls.append(b.shape[1]) or inner(b)
+    comp.node_columns([9])
+    comp.prefetch([3], likely=[3, 9, 2, 2, 40, 41], count=3)  # 3 is asked for; 9 is cached; 2 once
+    assert calls == [3, 9] and all(comp.is_cached(k) for k in (3, 2, 40)) and not comp.is_cached(41)
+    comp.prefetch([2, 3], likely=[50, 51], count=10)  # nothing new is asked for: no solve at all
+    assert calls == [3, 9] and not comp.is_cached(50)
+
+
+@pytest.mark.parametrize("rows", [False, True])
+def test_columns_of_grounded_nodes_equal_the_compliance_applied_to_unit_loads(body, rows):
+    """Columns are solved on the free DOFs only (no padded (3n, k) copies); the grounded DOFs' rows and
+    loads are zero, as X applied to the unit loads gives them."""
+    surf = body.mesh.surface_nodes
+    comp = cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver="superlu",
+                         rows=np.union1d(surf, comp_ground_nodes(body)) if rows else None)
+    nodes = np.unique(comp.ground // 3)
+    assert len(nodes) >= 2  # the grounded DOFs sit on two or three nodes
+    unit = np.zeros((comp.n_dofs, 3 * len(nodes)))
+    for j, k in enumerate(nodes):
+        unit[3 * k: 3 * k + 3, 3 * j: 3 * j + 3] = np.eye(3)
+    ref = comp.apply(unit)
+    kept = slice(None) if not rows else (3 * comp.kept_nodes[:, None] + np.arange(3)).ravel()
+    np.testing.assert_allclose(comp.node_columns(nodes), ref[kept], rtol=0, atol=1e-14 * np.abs(ref).max())
+    assert np.all(comp.node_columns(nodes)[np.searchsorted(np.arange(comp.n_dofs)[kept], comp.ground)] == 0)
+
+
+def comp_ground_nodes(body):
+    return np.unique(cp.grounding_dofs(body.mesh.points, body.rigid_modes) // 3)
+
+
+def test_column_solves_use_every_blas_thread_inside_the_tracking_limit(body):
+    """The tracking runs BLAS on one thread (small dense systems); the multi-column sparse solves inside it
+    get the threads back (fem_grasp.threads)."""
+    threadpoolctl = pytest.importorskip("threadpoolctl")
+    from fem_grasp.threads import one_blas_thread
+
+    def blas_threads():
+        return max(i["num_threads"] for i in threadpoolctl.threadpool_info() if i["user_api"] == "blas")
+
+    comp = cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver="superlu")
+    seen = []
+    inner = comp._solve
+    comp._solve = lambda b: seen.append(blas_threads()) or inner(b)
+    with threadpoolctl.threadpool_limits(limits=2, user_api="blas"):
+        outer = blas_threads()
+        with one_blas_thread():
+            assert blas_threads() == 1
+            comp.node_columns([5])
+            comp.apply(np.ones(comp.n_dofs))
+            assert blas_threads() == 1
+        assert blas_threads() == outer
+    comp.node_columns([6])
+    assert seen[:2] == [outer, outer] and outer == 2
+
+
 def test_a_rigidly_moved_body_shares_the_factorisation_and_solves_the_same(monkeypatch, rng):
     """Body.transformed of a factorised body turns its compliance (X' = Q X Qᵀ) instead of factorising again:
     contact forces and fields equal a fresh factorisation of the moved mesh, and X' inverts the moved K on

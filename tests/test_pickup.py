@@ -406,6 +406,31 @@ def _box_squeezed_3mm():
     return rs, tracker, state, vel
 
 
+def test_a_new_contact_brings_the_columns_of_the_surface_nodes_nearest_an_obstacle():
+    """A new contact's compliance columns are solved together with those of the likely next contacts
+    (compliance.PREFETCH_NODES in all): the uncached surface nodes nearest a fingertip or the table."""
+    from fem_grasp.compliance import PREFETCH_NODES
+
+    rs = rest(_box(), 0.5)
+    posed = Body(rs.body.mesh, 2e4, 0.3, weight=WEIGHT)  # the rest cached columns of the resting body's
+    tracker = Tracker(posed, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)
+    comp = posed.compliance
+    surf = posed.mesh.surface_nodes
+    pos = posed.mesh.points[surf]
+    i, j = _face_centres(rs)
+    centers = posed.mesh.points[[i, j]] + np.array([[0, -RADIUS, 0], [0, RADIUS, 0]])
+    before = {int(k) for k in surf if comp.is_cached(k)}
+    assert i not in before and len(surf) - len(before) > PREFETCH_NODES
+    gap = tracker.obstacle_gaps(pos, centers).min(axis=1)
+    expected = [int(k) for k in surf[np.argsort(gap, kind="stable")] if k not in before and k != i]
+    tracker.prefetch_columns([i], pos, centers)
+    now = {int(k) for k in surf if comp.is_cached(k)}
+    assert now - before == {i, *expected[:PREFETCH_NODES - 1]}
+    assert j in now  # the other fingertip's node touches it too
+    tracker.prefetch_columns([i, j], pos, centers)  # cached already: nothing more
+    assert {int(k) for k in surf if comp.is_cached(k)} == now
+
+
 @pytest.mark.parametrize("free", [False, True])
 def test_slip_rates_of_event_d_match_finite_differences(free):
     # Event D watches d(slip)/dρ from the implicit-function theorem; compare with the slips themselves.
