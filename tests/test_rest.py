@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from fem_grasp import Body, TetMesh, box_mesh, objects
-from fem_grasp.pose import hull_facets, resting_pose, rotation_between, stable_facets, triangle_margin
+from fem_grasp.pose import (_polygon_margin, _triangle_margins, hull_facets, resting_pose, rotation_between,
+                            stable_facets, triangle_margin)
 from fem_grasp.rest import RestCheckError, RestConvergenceError, rest
 
 #: A soft modulus that makes the sag visible (millimetres); Table I's 1e9–6e9 Pa give micrometres.
@@ -66,6 +67,33 @@ def test_margin_outside_is_the_distance_to_the_triangle():
     assert margin == pytest.approx(-np.sqrt(2))
     margin, edge = triangle_margin(tri_points, [0, 1, 2], np.array([0.2, 0.1, -3.0]), normal)
     assert margin == pytest.approx(0.1) and edge == 0
+
+
+def test_triangle_margins_at_once_agree_with_one_by_one():
+    rng = np.random.default_rng(4)
+    tri2 = rng.normal(size=(400, 3, 2))
+    area2 = np.cross(tri2[:, 1] - tri2[:, 0], tri2[:, 2] - tri2[:, 0])
+    tri2[area2 < 0] = tri2[area2 < 0, ::-1]  # counter-clockwise, as hull_facets orders them
+    points = rng.normal(size=(400, 2))  # inside some, outside most (beyond an edge or a vertex)
+    expected = [_polygon_margin(t, p)[0] for t, p in zip(tri2, points)]
+    got = _triangle_margins(tri2, points)
+    assert (got > 0).sum() > 20 and (got < 0).sum() > 20
+    np.testing.assert_allclose(got, expected, rtol=1e-13, atol=1e-15)
+
+
+def test_hull_facets_of_a_fine_mesh_match_the_triangles_one_by_one():
+    """Triangular facets are measured all at once; each must have the polygon, area and margin that
+    triangle_margin gives it alone."""
+    orange = paper_body("orange")
+    facets = [f for f in hull_facets(orange) if len(f.nodes) == 3]
+    assert len(facets) > 100
+    pts, com = orange.mesh.points, orange.center_of_mass
+    for f in facets[::7]:
+        margin, _ = triangle_margin(pts, f.polygon, com, f.normal)
+        assert f.margin == pytest.approx(margin, rel=1e-12, abs=1e-15)
+        a, b, c = pts[f.polygon]
+        assert np.cross(b - a, c - a) @ f.normal > 0  # counter-clockwise about the outward normal
+        assert f.area == pytest.approx(0.5 * np.linalg.norm(np.cross(b - a, c - a)), rel=1e-12)
 
 
 def test_box_hull_has_six_merged_stable_facets(box):
