@@ -208,6 +208,12 @@ class ContactResponse:
         return self.body.gravity_compliance_field
 
     @property
+    def nbytes(self) -> int:
+        """Memory held by this response's own dense matrices (M, its LU factors, C once computed)."""
+        own = [self._matrix, self._lu[0], self._lu[1], self.__dict__.get("reduced_stiffness")]
+        return sum(a.nbytes for a in own if a is not None)
+
+    @property
     def n_contacts(self) -> int:
         return len(self.nodes)
 

@@ -148,6 +148,10 @@ MAX_HALVINGS = 2
 MAX_SLIP = 0.1
 #: With more contacts than this, increments are taken implicitly (module notes, "Large contact sets").
 IMPLICIT_CONTACTS = 40
+#: A tracker keeps the contact responses of its latest contact sets, at most this many and this many bytes
+#: (each holds dense (3m+6)² matrices: 16 responses of 600 contacts took 1.3 GB at 100k vertices).
+RESPONSE_CACHE = 16
+RESPONSE_CACHE_BYTES = 256 * 2**20
 
 
 class TrackingError(RuntimeError):
@@ -636,9 +640,11 @@ class Tracker:
                 resp = self.body.contact_response(np.asarray(key, dtype=np.int64), backend=self.backend)
             except CollinearContactError as exc:
                 raise TrackingError(f"the object is no longer held: {exc}") from None
-            if len(self._responses) >= 16:
-                self._responses.pop(next(iter(self._responses)))
             self._responses[key] = resp
+            while len(self._responses) > 1 and (
+                    len(self._responses) > RESPONSE_CACHE
+                    or sum(r.nbytes for r in self._responses.values()) > RESPONSE_CACHE_BYTES):
+                self._responses.pop(next(iter(self._responses)))  # the oldest
         return resp
 
     def prefetch_columns(self, nodes: Sequence[int], surface_positions: np.ndarray, centers: np.ndarray) -> None:
