@@ -54,7 +54,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from .mesh import check_rotation
-from .threads import sparse_solve_threads
+from .threads import outer_blas_threads
 
 log = logging.getLogger(__name__)
 
@@ -328,7 +328,7 @@ class Compliance:
     def _apply_unturned(self, load: np.ndarray) -> np.ndarray:
         """X @ load in the frame of the factorised body (:meth:`rotated`)."""
         out = np.zeros_like(load)
-        with sparse_solve_threads():  # inside the tracking's one-thread limit too
+        with outer_blas_threads():  # inside the tracking's one-thread limit too
             out[self.free] = self._solve(np.ascontiguousarray(load[self.free]))
         return out
 
@@ -373,7 +373,7 @@ class Compliance:
         for j, k in enumerate(new):
             at = self._free_position[3 * k: 3 * k + 3]
             rhs[at[at >= 0], 3 * j: 3 * j + 3] = unit[at >= 0]
-        with sparse_solve_threads():  # inside the tracking's one-thread limit too
+        with outer_blas_threads():  # inside the tracking's one-thread limit too
             sol = self._solve(rhs)
         del rhs
         rows = self._free_position if self._row_dofs is None else self._free_position[self._row_dofs]

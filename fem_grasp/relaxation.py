@@ -55,6 +55,7 @@ import numpy as np
 from . import gauss_seidel as gs
 from .gauss_seidel import RELEASE, SLIDE, STICK
 from .jit import as_kernel_data
+from .threads import blas_threads_for
 
 __all__ = ["RelaxationFailure", "Relaxation", "relax_contacts", "STICK", "SLIDE", "RELEASE"]
 
@@ -218,7 +219,8 @@ def _polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, stat
         if np.abs(r).max() <= tol:
             break
         try:
-            step = -np.linalg.solve(jac, r)
+            with blas_threads_for(len(r)):
+                step = -np.linalg.solve(jac, r)
         except np.linalg.LinAlgError:
             return None
         # A Newton step cut below 1/8 means the statuses are wrong (the sweeps go on): in the steam bun's

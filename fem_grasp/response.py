@@ -28,6 +28,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.linalg as la
 
+from .threads import blas_threads_for
+
 if TYPE_CHECKING:
     from .body import Body
 
@@ -188,11 +190,11 @@ class ContactResponse:
         mat[m3:, :m3] = self._scale * b.T
         self._matrix = mat
         self._rhs_rigid = -self._scale * (self._null.T @ body.gravity_loads)
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), blas_threads_for(m3 + 6):
             warnings.simplefilter("ignore", la.LinAlgWarning)
             self._lu = la.lu_factor(mat, check_finite=False)
-        gecon = la.lapack.get_lapack_funcs("gecon", (self._lu[0],))
-        rcond, _ = gecon(self._lu[0], np.abs(mat).sum(axis=0).max(), norm="1")
+            gecon = la.lapack.get_lapack_funcs("gecon", (self._lu[0],))
+            rcond, _ = gecon(self._lu[0], np.abs(mat).sum(axis=0).max(), norm="1")
         self.condition_estimate = float(1.0 / rcond) if rcond > 0 else np.inf
         if not self.condition_estimate < MAX_CONDITION:
             raise CollinearContactError(
@@ -237,7 +239,8 @@ class ContactResponse:
         m3 = len(self.dofs)
         rhs = np.zeros((m3 + 6, m3))
         rhs[:m3] = np.eye(m3)
-        c = la.lu_solve(self._lu, rhs, check_finite=False)[:m3]
+        with blas_threads_for(m3 + 6):
+            c = la.lu_solve(self._lu, rhs, check_finite=False)[:m3]
         return 0.5 * (c + c.T)
 
     @cached_property

@@ -188,7 +188,7 @@ def comp_ground_nodes(body):
 
 def test_column_solves_use_every_blas_thread_inside_the_tracking_limit(body):
     """The tracking runs BLAS on one thread (small dense systems); the multi-column sparse solves inside it
-    get the threads back (fem_grasp.threads)."""
+    get the threads back (fem_grasp.threads), as do dense systems of DENSE_THREADS_MIN rows or more."""
     threadpoolctl = pytest.importorskip("threadpoolctl")
     from fem_grasp.threads import one_blas_thread
 
@@ -209,6 +209,13 @@ def test_column_solves_use_every_blas_thread_inside_the_tracking_limit(body):
         assert blas_threads() == outer
     comp.node_columns([6])
     assert seen[:2] == [outer, outer] and outer == 2
+    from fem_grasp.threads import DENSE_THREADS_MIN, blas_threads_for
+
+    with threadpoolctl.threadpool_limits(limits=2, user_api="blas"), one_blas_thread():
+        with blas_threads_for(DENSE_THREADS_MIN):
+            assert blas_threads() == 2
+        with blas_threads_for(DENSE_THREADS_MIN - 1):
+            assert blas_threads() == 1
 
 
 def test_a_rigidly_moved_body_shares_the_factorisation_and_solves_the_same(monkeypatch, rng):
