@@ -305,6 +305,7 @@ class _Solver:
         self.disp: dict[int, np.ndarray] = {}
         self.sliding: set[int] = set()
         self._responses: dict[tuple[int, ...], ContactResponse] = {}
+        self._gravity_field: np.ndarray | None = None
         mass = -body.gravity_loads.reshape(-1, 3)[:, 2]
         self._mass = mass / mass.sum()
 
@@ -313,7 +314,14 @@ class _Solver:
         key = tuple(self.contacts)
         if key not in self._responses:
             self._responses = {key: self.body.contact_response(np.array(key), backend=self.backend)}
+            self._gravity_field = None
         return self._responses[key]
+
+    def gravity_field(self, resp: ContactResponse) -> np.ndarray:
+        """The surface displacements of gravity alone, contacts held at zero (once per contact set)."""
+        if self._gravity_field is None:
+            self._gravity_field = resp.surface_displacements(np.zeros((resp.n_contacts, 3)))
+        return self._gravity_field
 
     def prescribed(self) -> np.ndarray:
         return np.array([self.disp[k] for k in self.contacts])
@@ -356,10 +364,9 @@ class _Solver:
         forces, field = resp.forces(d), resp.surface_displacements(d)
         if self.lam == 1.0:
             return _State(forces, field, self._surface_points + field, None)
-        zero = np.zeros_like(d)
-        grav = resp.surface_displacements(zero)
+        grav = self.gravity_field(resp)
         field = field - (1.0 - self.lam) * grav
-        return _State(forces - (1.0 - self.lam) * resp.forces(zero), field, self._surface_points + field, grav)
+        return _State(forces - (1.0 - self.lam) * resp.gravity_forces, field, self._surface_points + field, grav)
 
     def solution(self) -> ContactSolution:
         """The final :class:`ContactSolution` (λ = 1)."""
