@@ -446,7 +446,7 @@ def print_jit(sec: dict[str, Any]) -> None:
 
 
 # ------------------------------------------------------- compliance columns
-def section_columns(size: int = 30000) -> dict[str, Any]:
+def section_columns(size: int = 30000, reps: int = 3) -> dict[str, Any]:
     """Seconds per compliance column when k columns are solved at once (unit loads on k DOFs), with BLAS on
     all its threads and on one (as the tracking has it, ``threads.one_blas_thread``)."""
     from threadpoolctl import threadpool_limits
@@ -461,16 +461,16 @@ def section_columns(size: int = 30000) -> dict[str, Any]:
             rhs = np.zeros((comp.n_dofs, k))
             rhs[(np.arange(k) * 7) % comp.n_dofs, np.arange(k)] = 1.0
             with threadpool_limits(limits=threads, user_api="blas"):  # not one_blas_thread: apply lifts that
-                t, _ = timed(lambda: comp.apply(rhs))
+                t = median([timed(lambda: comp.apply(rhs))[0] for _ in range(reps)])
             rows.append({"columns": k, "blas_threads": threads or os.cpu_count(), "seconds": t,
-                         "per_column_ms": 1e3 * t / k})
+                         "per_column_ms": 1e3 * t / k, "reps": reps})
             log.info("%d columns at once (%s BLAS threads): %.3f s", k, threads or "all", t)
     return {"vertices": body.n_nodes, "solver": comp.solver, "rows": rows}
 
 
 def print_columns(sec: dict[str, Any]) -> None:
     print(f"\n(f) compliance columns solved k at a time, orange of {sec['vertices']} vertices ({sec['solver']}), "
-          "ms per column:")
+          f"ms per column (median of {sec['rows'][0].get('reps', 1)}):")
     for threads in sorted({r.get("blas_threads", 0) for r in sec["rows"]}, reverse=True):
         print(f"    {threads} BLAS thread(s): " + ", ".join(f"k = {r['columns']}: {r['per_column_ms']:.1f}"
                                                        for r in sec["rows"] if r.get("blas_threads", 0) == threads))
@@ -519,7 +519,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         elif name == "jit":
             data["jit"] = section_jit()
         elif name == "columns":
-            data["columns"] = section_columns()
+            data["columns"] = section_columns(reps=args.reps)
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(json.dumps(data, indent=2, default=float))
     m = data["machine"]
