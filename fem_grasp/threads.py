@@ -5,9 +5,10 @@ for which OpenBLAS's threads cost more than they give: 20 % of a tomato
 pickup on a loaded 2-core machine, and a 3×3 inverse took 16× longer.  Two
 kinds of solve inside it are the opposite case, and get the threads back:
 
-* the multi-column sparse solves for new contacts' compliance columns, which
-  stream a factor of hundreds of MB: with two threads 180 columns took 1.4 s
-  against 2.5 s with one (31k-vertex orange, CHOLMOD);
+* the sparse solves for new contacts' compliance columns, which stream a
+  factor of hundreds of MB: 10.7 against 11.4 ms per column in batches of
+  90, 40 against 55 ms for one node's three (31k-vertex orange, CHOLMOD,
+  ``make bench`` section ``columns``);
 * dense factorisations and solves of :data:`DENSE_THREADS_MIN` rows or more
   (the contact responses of large contact sets): the LU solve of a 400-square
   matrix with 400 right-hand sides took 2.2 ms on two threads against 3.7 ms
