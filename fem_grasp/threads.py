@@ -10,9 +10,10 @@ kinds of solve inside it are the opposite case, and get the threads back:
   90, 40 against 55 ms for one node's three (31k-vertex orange, CHOLMOD,
   ``make bench`` section ``columns``);
 * dense factorisations and solves of :data:`DENSE_THREADS_MIN` rows or more
-  (the contact responses of large contact sets): the LU solve of a 400-square
-  matrix with 400 right-hand sides took 2.2 ms on two threads against 3.7 ms
-  on one, at 2700 rows 0.40 s against 0.77 s.
+  (the contact responses of large contact sets): under
+  ``python -m bench.profile --orange 30000`` their LU solves took 0.80 s
+  against 1.34 s on one thread; by hand, two threads start to pay at about
+  400 rows.
 
 threadpoolctl is optional: without it nothing is limited.
 """
