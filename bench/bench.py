@@ -36,6 +36,16 @@ Sections (``--only NAME``, repeatable; default all):
     with them as plain Python (``FEM_GRASP_NO_JIT=1``), each in a fresh
     process after a warm-up pickup: time ratio, same events; and the warm-up
     pickup's time, which compiles the sweeps (an empty numba cache).
+``floor``
+    What the method must compute at each size of the scaling section, in
+    floating-point operations, against the fastest this machine computes
+    (a dense matrix product): the CHOLMOD factorisation (Σ c_j² over the
+    column counts of L) and one compliance column (4 nnz(L): a forward and
+    a back substitution), their measured rates, and, with the scaling
+    section's count of the nodes that touched (three columns each), the
+    least time of factorisation and columns together (issue #7's 100k
+    target).  One subprocess per size (L is converted to a simplicial copy
+    to count it; about 10 GiB at 100k).  Needs CHOLMOD.
 
 Medians over ``--reps`` repetitions.  Prints tables and writes
 ``bench/out/bench.json`` (sections run earlier are kept when ``--only`` runs
@@ -65,7 +75,7 @@ log = logging.getLogger("bench")
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "bench" / "out" / "bench.json"
-SECTIONS = ("solve", "scaling", "objects", "spectral", "jit", "columns")
+SECTIONS = ("solve", "scaling", "objects", "spectral", "jit", "columns", "floor")
 SOLVE_SIZES = (10000, 50000)
 SCALING_SIZES = (1000, 3000, 10000, 30000, 50000, 100000)
 #: SuperLU above this many vertices takes minutes and gigabytes: not timed.
@@ -251,7 +261,15 @@ def scaling_worker(size: int) -> None:
     emit(phase="rest", seconds=t, contacts=len(rs.contact_nodes), maxrss_mib=maxrss_mib())
     t, res = timed(lambda: pickup(body, mu_finger=mu, mu_table=mu, rest_state=rs, placement_rule=PAPER_PLACEMENT_RULE))
     emit(phase="pickup", seconds=t, success=bool(res.success), reason=res.reason, events=len(res.events),
-         cached_columns=res.body.compliance.cached_nodes, maxrss_mib=maxrss_mib())
+         cached_columns=res.body.compliance.cached_nodes, touched_nodes=len(touched_nodes(rs, res)),
+         maxrss_mib=maxrss_mib())
+
+
+def touched_nodes(rest_state, result) -> np.ndarray:
+    """The nodes in contact at rest or in any snapshot of a pickup (each needs its compliance columns)."""
+    sets = [np.asarray(rest_state.contact_nodes, dtype=np.int64)]
+    sets += [np.asarray(v, dtype=np.int64) for s in result.snapshots for v in s.contact_nodes.values()]
+    return np.unique(np.concatenate(sets))
 
 
 def section_scaling(sizes: list[int], cap: float) -> dict[str, Any]:
@@ -476,9 +494,113 @@ def print_columns(sec: dict[str, Any]) -> None:
                                                        for r in sec["rows"] if r.get("blas_threads", 0) == threads))
 
 
+# ------------------------------------------------- floor of the method
+def cholesky_counts(factor) -> tuple[int, float, float]:
+    """nnz(L) and the flops of the numeric factorisation, Σ_j c_j² over L's column counts c_j (diagonal
+    included), of a CHOLMOD factor; and the flops with the supernodal padding.
+
+    ``factor.L()`` carries the supernodes' explicit zeros: the padded count is what CHOLMOD computes, the
+    count without them what any Cholesky factorisation in this order must.
+    """
+    lower = factor.L()
+    padded = np.diff(lower.indptr).astype(float)
+    lower.eliminate_zeros()
+    counts = np.diff(lower.indptr).astype(float)
+    return int(lower.nnz), float((counts ** 2).sum()), float((padded ** 2).sum())
+
+
+def dense_peak_gflops(n: int = 4000, reps: int = 3) -> float:
+    """GFlop/s of an n×n matrix product on all BLAS threads (2n³ flops; median of ``reps``)."""
+    rng = np.random.default_rng(0)
+    a, b = rng.standard_normal((n, n)), rng.standard_normal((n, n))
+    return 2.0 * n ** 3 / median([timed(lambda: a @ b)[0] for _ in range(reps)]) / 1e9
+
+
+def floor_worker(size: int, reps: int) -> None:
+    """Run in a subprocess: one JSON line with the factorisation's and one column's flops and rates."""
+    from bench.meshes import cached_mesh
+    from fem_grasp import compliance
+
+    mesh = cached_mesh("orange", size)
+    body = orange_body(mesh, SCALING_YOUNG)
+    k = body.stiffness
+    free = np.setdiff1d(np.arange(k.shape[0]), compliance.grounding_dofs(mesh.points, body.rigid_modes))
+    kff = k[free][:, free]
+    t_factor, solve = timed(lambda: compliance.factorize(kff, "cholmod"))
+    width = 3 * compliance.PREFETCH_NODES  # one batch of the tracking's column solves
+    rhs = np.zeros((len(free), width))
+    rhs[(np.arange(width) * 7) % len(free), np.arange(width)] = 1.0
+    t_column = median([timed(lambda: solve(rhs))[0] for _ in range(reps)]) / width
+    nnz_l, flops, padded_flops = cholesky_counts(solve.factor)
+    print(json.dumps({"vertices": mesh.n_points, "dofs": len(free), "nnz_k": int(kff.nnz), "nnz_l": nnz_l,
+                      "factor_flops": flops, "supernodal_flops": padded_flops, "factor_s": t_factor, "column_flops": 4.0 * nnz_l,
+                      "column_s": t_column, "batch_columns": width, "peak_gflops": dense_peak_gflops(),
+                      "maxrss_mib": maxrss_mib()}), flush=True)
+
+
+def section_floor(sizes: list[int], reps: int, scaling: dict[str, Any] | None) -> dict[str, Any]:
+    """The flops the method needs per size and the least time they take at the dense peak; with the scaling
+    section's touched nodes (same bench.json), the floor of factorisation and columns for its pickups."""
+    from fem_grasp import compliance
+
+    if not compliance.cholmod_available():
+        log.warning("floor: needs CHOLMOD (scikit-sparse); skipped")
+        return {"rows": [], "note": "CHOLMOD not installed"}
+    touched = {}
+    for r in (scaling or {}).get("rows", []):
+        if isinstance(r.get("pickup"), dict) and "touched_nodes" in r["pickup"]:
+            touched[r["mesh"]["vertices"]] = r
+    rows = []
+    for size in sizes:
+        proc = subprocess.run([sys.executable, "-m", "bench.bench", "--worker-floor", str(size),
+                               "--reps", str(reps)], cwd=ROOT, capture_output=True, text=True, check=True)
+        row = json.loads(proc.stdout.strip().splitlines()[-1])
+        peak = row["peak_gflops"] * 1e9
+        row["factor_floor_s"] = row["factor_flops"] / peak
+        row["column_floor_s"] = row["column_flops"] / peak
+        run = touched.get(row["vertices"])
+        if run is not None:
+            columns = 3 * run["pickup"]["touched_nodes"]
+            row["touched_nodes"] = run["pickup"]["touched_nodes"]
+            row["floor_s"] = row["factor_floor_s"] + columns * row["column_floor_s"]
+            # A forward substitution restricted to the elimination tree above a unit load (sparse right-hand
+            # sides, not in scikit-sparse 0.4) would leave at least the back substitution, half the flops.
+            row["floor_sparse_rhs_s"] = row["factor_floor_s"] + columns * row["column_floor_s"] / 2
+            row["at_measured_rates_s"] = row["factor_s"] + columns * row["column_s"]
+            row["scaling_s"] = run["factorisation"]["seconds"] + run["rest"]["seconds"] + run["pickup"]["seconds"]
+        rows.append(row)
+        log.info("floor %d: factor %.2f TFlop in %.1f s, column %.2f GFlop in %.1f ms", row["vertices"],
+                 row["factor_flops"] / 1e12, row["factor_s"], row["column_flops"] / 1e9, 1e3 * row["column_s"])
+    return {"rows": rows, "reps": reps,
+            "note": "flops from the simplicial L (lower bounds); peak = dense matrix product on all threads; "
+                    "floor = (factor flops + 3 touched nodes x column flops) / peak"}
+
+
+def print_floor(sec: dict[str, Any]) -> None:
+    if not sec["rows"]:
+        print(f"\n(g) floor of the method: {sec.get('note', 'no rows')}")
+        return
+    print("\n(g) floor of the method: flops of the factorisation (supernodal padding in brackets) and of one "
+          "compliance column (4 nnz(L)),\n    the rates measured (the factor's on its padded flops, columns in "
+          "batches of 90) against the dense peak; for the\n    scaling pickups (touched nodes, three columns "
+          "each) the least time of factorisation + columns at that peak, at it\n    with half the column flops "
+          "(sparse right-hand sides), at the measured rates, and the scaling run's factorisation + rest + pickup")
+    print(f"{'vertices':>9s} {'nnz(L)':>8s} {'factor GFlop':>16s} {'s':>6s} {'GF/s':>5s} {'col MFlop':>9s} "
+          f"{'ms':>6s} {'GF/s':>5s} {'peak':>5s} {'touched':>7s} {'floor s':>8s} {'sparse-rhs':>10s} "
+          f"{'at rates':>8s} {'measured':>8s}")
+    for r in sec["rows"]:
+        tail = (f"{r['touched_nodes']:7d} {r['floor_s']:8.3g} {r['floor_sparse_rhs_s']:10.3g} "
+                f"{r['at_measured_rates_s']:8.3g} {r['scaling_s']:8.3g}") if "floor_s" in r else ""
+        padded = r.get("supernodal_flops", r["factor_flops"])
+        print(f"{r['vertices']:9d} {r['nnz_l'] / 1e6:7.1f}M {r['factor_flops'] / 1e9:7.4g} ({padded / 1e9:6.4g}) "
+              f"{r['factor_s']:6.2f} {padded / r['factor_s'] / 1e9:5.0f} {r['column_flops'] / 1e6:7.4g} "
+              f"{1e3 * r['column_s']:6.1f} {r['column_flops'] / r['column_s'] / 1e9:5.0f} "
+              f"{r['peak_gflops']:5.0f} {tail}")
+
+
 # -------------------------------------------------------------------- main
 PRINTERS = {"solve": print_solve, "scaling": print_scaling, "objects": print_objects, "spectral": print_spectral,
-            "jit": print_jit, "columns": print_columns}
+            "jit": print_jit, "columns": print_columns, "floor": print_floor}
 
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:
@@ -492,11 +614,15 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                     help="stop repeating an object's pickup after this many seconds (default 60)")
     ap.add_argument("--out", type=Path, default=OUT)
     ap.add_argument("--worker-scaling", type=int, help=argparse.SUPPRESS)
+    ap.add_argument("--worker-floor", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
     logging.getLogger("fem_grasp").setLevel(logging.WARNING)
     if args.worker_scaling:
         scaling_worker(args.worker_scaling)
+        return {}
+    if args.worker_floor:
+        floor_worker(args.worker_floor, args.reps)
         return {}
     sections = args.only or list(SECTIONS)
     data: dict[str, Any] = {}
@@ -520,6 +646,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             data["jit"] = section_jit()
         elif name == "columns":
             data["columns"] = section_columns(reps=args.reps)
+        elif name == "floor":
+            data["floor"] = section_floor([s for s in SCALING_SIZES if s <= args.max_vertices], args.reps,
+                                          data.get("scaling"))
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(json.dumps(data, indent=2, default=float))
     m = data["machine"]

@@ -51,3 +51,34 @@ def test_replayed_return_mappings_reach_their_recorded_outcomes(tmp_path, capsys
     monkeypatch.setattr(relaxation, "relax_contacts", one_verdict_flipped)
     flipped = replay.replay(path)
     assert len(flipped["changed"]) == (1 if calls[0][2][0] == "ok" else 0)
+
+
+def test_the_floor_counts_the_factor_that_cholmod_computes():
+    """bench.bench's floor section counts L by its columns: the counts are the non-zeros of the dense
+    Cholesky factor of the matrix in CHOLMOD's order (not the supernodes' padding), nnz(L) their sum and the
+    flops Σ c_j²."""
+    import numpy as np
+    import pytest
+
+    from bench import bench
+    from fem_grasp import compliance, fem
+
+    from _meshes import perturbed_box
+
+    if not compliance.cholmod_available():
+        pytest.skip("the floor section counts a CHOLMOD factor; scikit-sparse is not installed")
+    from sksparse.cholmod import cholesky
+
+    mesh = perturbed_box(np.random.default_rng(3), divisions=(3, 3, 4))
+    k = fem.stiffness_matrix(mesh.points, mesh.tets, 1e4, 0.3)
+    free = np.setdiff1d(np.arange(k.shape[0]), compliance.grounding_dofs(mesh.points, fem.rigid_modes(mesh.points)))
+    kff = k[free][:, free].tocsc()
+    factor = cholesky(kff)
+    nnz_l, flops, padded = bench.cholesky_counts(factor)
+    p = factor.P()
+    dense = np.linalg.cholesky(kff.toarray()[np.ix_(p, p)])
+    counts = (np.abs(dense) > 1e-12 * np.abs(dense).max()).sum(axis=0)
+    assert nnz_l == counts.sum() and flops == (counts.astype(float) ** 2).sum()
+    assert nnz_l > kff.nnz // 2  # fill-in: L holds more than K's lower triangle
+    assert padded >= flops  # the supernodes' padding only adds
+    assert 1 < bench.dense_peak_gflops(n=300, reps=1) < 1e5
