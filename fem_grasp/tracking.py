@@ -647,20 +647,15 @@ class Tracker:
                 self._responses.pop(next(iter(self._responses)))  # the oldest
         return resp
 
-    def prefetch_columns(self, nodes: Sequence[int], surface_positions: np.ndarray, centers: np.ndarray,
-                         obstacles: Sequence[int] | None = None) -> None:
+    def prefetch_columns(self, nodes: Sequence[int], surface_positions: np.ndarray, centers: np.ndarray) -> None:
         """With the sparse backend, when new contact ``nodes`` lack their compliance columns, compute them
-        together with those of the uncached surface nodes nearest the ``obstacles`` they touch (default:
-        any obstacle), the likely next contacts: ``compliance.PREFETCH_NODES`` in one solve (a new
-        contact's own three columns alone cost several times more per column).  A contact patch grows
-        where it gains contacts; nodes near the other obstacles mostly never touch."""
+        together with those of the uncached surface nodes nearest an obstacle (the likely next contacts):
+        ``compliance.PREFETCH_NODES`` in one solve (a new contact's own three columns alone cost
+        several times more per column)."""
         comp = self.body.compliance if self.backend == "sparse" else None
         if comp is None or all(comp.is_cached(k) for k in nodes):
             return
-        gaps = self.obstacle_gaps(surface_positions, centers)
-        if obstacles is not None and len(obstacles):
-            gaps = gaps[:, np.unique(np.asarray(obstacles, dtype=np.int64))]
-        gap = gaps.min(axis=1)
+        gap = self.obstacle_gaps(surface_positions, centers).min(axis=1)
         comp.prefetch(np.asarray(nodes, dtype=np.int64), likely=self.surface[np.argsort(gap, kind="stable")],
                       count=PREFETCH_NODES)
 
@@ -1178,7 +1173,7 @@ class Tracker:
                 record("A", k, int(o))
             if not added and not released.any():
                 break
-            self.prefetch_columns([a[0] for a in added], surface, centers, [a[1] for a in added])
+            self.prefetch_columns([a[0] for a in added], surface, centers)
             nodes = np.concatenate([nodes, [a[0] for a in added]]).astype(np.int64)
             owner = np.concatenate([owner, [a[1] for a in added]]).astype(np.int64)
             disp = np.vstack([disp] + [a[2][None, :] for a in added])
@@ -1248,7 +1243,7 @@ class Tracker:
                 continue
             added.append((k, o, self._project(st.surface_positions[s], o, st.centers) - self.points[k]))
             record("A", k, o)
-        self.prefetch_columns([a[0] for a in added], st.surface_positions, st.centers, [a[1] for a in added])
+        self.prefetch_columns([a[0] for a in added], st.surface_positions, st.centers)
         keep = [j for j in range(len(nodes)) if j not in remove]
         nodes = [nodes[j] for j in keep] + [a[0] for a in added]
         owner = [owner[j] for j in keep] + [a[1] for a in added]

@@ -406,25 +406,19 @@ def _box_squeezed_3mm():
     return rs, tracker, state, vel
 
 
-def _fresh_tracker_and_fingertips():
-    """A tracker on the rested box with no cached columns, and fingertips touching two opposite faces."""
-    rs = rest(_box(), 0.5)
-    posed = Body(rs.body.mesh, 2e4, 0.3, weight=WEIGHT)  # the rest cached columns of the resting body's
-    tracker = Tracker(posed, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)
-    i, j = _face_centres(rs)
-    centers = posed.mesh.points[[i, j]] + np.array([[0, -RADIUS, 0], [0, RADIUS, 0]])
-    return tracker, i, j, centers
-
-
 def test_a_new_contact_brings_the_columns_of_the_surface_nodes_nearest_an_obstacle():
     """A new contact's compliance columns are solved together with those of the likely next contacts
     (compliance.PREFETCH_NODES in all): the uncached surface nodes nearest a fingertip or the table."""
     from fem_grasp.compliance import PREFETCH_NODES
 
-    tracker, i, j, centers = _fresh_tracker_and_fingertips()
-    comp = tracker.body.compliance
-    surf = tracker.body.mesh.surface_nodes
-    pos = tracker.body.mesh.points[surf]
+    rs = rest(_box(), 0.5)
+    posed = Body(rs.body.mesh, 2e4, 0.3, weight=WEIGHT)  # the rest cached columns of the resting body's
+    tracker = Tracker(posed, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)
+    comp = posed.compliance
+    surf = posed.mesh.surface_nodes
+    pos = posed.mesh.points[surf]
+    i, j = _face_centres(rs)
+    centers = posed.mesh.points[[i, j]] + np.array([[0, -RADIUS, 0], [0, RADIUS, 0]])
     before = {int(k) for k in surf if comp.is_cached(k)}
     assert i not in before and len(surf) - len(before) > PREFETCH_NODES
     gap = tracker.obstacle_gaps(pos, centers).min(axis=1)
@@ -435,25 +429,6 @@ def test_a_new_contact_brings_the_columns_of_the_surface_nodes_nearest_an_obstac
     assert j in now  # the other fingertip's node touches it too
     tracker.prefetch_columns([i, j], pos, centers)  # cached already: nothing more
     assert {int(k) for k in surf if comp.is_cached(k)} == now
-
-
-def test_a_new_contact_brings_the_columns_of_the_nodes_nearest_the_obstacle_it_touches():
-    """Told which obstacles the new contacts touch, the batch holds the uncached nodes nearest those: a
-    contact patch grows where it gains contacts (the nodes near the table are left out here)."""
-    from fem_grasp.compliance import PREFETCH_NODES
-
-    tracker, i, j, centers = _fresh_tracker_and_fingertips()
-    comp = tracker.body.compliance
-    surf = tracker.body.mesh.surface_nodes
-    pos = tracker.body.mesh.points[surf]
-    gaps = tracker.obstacle_gaps(pos, centers)
-    expected = [int(k) for k in surf[np.argsort(gaps[:, FINGER1], kind="stable")] if k != i]
-    tracker.prefetch_columns([i], pos, centers, [FINGER1])
-    now = {int(k) for k in surf if comp.is_cached(k)}
-    assert now == {i, *expected[:PREFETCH_NODES - 1]}
-    assert j not in now  # the node under the other fingertip is not near this one
-    table_first = {int(k) for k in surf[np.argsort(gaps.min(axis=1), kind="stable")][:PREFETCH_NODES]}
-    assert table_first - now  # ranked by every obstacle, the batch would have differed
 
 
 def test_the_tracker_keeps_its_latest_contact_responses_within_a_byte_budget(monkeypatch):
