@@ -533,9 +533,9 @@ def floor_worker(size: int, reps: int) -> None:
     t_column = median([timed(lambda: solve(rhs))[0] for _ in range(reps)]) / width
     nnz_l, flops, padded_flops = cholesky_counts(solve.factor)
     print(json.dumps({"vertices": mesh.n_points, "dofs": len(free), "nnz_k": int(kff.nnz), "nnz_l": nnz_l,
-                      "factor_flops": flops, "supernodal_flops": padded_flops, "factor_s": t_factor, "column_flops": 4.0 * nnz_l,
-                      "column_s": t_column, "batch_columns": width, "peak_gflops": dense_peak_gflops(),
-                      "maxrss_mib": maxrss_mib()}), flush=True)
+                      "factor_flops": flops, "supernodal_flops": padded_flops, "factor_s": t_factor,
+                      "column_flops": 4.0 * nnz_l, "column_s": t_column, "batch_columns": width,
+                      "peak_gflops": dense_peak_gflops(), "maxrss_mib": maxrss_mib()}), flush=True)
 
 
 def section_floor(sizes: list[int], reps: int, scaling: dict[str, Any] | None) -> dict[str, Any]:

@@ -82,3 +82,23 @@ def test_the_floor_counts_the_factor_that_cholmod_computes():
     assert nnz_l > kff.nnz // 2  # fill-in: L holds more than K's lower triangle
     assert padded >= flops  # the supernodes' padding only adds
     assert 1 < bench.dense_peak_gflops(n=300, reps=1) < 1e5
+
+
+def test_the_nodes_a_pickup_touched_all_have_their_compliance_columns():
+    """The floor section charges three columns to each node that touched (bench.bench.touched_nodes): the rest's
+    contacts and every snapshot's. The tracking needed each of them, so each must be cached after the pickup,
+    and the count cannot exceed what was computed."""
+    from bench import bench
+    from fem_grasp.pickup import pickup
+    from fem_grasp.scene import load_scene, resolve_scene
+
+    scene = load_scene(resolve_scene("football"), quick=True)
+    result = pickup(scene.body(), **scene.pickup_kwargs())
+    touched = bench.touched_nodes(result.rest, result)
+    comp = result.body.compliance
+    assert set(result.rest.contact_nodes) <= set(touched.tolist())
+    for snap in result.snapshots:
+        for nodes in snap.contact_nodes.values():
+            assert set(nodes.tolist()) <= set(touched.tolist())
+    assert all(comp.is_cached(int(k)) for k in touched)
+    assert 0 < len(touched) <= comp.cached_nodes
