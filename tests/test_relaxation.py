@@ -203,7 +203,8 @@ def test_the_polish_projection_is_the_slide_residual_of_the_sweeps(rng):
     proj, delta = _SlideGeometry(rec, mu).projections(us)
     for k in range(m):
         d0, d1, d2, n0, n1, n2, *_ = gs.motion(rec[k], *us[k])
-        np.testing.assert_array_equal(delta[k], [d0, d1, d2])
+        # all contacts at once against one contact's kernel call: equal to round-off
+        np.testing.assert_allclose(delta[k], [d0, d1, d2], rtol=0, atol=1e-15 * 3e-3)
         if centres[k] is not None:  # on the sphere, and moved along it by the arc length |u|
             assert np.linalg.norm(q0[k] + delta[k] - centres[k]) == pytest.approx(0.01, rel=1e-12)
             np.testing.assert_allclose([n0, n1, n2], (q0[k] + delta[k] - centres[k]) / 0.01, atol=1e-12)
