@@ -116,7 +116,7 @@ class _SlideGeometry:
         p = len(self.mu)
         out = as_kernel_data(np.empty((p, 9)))
         gs.slide_projections(self.rows, self.mu, as_kernel_data(us), out)
-        out = np.asarray(out, float)
+        out = np.asarray(out, float).reshape(p, 9)  # plain Python returns [] for p = 0, not (0, 9)
         return out[:, :6].reshape(p, 2, 3), out[:, 6:]
 
 

@@ -105,6 +105,22 @@ def test_compiled_and_plain_python_slip_systems_agree(tmp_path):
             np.testing.assert_allclose(u, v, rtol=0, atol=1e-12 * np.abs(v).max())
 
 
+def empty_projections():
+    """The polish's slide projections when no contact slides (every non-sticking one released)."""
+    from fem_grasp import gauss_seidel as gs
+    from fem_grasp.relaxation import _SlideGeometry
+
+    proj, delta = _SlideGeometry(np.zeros((0, gs.RECORD)), np.zeros(0)).projections(np.zeros((0, 2)))
+    return proj.shape, delta.shape
+
+
+def test_a_polish_with_no_sliding_contact_has_empty_projections_in_both_kernel_modes(tmp_path):
+    """Regression (the perturbation harness's plain-Python runs crashed with an IndexError): the plain
+    kernels return [] for zero contacts, which must still read as a (0, 9) table."""
+    assert empty_projections() == ((0, 2, 3), (0, 3))
+    assert in_plain_python("empty_projections", tmp_path) == ((0, 2, 3), (0, 3))
+
+
 def test_warm_up_compiles_every_entry_point(tmp_path):
     """``make setup`` compiles the kernels with jit.warm_up: in a fresh process (an empty numba cache),
     every kernel called from Python must then have a compiled signature, and none is left for a pickup
