@@ -54,6 +54,9 @@ COPLANAR_TOL = 1e-9
 MIN_MARGIN = 1e-9
 #: Facets with more nodes are thinned to this many candidates for the support triangle.
 MAX_TRIANGLE_CANDIDATES = 40
+#: Support triangles whose margins differ by less than this fraction of the facet's size are tied (the
+#: first in node order is taken): far above round-off, far below any margin that matters.
+TRIANGLE_TIE_TOL = 1e-9
 
 _DOWN = np.array([0.0, 0.0, -1.0])
 
@@ -278,6 +281,7 @@ def _best_triangle(points: np.ndarray, nodes: np.ndarray, normal: np.ndarray, co
     frame = _plane_frame(normal)
     p2 = points[nodes] @ frame.T
     c2 = com @ frame.T
+    size = float(np.ptp(p2, axis=0).max()) if len(p2) else 0.0
     if len(nodes) > MAX_TRIANGLE_CANDIDATES:
         rel = p2 - c2
         ang = np.arctan2(rel[:, 1], rel[:, 0])
@@ -287,7 +291,8 @@ def _best_triangle(points: np.ndarray, nodes: np.ndarray, normal: np.ndarray, co
         keep = []
         for s in np.unique(sector):
             idx = np.flatnonzero(sector == s)
-            keep.append(idx[np.argmax(r[idx])])
+            # the farthest, ties (a circular rim) to the first: not decided by round-off
+            keep.append(idx[np.flatnonzero(r[idx] >= r[idx].max() - TRIANGLE_TIE_TOL * size)[0]])
         keep = np.array(sorted(keep))
         nodes, p2 = nodes[keep], p2[keep]
     combos = np.array(list(itertools.combinations(range(len(nodes)), 3)))
@@ -303,7 +308,9 @@ def _best_triangle(points: np.ndarray, nodes: np.ndarray, normal: np.ndarray, co
 
     margin = np.minimum(np.minimum(edge_dist(a, b), edge_dist(b, c)), edge_dist(c, a))
     margin[sign == 0] = -np.inf
-    j = int(np.argmax(margin))
+    # Symmetric facets (a box's base) have many triangles with the same margin: the first of those within
+    # round-off of the best, so that the choice does not depend on the last bits of the coordinates.
+    j = int(np.flatnonzero(margin >= margin.max() - TRIANGLE_TIE_TOL * size)[0])
     return nodes[combos[j]], float(margin[j])
 
 
