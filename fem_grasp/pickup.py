@@ -91,13 +91,27 @@ from .validation import (ContactNodeError, PlacementError, SceneError, check_con
                          check_finger_placement, check_friction, check_positive)
 from .tracking import FINGER1, FINGER2, OBSTACLES, ContactEvent, ContactState, Tracker, TrackingError
 
-__all__ = ["DEFAULT_FRICTION", "LiftAttempt", "PickupCheckError", "PickupResult", "Snapshot", "default_finger_contacts",
-           "default_max_squeeze", "pickup"]
+__all__ = ["DEFAULT_FRICTION", "OUTCOMES", "LiftAttempt", "PickupCheckError", "PickupResult", "Snapshot",
+           "default_finger_contacts", "default_max_squeeze", "pickup"]
 
 log = logging.getLogger(__name__)
 
 #: Friction coefficient used when none is given.
 DEFAULT_FRICTION = 0.5
+#: How a pickup can end (:attr:`PickupResult.outcome`); ``reason`` says why in words.  docs/limits.md lists
+#: each with its message.  Every valid scene ends in one of these (or the object does not come to rest:
+#: ``FrictionError``, ``RestConvergenceError``).
+OUTCOMES: dict[str, str] = {
+    "picked up": "the object left the table (Algorithm 1 step 5)",
+    "lift not run": "the lift test passed; the lift was not simulated (lift=False)",
+    "no placement": "no finger placement along the squeeze direction is valid (default contacts only)",
+    "not force closure": "the initial placement is not force closure (Algorithm 1 step 1)",
+    "placement failed": "the fingers touching at the placement have no quasi-static state",
+    "squeeze failed": "no quasi-static state during the squeeze (gross slip, lost support, a pinched node)",
+    "not liftable": "the lift test did not pass by the maximum squeeze depth (Algorithm 1 step 6)",
+    "lift failed": "every simulated lift failed: the object slid on a finger, friction could not hold it, "
+                   "or it was still on the table at the maximum lift height",
+}
 #: Tolerances of :meth:`Snapshot.check` (module notes).
 CHECK_TOLERANCES: dict[str, float] = {
     "equilibrium": 1e-9,
@@ -324,6 +338,7 @@ class PickupResult:
     ----------
     success : the object was lifted off the table
     reason : why not (empty on success)
+    outcome : how the pickup ended, a key of :data:`OUTCOMES`
     body : the posed body (frame of every position)
     rest : the resting state
     finger_nodes : (p_i, p_j)
@@ -363,6 +378,7 @@ class PickupResult:
     max_squeeze: float = 0.0
     step: float = 0.0
     lift_attempts: list[LiftAttempt] = field(default_factory=list)
+    outcome: str = ""
 
     @property
     def table(self) -> TablePlane:
@@ -396,7 +412,8 @@ class PickupResult:
             rigid = {"feasible": self.rigid.feasible, "total_normal_force": self.rigid.total_normal_force,
                      "forces": np.nan_to_num(self.rigid.forces).tolist(), "reason": self.rigid.reason}
         return {
-            "success": self.success, "reason": self.reason, "finger_nodes": list(self.finger_nodes),
+            "success": self.success, "reason": self.reason, "outcome": self.outcome,
+            "finger_nodes": list(self.finger_nodes),
             "mu_finger": self.mu_finger, "mu_table": self.mu_table, "finger_radius": self.finger_radius,
             "directions": [np.asarray(d).tolist() for d in self.directions], "ratio": self.ratio,
             "weight": self.body.weight, "young": self.body.young, "poisson": self.body.poisson,
@@ -513,15 +530,24 @@ def default_finger_contacts(rest_state: RestState, direction: np.ndarray, mu_fin
                      "and is force closure" + (f" (last tried: {last.reason})" if last is not None else ""))
 
 
-def _initial_stiffness(tracker: Tracker, state: ContactState, velocities: np.ndarray) -> float:
-    """k₀: rate of the normal force at the initial contact of finger 1 per unit ρ, N/m."""
-    resp = tracker.response(state.nodes)
-    vel = np.zeros((state.n_contacts, 3))
+def _initial_stiffness(tracker: Tracker, placed: ContactState, velocities: np.ndarray) -> float:
+    """k₀: rate of the normal force at the initial contact of finger 1 per unit ρ, N/m.
+
+    ``placed`` is the state of :func:`~fem_grasp.squeeze.initial_state`, before it is settled: both
+    fingertips touch there by construction.  (The settle may release a touch that carries no force, by
+    round-off; the finger then re-establishes contact by event A as it moves in, and the increment must
+    not depend on which way the round-off went.)
+    """
+    on = np.flatnonzero(placed.owner == FINGER1)
+    if not on.size:
+        raise ValueError("the initial placement has no contact on finger 1")
+    resp = tracker.response(placed.nodes)
+    vel = np.zeros((placed.n_contacts, 3))
     for f in (FINGER1, FINGER2):
-        vel[state.owner == f] = velocities[f]
+        vel[placed.owner == f] = velocities[f]
     rate = (resp.reduced_stiffness @ vel.reshape(-1)).reshape(-1, 3)
-    j = int(np.flatnonzero(state.owner == FINGER1)[0])
-    return float(max(rate[j] @ state.normals[j], np.linalg.norm(rate[j]) * 1e-3))
+    j = int(on[0])
+    return float(max(rate[j] @ placed.normals[j], np.linalg.norm(rate[j]) * 1e-3))
 
 
 # =================================================================== pickup
@@ -594,6 +620,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
                                                   rule=placement_rule, max_squeeze=max_squeeze)
         except ValueError as exc:
             result.reason = f"no initial finger placement: {exc}"
+            result.outcome = "no placement"
             timings["closure"] = time.perf_counter() - t0
             timings["total"] = time.perf_counter() - t_start
             return result
@@ -615,6 +642,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
     result.rigid = rigid_grasp(rs.positions[list(ij)], -out[list(ij)], com, posed.weight, mu_f)
     if not closure.closed:
         result.reason = f"the initial placement is not force closure (Algorithm 1 step 1): {closure.reason}"
+        result.outcome = "not force closure"
         timings["total"] = time.perf_counter() - t_start
         return result
 
@@ -630,16 +658,17 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
         result.snapshots.append(Snapshot.from_state(st, finger_radius, label, events, surface_nodes=surface))
 
     try:
-        state = initial_state(tracker, rs, ij)
-        state, ev0 = tracker.settle(state, velocities, phase="squeeze")
+        placed = initial_state(tracker, rs, ij)
+        state, ev0 = tracker.settle(placed, velocities, phase="squeeze")
     except (TrackingError, ValueError) as exc:
         result.reason = f"the fingers cannot be placed: {exc}"
+        result.outcome = "placement failed"
         timings["total"] = time.perf_counter() - t_start
         return result
     result.events.extend(ev0)
     snap(state, "initial", ev0)
     if step is None:
-        k0 = _initial_stiffness(tracker, state, velocities)
+        k0 = _initial_stiffness(tracker, placed, velocities)
         rho_star = posed.weight / (max(mu_f, 1e-3) * k0)
         step = min(0.02 * max_squeeze, max(rho_star / 20.0, 1e-3 * max_squeeze))
     result.max_squeeze = float(max_squeeze)
@@ -656,6 +685,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
         timings["lift_test"] += sq.lift_test_time
         timings["squeeze"] += time.perf_counter() - t_squeeze - sq.lift_test_time
         if not sq.passed:
+            result.outcome = "squeeze failed" if sq.failed else "not liftable"
             result.reason = sq.reason + "".join(
                 f"; lift attempt at ρ = {a.squeeze_depth:.4g} m failed: {a.reason}" for a in result.lift_attempts)
             result.final = Snapshot.from_state(sq.state, finger_radius, "final", surface_nodes=surface)
@@ -669,6 +699,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
         snap(sq.state, "lift start" if attempt == 1 else f"lift start (attempt {attempt})")
         if not lift:
             result.reason = "the lift test passed; the lift was not run (lift=False)"
+            result.outcome = "lift not run"
             result.final = result.snapshots[-1]
             result.finger_normal_force = result.final.finger_normal_force(table)
             timings["total"] = time.perf_counter() - t_start
@@ -691,6 +722,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
         state = replace(sq.state, phase="squeeze")
         t_squeeze = time.perf_counter()
     result.success = lf.success
+    result.outcome = "picked up" if lf.success else "lift failed"
     result.reason = lf.reason if attempt == 1 or lf.success else (
         f"{lf.reason} (after {attempt} lift attempts from ρ = {result.lift_attempts[0].squeeze_depth:.4g} m)")
     result.final = Snapshot.from_state(lf.state, finger_radius, "lift-off" if lf.success else "final",

@@ -64,6 +64,7 @@ class SqueezeOutcome:
     events : every event of the squeeze, in order
     passed : the lift test passed
     reason : why the squeeze stopped without passing (empty if passed)
+    failed : the tracking found no quasi-static state (else, without passing, the maximum depth was reached)
     liftable : [(ρ, w(ρ))] after every increment
     lift_test_time : seconds spent in the lift test
     """
@@ -74,6 +75,7 @@ class SqueezeOutcome:
     reason: str = ""
     liftable: list[tuple[float, float]] = field(default_factory=list)
     lift_test_time: float = 0.0
+    failed: bool = False
 
 
 def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray, np.ndarray], ratio: float,
@@ -129,6 +131,7 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
                                 phase="squeeze", after_step=after, on_event=record)
     except TrackingError as exc:
         out.state = last[0]
+        out.failed = True
         out.reason = f"squeeze failed at ρ = {last[0].squeeze_depth:.4g} m: {exc}"
         return out
     out.state = final
