@@ -345,6 +345,48 @@ def ellipsoid(
     return points, tets
 
 
+def fused_spheres(radii: tuple[float, float], distance: float, mesh_size: float, *, algorithm: str = "auto",
+                  refine: Refinement | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Tetrahedral mesh of two overlapping solid spheres fused into one body (a peanut or a snowman).
+
+    The spheres of radii r₁, r₂ are centred on the x axis at −d/2 and +d/2 and joined by a boolean
+    union, so the surface has a concave crease where they meet.
+
+    Parameters
+    ----------
+    radii : (r₁, r₂), metres
+    distance : d, the distance between the centres, metres, |r₁ − r₂| < d < r₁ + r₂ (they overlap
+        and neither contains the other)
+    mesh_size, algorithm, refine : as for :func:`ellipsoid`
+
+    Returns
+    -------
+    points : (n, 3) float64 ndarray
+    tets : (t, 4) int64 ndarray
+    """
+    r1, r2 = (float(r) for r in radii)
+    d = float(distance)
+    _check_lengths(r1=r1, r2=r2, distance=d, mesh_size=mesh_size)
+    if not abs(r1 - r2) < d < r1 + r2:
+        raise ValueError(f"the spheres must overlap without one containing the other: |r1 - r2| < distance < "
+                         f"r1 + r2, got r = ({r1:g}, {r2:g}), distance {d:g}")
+    # the volume of the union, for the surface algorithm's choice: two spheres less their lens
+    lens = math.pi * (r1 + r2 - d) ** 2 * (d * d + 2 * d * (r1 + r2) - 3 * (r1 - r2) ** 2) / (12 * d)
+    alg = _surface_algorithm(algorithm, 4.0 / 3.0 * math.pi * (r1**3 + r2**3) - lens, mesh_size)
+    with _gmsh_model("fused_spheres", mesh_size, alg) as gmsh:
+        occ = gmsh.model.occ
+        a = occ.addSphere(-0.5 * d, 0.0, 0.0, r1)
+        b = occ.addSphere(0.5 * d, 0.0, 0.0, r2)
+        occ.fuse([(3, a)], [(3, b)])
+        occ.synchronize()
+        _apply_refinement(gmsh, refine, mesh_size)
+        _generate(gmsh, mesh_size)
+        points, tets = _extract_tets(gmsh)
+    log.debug("fused spheres r=(%.4g, %.4g) d=%.4g h=%.4g: %d vertices, %d tets", r1, r2, d, mesh_size,
+              len(points), len(tets))
+    return points, tets
+
+
 def dome(radius: float, height: float, mesh_size: float, *, algorithm: str = "auto",
          refine: Refinement | None = None, equator: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Tetrahedral mesh of a steam-bun dome: a spheroid cut flat at its base.
