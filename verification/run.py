@@ -26,7 +26,7 @@ import numpy as np
 from fem_grasp import Body, TetMesh, box_mesh, solve_contact
 from fem_grasp.output import json_safe
 
-from . import crosscheck, hertz, manufactured, plots, render, report, stability
+from . import crosscheck, hertz, manufactured, perturbation, plots, random_scenes, render, report, stability
 from .dolfinx_ref import warm_up
 from .linalg import fem_grasp_factorization_by_mumps
 
@@ -61,6 +61,7 @@ CONFIGS: dict[str, dict[str, Any]] = {
         "hertz_pole_sizes": [0.04, 0.02, 0.01, 0.007, 0.005],
         "hertz_deltas": [0.0025, 0.005, 0.01, 0.02],
         "collinear_angles": [10.0**-k for k in range(1, 13)] + [0.0],
+        "random_scenes": 500,
     },
     "quick": {
         "spectral_max_vertices": 1000,
@@ -76,6 +77,7 @@ CONFIGS: dict[str, dict[str, Any]] = {
         "hertz_pole_sizes": [0.04, 0.02],
         "hertz_deltas": [0.0025, 0.005, 0.01, 0.02],
         "collinear_angles": [10.0**-k for k in range(1, 13, 2)] + [0.0],
+        "random_scenes": 40,
     },
 }
 
@@ -255,6 +257,16 @@ def headline_checks(s: dict) -> list[dict]:
     if st.get("poisson_operators"):
         v = _max(r["K_rel_diff"] for r in st["poisson_operators"])
         add("K vs dolfinx for ν up to 0.4999", v, "≤ 1e-12", v <= 1e-12)
+    pert = s.get("perturbation")
+    if pert:
+        n = len(pert["violations"])
+        add(f"round-off perturbations: cases × variants outside the promise ({len(pert['rows'])} runs)", n,
+            "0 (same verdict, ρ* within an increment, forces within "
+            f"{pert['tolerances']['force_of_weight']:g} mg, checks pass)", n == 0)
+    rnd = s.get("random_scenes")
+    if rnd:
+        n = len(rnd["problems"])
+        add(f"random valid scenes that crash or fail a check ({rnd['scenes']} scenes)", n, "0", n == 0)
     return checks
 
 
@@ -341,6 +353,11 @@ def main(argv: list[str] | None = None) -> int:
     stage("near-collinear contacts", lambda: stability.collinear_study(cfg["collinear_angles"]),
           lambda v: stab.__setitem__("collinear", v))
     stage("sliver mesh", lambda: stability.sliver_study(), lambda v: stab.__setitem__("sliver", v))
+    stage("round-off perturbations", lambda: perturbation.sweep(quick=args.quick),
+          lambda v: summary.__setitem__("perturbation", {k: v[k] for k in v if k != "runs"} | {
+              "table": perturbation.spread_table(v)}))
+    stage("random scenes", lambda: random_scenes.sweep(cfg["random_scenes"]),
+          lambda v: summary.__setitem__("random_scenes", {k: v[k] for k in v if k != "rows"}))
 
     def figures():
         if "convergence" in summary:

@@ -1,0 +1,188 @@
+"""Random valid scenes never crash: every pickup ends in a named outcome with its checks passing.
+
+A scene here is a gmsh ellipsoid or two fused spheres of random size and
+aspect, a random material (E from 1e3 to 1e7 Pa, ν from 0 to 0.45), random
+friction on the fingers and the table (μ from 0.05 to 1.5), a random
+fingertip radius, squeeze tilt (0–40° below the horizontal) and ratio s
+(0–1), and the default finger placement.  Every such scene is valid input,
+so :func:`run_scene` must end in one of :data:`fem_grasp.pickup.OUTCOMES`
+with :meth:`~fem_grasp.pickup.PickupResult.check` passing on every snapshot
+— or, before the pickup proper, in the object not coming to rest on the table
+(:data:`NO_REST`).  Any other exception is a bug.
+
+``tests/test_random_scenes.py`` draws about 50 scenes with hypothesis inside
+``make test``; ``python -m verification.random_scenes --scenes 500`` (a stage of
+``make verify``) draws more with numpy, two processes at a time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import math
+import sys
+import time
+import traceback
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+#: Parameter ranges of a random scene (SI units; angles in degrees).
+RANGES: dict[str, tuple[float, float]] = {
+    "size": (0.015, 0.05),  # the first semi-axis, or the larger sphere's radius, metres
+    "aspect_y": (0.6, 1.2),  # ellipsoid: b / a
+    "aspect_z": (0.5, 1.2),  # ellipsoid: c / a
+    "sphere_ratio": (0.5, 1.0),  # fused spheres: r₂ / r₁
+    "overlap": (0.45, 0.9),  # fused spheres: distance / (r₁ + r₂)
+    "log10_young": (3.0, 7.0),
+    "poisson": (0.0, 0.45),
+    "mu_finger": (0.05, 1.5),
+    "mu_table": (0.05, 1.5),
+    "radius_ratio": (0.3, 1.0),  # fingertip radius / the body's smallest semi-axis or radius
+    "tilt": (0.0, 40.0),
+    "ratio": (0.0, 1.0),
+    "density": (100.0, 1000.0),
+}
+#: Vertices aimed at per scene: enough for contact patches of several nodes, few enough for ~50 pickups in
+#: a couple of minutes.
+TARGET_VERTICES = 100
+#: The ends that are not a pickup outcome but a valid answer too: the object does not come to rest.
+NO_REST = ("FrictionError", "RestConvergenceError")
+
+
+@dataclass(frozen=True)
+class RandomScene:
+    """The parameters of one random scene (see :data:`RANGES`)."""
+
+    shape: str  # "ellipsoid" or "fused spheres"
+    size: float
+    aspect_y: float
+    aspect_z: float
+    sphere_ratio: float
+    overlap: float
+    log10_young: float
+    poisson: float
+    mu_finger: float
+    mu_table: float
+    radius_ratio: float
+    tilt: float
+    ratio: float
+    density: float
+
+    @classmethod
+    def draw(cls, rng: np.random.Generator) -> "RandomScene":
+        """A scene with every parameter uniform in its range."""
+        values = {k: float(rng.uniform(lo, hi)) for k, (lo, hi) in RANGES.items()}
+        return cls(shape=str(rng.choice(["ellipsoid", "fused spheres"])), **values)
+
+    def mesh(self):
+        """The gmsh mesh of the shape, at about :data:`TARGET_VERTICES` vertices; and its smallest radius."""
+        from fem_grasp import TetMesh
+        from fem_grasp.shapes import ellipsoid, fused_spheres
+
+        if self.shape == "ellipsoid":
+            axes = (self.size, self.size * self.aspect_y, self.size * self.aspect_z)
+            volume = 4.0 / 3.0 * math.pi * np.prod(axes)
+            build, smallest = (lambda h: ellipsoid(axes, h)), min(axes)
+        else:
+            r1, r2 = self.size, self.size * self.sphere_ratio
+            d = max(self.overlap * (r1 + r2), 1.05 * (r1 - r2))
+            volume = 4.0 / 3.0 * math.pi * (r1**3 + r2**3)
+            build, smallest = (lambda h: fused_spheres((r1, r2), d, h)), r2
+        # gmsh gives about 2.5 V / h³ vertices at these sizes
+        h = (2.5 * volume / TARGET_VERTICES) ** (1.0 / 3.0)
+        return TetMesh(*build(h)), smallest
+
+    def pickup_arguments(self, smallest: float) -> dict[str, Any]:
+        t = math.radians(self.tilt)
+        d1 = np.array([0.0, math.cos(t), -math.sin(t)])
+        d2 = np.array([0.0, -math.cos(t), -math.sin(t)])
+        return {"mu_finger": self.mu_finger, "mu_table": self.mu_table,
+                "finger_radius": self.radius_ratio * smallest, "directions": (d1, d2), "ratio": self.ratio}
+
+
+def run_scene(scene: RandomScene) -> dict[str, Any]:
+    """Pick the scene up; the outcome, the checks, and any exception with its traceback."""
+    from fem_grasp import Body
+    from fem_grasp.pickup import pickup
+
+    t0 = time.perf_counter()
+    row: dict[str, Any] = {"scene": asdict(scene)}
+    try:
+        mesh, smallest = scene.mesh()
+        row["vertices"] = mesh.n_points
+        body = Body(mesh, 10.0**scene.log10_young, scene.poisson, density=scene.density)
+        res = pickup(body, **scene.pickup_arguments(smallest))
+        figures = res.check(raise_on_failure=False)
+        row.update(outcome=res.outcome, reason=res.reason, squeeze_depth=res.squeeze_depth,
+                   events=len(res.events), checks_ok=all(f["ok"] for f in figures),
+                   check_failures=sorted({x for f in figures for x in f["failures"]}))
+    except Exception as exc:  # noqa: BLE001 - sorted below: a named answer or a bug
+        name = type(exc).__name__
+        row.update(outcome="does not rest" if name in NO_REST else "crash", reason=f"{name}: {exc}",
+                   traceback=traceback.format_exc())
+    row["seconds"] = time.perf_counter() - t0
+    return row
+
+
+def problems(row: dict[str, Any]) -> list[str]:
+    """What is wrong with a run (empty: a named outcome, every check passed)."""
+    from fem_grasp.pickup import OUTCOMES
+
+    out = []
+    if row["outcome"] == "crash":
+        out.append(f"crash: {row['reason']}")
+    elif row["outcome"] != "does not rest":
+        if row["outcome"] not in OUTCOMES:
+            out.append(f"unknown outcome {row['outcome']!r}")
+        if not row["checks_ok"]:
+            out.append("check() fails: " + "; ".join(row["check_failures"]))
+    return out
+
+
+def _run_seed(seed: int) -> dict[str, Any]:
+    return run_scene(RandomScene.draw(np.random.default_rng(seed)))
+
+
+def sweep(n: int, seed: int = 0, workers: int = 2) -> dict[str, Any]:
+    """Draw ``n`` scenes (seeds seed … seed + n − 1) and run them on ``workers`` processes."""
+    seeds = list(range(seed, seed + n))
+    with ProcessPoolExecutor(max_workers=workers) as pool:
+        rows = list(pool.map(_run_seed, seeds))
+    for s, row in zip(seeds, rows):
+        row["seed"] = s
+    counts: dict[str, int] = {}
+    for row in rows:
+        counts[row["outcome"]] = counts.get(row["outcome"], 0) + 1
+    bad = [{"seed": r["seed"], "problems": problems(r), "scene": r["scene"]} for r in rows if problems(r)]
+    times = [r["seconds"] for r in rows]
+    return {"scenes": n, "outcomes": counts, "problems": bad, "median_seconds": float(np.median(times)),
+            "max_seconds": float(max(times)), "rows": rows}
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m verification.random_scenes", description=__doc__.splitlines()[0])
+    ap.add_argument("--scenes", type=int, default=500)
+    ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--json", type=Path)
+    args = ap.parse_args(argv)
+    result = sweep(args.scenes, args.seed, args.workers)
+    print(f"{args.scenes} random scenes: " + ", ".join(f"{k} {v}" for k, v in sorted(result["outcomes"].items()))
+          + f"; median {result['median_seconds']:.1f} s, longest {result['max_seconds']:.1f} s")
+    for p in result["problems"]:
+        print(f"  seed {p['seed']}: {'; '.join(p['problems'])}")
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(result, indent=1, default=float), encoding="utf-8")
+    return 1 if result["problems"] else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
