@@ -36,7 +36,7 @@ $(STAMPS)/venv: $(STAMPS)/apt pyproject.toml
 	  || echo "WARNING: scikit-sparse (CHOLMOD) did not build; fem_grasp falls back to SciPy SuperLU"
 	$(PY) -c "import dolfinx, gmsh, numpy; print('venv ok: dolfinx', dolfinx.__version__, 'numpy', numpy.__version__)"
 	@# Compile the numba kernels once here (cached), not in the first pickup.
-	$(PY) -c "from fem_grasp import jit; t = jit.warm_up(); print('inner loops:', jit.backend_name(), f'(compiled in {t:.1f} s)')"
+	$(PY) -c "from fem_grasp.contact.kernels import jit; t = jit.warm_up(); print('inner loops:', jit.backend_name(), f'(compiled in {t:.1f} s)')"
 	@touch $@
 
 test: setup

@@ -115,7 +115,8 @@ def machine() -> dict[str, Any]:
         mem = float("nan")
     import scipy
 
-    from fem_grasp import compliance, jit
+    from fem_grasp.elastic import compliance
+    from fem_grasp.contact.kernels import jit
 
     return {"cpu": cpu, "cores": os.cpu_count(), "memory_gib": round(mem, 1), "python": platform.python_version(),
             "numpy": np.__version__, "scipy": scipy.__version__, "default_solver": compliance.choose_solver(),
@@ -124,7 +125,8 @@ def machine() -> dict[str, Any]:
 
 
 def orange_body(mesh, young: float = YOUNG):
-    from fem_grasp import Body, objects
+    from fem_grasp import Body
+    from fem_grasp.grasp import objects
 
     row = objects.paper_object("orange")
     return Body(mesh, young, row.poisson, weight=row.weight)
@@ -132,7 +134,7 @@ def orange_body(mesh, young: float = YOUNG):
 
 def demo_contacts(body) -> tuple[np.ndarray, np.ndarray]:
     """Three low support nodes and two finger nodes at the centre-of-mass height, squeezed 1 mm along d̂1, d̂2."""
-    from fem_grasp import placement
+    from fem_grasp.grasp import placement
 
     support = placement.spread_triple(body.mesh.points, placement.lowest_nodes(body.mesh))
     fingers = placement.finger_contact_nodes(body.mesh, body.center_of_mass[2])
@@ -143,7 +145,7 @@ def demo_contacts(body) -> tuple[np.ndarray, np.ndarray]:
 
 
 def available_solvers() -> list[str]:
-    from fem_grasp import compliance
+    from fem_grasp.elastic import compliance
 
     out = ["cholmod"] if compliance.cholmod_available() else []
     out.append("superlu")
@@ -159,7 +161,7 @@ def available_solvers() -> list[str]:
 def fem_grasp_solve(mesh, nodes, disp, solver: str) -> dict[str, Any]:
     """One contact solve from a fresh body, with its phases timed."""
     from fem_grasp import solve_contact
-    from fem_grasp.compliance import Compliance
+    from fem_grasp.elastic.compliance import Compliance
 
     os.environ["FEM_GRASP_SOLVER"] = solver
     gc.collect()
@@ -242,8 +244,8 @@ def scaling_worker(size: int) -> None:
     """Run in a subprocess: one JSON line per finished phase on stdout."""
     from bench.meshes import cached_mesh
     from fem_grasp import pickup, rest
-    from fem_grasp.objects import PAPER_PLACEMENT_RULE
-    from fem_grasp.pickup import DEFAULT_FRICTION
+    from fem_grasp.grasp.objects import PAPER_PLACEMENT_RULE
+    from fem_grasp.grasp.pickup import DEFAULT_FRICTION
 
     def emit(**kw: Any) -> None:
         print(json.dumps(kw), flush=True)
@@ -331,8 +333,8 @@ IMPORT_SNIPPET = """
 import json, time
 t0 = time.perf_counter()
 import fem_grasp
-from fem_grasp.pickup import pickup
-from fem_grasp.scene import load_scene, resolve_scene
+from fem_grasp.grasp.pickup import pickup
+from fem_grasp.io.scene import load_scene, resolve_scene
 t1 = time.perf_counter()
 scene = load_scene(resolve_scene({name!r}))
 res = pickup(scene.body(), **scene.pickup_kwargs())
@@ -343,8 +345,8 @@ print(json.dumps({{"import_s": t1 - t0, "first_call_s": t2 - t1}}))
 
 def one_pickup(name: str, backend: str = "sparse"):
     """The shipped scene ``name`` (``fem-grasp run NAME``), on a fresh body, with the given backend."""
-    from fem_grasp.pickup import pickup
-    from fem_grasp.scene import load_scene, resolve_scene
+    from fem_grasp.grasp.pickup import pickup
+    from fem_grasp.io.scene import load_scene, resolve_scene
 
     scene = load_scene(resolve_scene(name))
     kw = scene.pickup_kwargs()
@@ -353,7 +355,7 @@ def one_pickup(name: str, backend: str = "sparse"):
 
 
 def section_objects(reps: int, budget: float) -> dict[str, Any]:
-    from fem_grasp import objects
+    from fem_grasp.grasp import objects
 
     rows = []
     for name in objects.NAMES:
@@ -421,7 +423,7 @@ def print_spectral(sec: dict[str, Any]) -> None:
 # ------------------------------------------------- compiled or plain Python
 JIT_SNIPPET = """
 import json, time
-from fem_grasp import jit
+from fem_grasp.contact.kernels import jit
 from bench.bench import one_pickup
 t = time.perf_counter()
 one_pickup({name!r})  # compiles the kernels (an empty numba cache), warms the caches
@@ -519,7 +521,7 @@ def dense_peak_gflops(n: int = 4000, reps: int = 3) -> float:
 def floor_worker(size: int, reps: int) -> None:
     """Run in a subprocess: one JSON line with the factorisation's and one column's flops and rates."""
     from bench.meshes import cached_mesh
-    from fem_grasp import compliance
+    from fem_grasp.elastic import compliance
 
     mesh = cached_mesh("orange", size)
     body = orange_body(mesh, SCALING_YOUNG)
@@ -541,7 +543,7 @@ def floor_worker(size: int, reps: int) -> None:
 def section_floor(sizes: list[int], reps: int, scaling: dict[str, Any] | None) -> dict[str, Any]:
     """The flops the method needs per size and the least time they take at the dense peak; with the scaling
     section's touched nodes (same bench.json), the floor of factorisation and columns for its pickups."""
-    from fem_grasp import compliance
+    from fem_grasp.elastic import compliance
 
     if not compliance.cholmod_available():
         log.warning("floor: needs CHOLMOD (scikit-sparse); skipped")

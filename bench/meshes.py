@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fem_grasp.mesh import TetMesh
+from fem_grasp.mesh.tetmesh import TetMesh
 
 log = logging.getLogger(__name__)
 
@@ -20,12 +20,12 @@ CACHE = Path(__file__).resolve().parent / "out" / "meshes"
 
 
 def cached_mesh(name: str, target_vertices: int, cache: Path = CACHE) -> TetMesh:
-    """``fem_grasp.shapes.paper_mesh(name, target_vertices)``, cached on disk."""
+    """``fem_grasp.mesh.shapes.paper_mesh(name, target_vertices)``, cached on disk."""
     path = cache / f"{name}_{int(target_vertices)}.npz"
     if path.exists():
         with np.load(path) as data:
             return TetMesh(data["points"], data["tets"])
-    from fem_grasp.shapes import paper_mesh
+    from fem_grasp.mesh.shapes import paper_mesh
 
     mesh = paper_mesh(name, target_vertices)
     cache.mkdir(parents=True, exist_ok=True)

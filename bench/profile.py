@@ -3,13 +3,13 @@
 Runs one shipped scene's pickup (``fem-grasp run SCENE``) under cProfile and
 counts, around the two solvers that dominate it:
 
-* the return mappings (:func:`fem_grasp.relaxation.relax_contacts`) of the
+* the return mappings (:func:`fem_grasp.contact.relaxation.relax_contacts`) of the
   lift test and of implicit increments: calls that find a static state and
   calls that fail, with their times;
 * the slip systems of the event tracking
-  (:meth:`fem_grasp.tracking.MixedSlipSystem.solve`): Newton solves and
+  (:meth:`fem_grasp.contact.tracking.MixedSlipSystem.solve`): Newton solves and
   Newton-homotopy paths, by outcome;
-* the trial states of the event tracking (:meth:`fem_grasp.tracking.Tracker.trial`,
+* the trial states of the event tracking (:meth:`fem_grasp.contact.tracking.Tracker.trial`,
   one slip-system solve and surface field each) per event.
 
 Prints the phase times, the counters and the functions with the largest
@@ -49,9 +49,10 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
 
     import contextlib
 
-    from fem_grasp import relaxation, tracking
-    from fem_grasp.pickup import pickup
-    from fem_grasp.scene import load_scene, resolve_scene
+    from fem_grasp.contact import relaxation
+    from fem_grasp.contact import tracking
+    from fem_grasp.grasp.pickup import pickup
+    from fem_grasp.io.scene import load_scene, resolve_scene
 
     relax_stats: dict[str, list[float]] = collections.defaultdict(lambda: [0, 0.0])
     slip_stats: dict[tuple[str, str, str], list[float]] = collections.defaultdict(lambda: [0, 0.0])
@@ -99,8 +100,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         from bench.bench import SCALING_YOUNG, orange_body
         from bench.meshes import cached_mesh
         from fem_grasp import rest
-        from fem_grasp.objects import PAPER_PLACEMENT_RULE
-        from fem_grasp.pickup import DEFAULT_FRICTION
+        from fem_grasp.grasp.objects import PAPER_PLACEMENT_RULE
+        from fem_grasp.grasp.pickup import DEFAULT_FRICTION
 
         name = f"orange of {args.orange} vertices"
         body = orange_body(cached_mesh("orange", args.orange), SCALING_YOUNG)

@@ -1,7 +1,7 @@
 """Capture a scene's return mappings and replay them: the check behind changes to the relaxation.
 
 ``python -m bench.replay capture SCENE`` runs the scene's pickup and records
-every call of :func:`fem_grasp.relaxation.relax_contacts` (its arguments and
+every call of :func:`fem_grasp.contact.relaxation.relax_contacts` (its arguments and
 outcome) to ``bench/out/relaxations_SCENE.pkl``.  ``python -m bench.replay
 run FILE`` solves the recorded calls again with the code at hand and prints
 the time spent on calls that found a static state and on calls that failed,
@@ -26,9 +26,10 @@ OUT = Path(__file__).resolve().parent / "out"
 
 def capture(scene_name: str, out: Path, quick: bool = False) -> list[tuple]:
     """Run the scene's pickup, recording each relax_contacts call as (args, kwargs, outcome)."""
-    from fem_grasp import relaxation, tracking
-    from fem_grasp.pickup import pickup
-    from fem_grasp.scene import load_scene, resolve_scene
+    from fem_grasp.contact import relaxation
+    from fem_grasp.contact import tracking
+    from fem_grasp.grasp.pickup import pickup
+    from fem_grasp.io.scene import load_scene, resolve_scene
 
     calls: list[tuple] = []
     original = tracking.relax_contacts
@@ -86,14 +87,14 @@ def replay(path: Path, force_tol: float = 1e-9, polish_halvings: int | None = No
     """Solve the recorded calls again; times by outcome, the calls whose outcome changed, and how the
     Newton polish of the return mappings fared (``polish_halvings`` overrides
     ``relaxation.POLISH_HALVINGS`` for the replay)."""
-    from fem_grasp import relaxation
+    from fem_grasp.contact import relaxation
 
-    if hasattr(relaxation, "as_kernel_data"):  # the sweeps of fem_grasp.gauss_seidel
-        from fem_grasp import jit
+    if hasattr(relaxation, "as_kernel_data"):  # the sweeps of fem_grasp.contact.kernels.gauss_seidel
+        from fem_grasp.contact.kernels import jit
 
         backend = f"{jit.backend_name()} sweeps"
     else:
-        backend = "the plain-Python sweeps of fem_grasp.relaxation (before fem_grasp.jit)"
+        backend = "the plain-Python sweeps of fem_grasp.contact.relaxation (before fem_grasp.contact.kernels.jit)"
     calls = pickle.loads(path.read_bytes())
     times = {"ok": 0.0, "fail": 0.0}
     changed: list[str] = []

@@ -9,9 +9,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from fem_grasp.output import write_run
-from fem_grasp.pickup import pickup
-from fem_grasp.scene import load_scene, resolve_scene
+from fem_grasp.io.output import write_run
+from fem_grasp.grasp.pickup import pickup
+from fem_grasp.io.scene import load_scene, resolve_scene
 
 
 def run(scene_name: str = "tomato", quick: bool = True, out: Path | None = None, report: bool = True,
@@ -27,7 +27,7 @@ def run(scene_name: str = "tomato", quick: bool = True, out: Path | None = None,
     if out is not None:
         write_run(out, result, scene)  # result.json + object.pvd, finger1/2.pvd, table.vtu
         if report:
-            from fem_grasp.report import write_report
+            from fem_grasp.io.report import write_report
 
             print("report:", write_report(out))
     return result

@@ -5,15 +5,17 @@ and lift of a deformable body by two rigid hemispherical fingertips).  The core
 imports with numpy and scipy alone.
 """
 
-from . import friction, geometry, pose
-from .body import Body
-from .fingertip import Fingertip
-from .friction import FrictionError
-from .geometry import TablePlane
-from .mesh import MeshError, TetMesh, box_mesh
-from .pose import RestingPose, resting_pose
-from .response import CollinearContactError, ContactResponse, ContactSolution, solve_contact
-from .rest import RestCheckError, RestConvergenceError, RestState, rest
+from .contact import friction
+from .contact import obstacles
+from .grasp import pose
+from .elastic.body import Body
+from .contact.obstacles import Fingertip
+from .contact.friction import FrictionError
+from .contact.obstacles import TablePlane
+from .mesh.tetmesh import MeshError, TetMesh, box_mesh
+from .grasp.pose import RestingPose, resting_pose
+from .elastic.response import CollinearContactError, ContactResponse, ContactSolution, solve_contact
+from .grasp.rest import RestCheckError, RestConvergenceError, RestState, rest
 
 __all__ = [
     "Body",
@@ -40,10 +42,10 @@ __all__ = [
 __version__ = "0.1.0"
 
 # Algorithm 1 (issue #5): force closure, squeeze, lift test, lift, pickup, rigid comparison.
-from .closure import ClosureResult, force_closure  # noqa: E402
-from .pickup import PickupResult, Snapshot, pickup  # noqa: E402
-from .rigid import RigidGrasp, rigid_grasp  # noqa: E402
-from .tracking import ContactEvent, ContactState, TrackingError  # noqa: E402
+from .grasp.closure import ClosureResult, force_closure  # noqa: E402
+from .grasp.pickup import PickupResult, Snapshot, pickup  # noqa: E402
+from .grasp.rigid import RigidGrasp, rigid_grasp  # noqa: E402
+from .contact.tracking import ContactEvent, ContactState, TrackingError  # noqa: E402
 
 __all__ += ["ClosureResult", "ContactEvent", "ContactState", "PickupResult", "RigidGrasp", "Snapshot",
             "TrackingError", "force_closure", "pickup", "rigid_grasp"]

@@ -9,7 +9,7 @@ Subcommands::
     fem-grasp report DIR                                    report.html + pictures from a run's output
     fem-grasp scenes                                        the scenes shipped with fem_grasp
 
-SCENE is a TOML file (:mod:`fem_grasp.scene`) or the name of a shipped
+SCENE is a TOML file (:mod:`fem_grasp.io.scene`) or the name of a shipped
 scene (``tomato``, ``orange``, ``steam_bun``, ``football``, ``foam_block``,
 ``slippery_soap``).  Exit status: 0 success, 1 the grasp failed (a valid
 answer: the object cannot be picked up so), 2 bad input (the message names
@@ -85,7 +85,7 @@ def _out(args: argparse.Namespace, text: str = "") -> None:
 
 
 def _cache_dir(args: argparse.Namespace) -> Path | None:
-    from .scene import default_cache_dir
+    from .io.scene import default_cache_dir
 
     if args.no_cache:
         return None
@@ -93,12 +93,12 @@ def _cache_dir(args: argparse.Namespace) -> Path | None:
 
 
 def _load_scene(args: argparse.Namespace) -> Any:
-    from .scene import load_scene, resolve_scene, with_overrides
+    from .io.scene import load_scene, resolve_scene, with_overrides
 
     scene = load_scene(resolve_scene(args.scene), quick=args.quick)
     young = getattr(args, "young", None)
     if young is not None:
-        from .scene import _positive, parse_quantity
+        from .io.scene import _positive, parse_quantity
 
         young = parse_quantity(young, "pressure", "--young")
         _positive("--young", young, "Pa")
@@ -151,9 +151,9 @@ def _summary_lines(scene: Any, result: Any, rest_cached: bool) -> list[str]:
 
 # ------------------------------------------------------------------ commands
 def cmd_run(args: argparse.Namespace) -> int:
-    from .output import prepare_out_dir, write_run
-    from .pickup import pickup
-    from .scene import cached_rest
+    from .io.output import prepare_out_dir, write_run
+    from .grasp.pickup import pickup
+    from .io.scene import cached_rest
 
     scene = _load_scene(args)
     out = Path(args.out) if args.out else None
@@ -179,7 +179,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                 write_run(out, result, scene, force=True,
                           extra={"exit_code": code, "rest_from_cache": cached, "command": list(args.argv)})
         if args.report:
-            from .report import write_report
+            from .io.report import write_report
 
             with bar.phase("rendering the report"):
                 write_report(out)
@@ -199,8 +199,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_rest(args: argparse.Namespace) -> int:
-    from .output import prepare_out_dir, write_rest
-    from .scene import cached_rest
+    from .io.output import prepare_out_dir, write_rest
+    from .io.scene import cached_rest
 
     scene = _load_scene(args)
     out = Path(args.out) if args.out else None
@@ -223,8 +223,8 @@ def cmd_rest(args: argparse.Namespace) -> int:
 
 
 def cmd_mesh(args: argparse.Namespace) -> int:
-    from .output import atomic_write_mesh
-    from .scan import DENSE_SCAN_VERTICES, SURFACE_SUFFIXES, check_surface, mesh_surface, read_surface
+    from .io.output import atomic_write_mesh
+    from .mesh.scan import DENSE_SCAN_VERTICES, SURFACE_SUFFIXES, check_surface, mesh_surface, read_surface
 
     src, dst = Path(args.input), Path(args.output)
     if src.suffix.lower() not in SURFACE_SUFFIXES:
@@ -257,11 +257,11 @@ def _meshio_format(path: Path) -> str:
 
 
 def cmd_info(args: argparse.Namespace) -> int:
-    from .scan import SURFACE_SUFFIXES, surface_report
+    from .mesh.scan import SURFACE_SUFFIXES, surface_report
 
     p = Path(args.path)
     if p.suffix == ".toml" or (not p.exists() and p.suffix == ""):
-        from .scene import load_scene, resolve_scene
+        from .io.scene import load_scene, resolve_scene
 
         scene = load_scene(resolve_scene(args.path), quick=args.quick)
         for k, v in scene.to_dict().items():
@@ -278,7 +278,7 @@ def cmd_info(args: argparse.Namespace) -> int:
             return EXIT_OK
         _out(args, r["problem"])
         return EXIT_BAD_INPUT
-    from .mesh import TetMesh
+    from .mesh.tetmesh import TetMesh
 
     m = TetMesh.from_file(p)
     lo, hi = m.bounds
@@ -293,7 +293,7 @@ def cmd_info(args: argparse.Namespace) -> int:
 
 
 def cmd_report(args: argparse.Namespace) -> int:
-    from .report import write_report
+    from .io.report import write_report
 
     path = write_report(Path(args.dir))
     _out(args, f"report     {path}")
@@ -301,7 +301,7 @@ def cmd_report(args: argparse.Namespace) -> int:
 
 
 def cmd_scenes(args: argparse.Namespace) -> int:
-    from .scene import load_scene, shipped_scenes
+    from .io.scene import load_scene, shipped_scenes
 
     for name, path in shipped_scenes().items():
         try:
@@ -420,12 +420,12 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _dispatch(args: argparse.Namespace) -> int:
-    from .mesh import MeshError
-    from .output import OutputError
-    from .friction import FrictionError
-    from .rest import RestConvergenceError
-    from .scan import SurfaceError
-    from .scene import SceneError
+    from .mesh.tetmesh import MeshError
+    from .io.output import OutputError
+    from .contact.friction import FrictionError
+    from .grasp.rest import RestConvergenceError
+    from .mesh.scan import SurfaceError
+    from .io.scene import SceneError
 
     try:
         return int(args.func(args))

@@ -7,8 +7,8 @@ Table III the total finger normal force at pickup for the deformable object
 and for a rigid body of the same shape.  This script runs :func:`pickup` with
 the settings of the paper scenes (the paper's squeeze directions, s = 1,
 Table I's weight, ν and μ for both fingers and table, the fingers at the
-height of the centre of mass, :data:`~fem_grasp.objects.PAPER_PLACEMENT_RULE`,
-and :data:`~fem_grasp.objects.PAPER_MAX_SQUEEZE`) twice per object:
+height of the centre of mass, :data:`~fem_grasp.grasp.objects.PAPER_PLACEMENT_RULE`,
+and :data:`~fem_grasp.grasp.objects.PAPER_MAX_SQUEEZE`) twice per object:
 
 1. with Table I's Young's modulus as printed (1e9–6e9 Pa);
 2. with an **effective modulus** found by the script so that our squeeze
@@ -21,7 +21,7 @@ and :data:`~fem_grasp.objects.PAPER_MAX_SQUEEZE`) twice per object:
 "Contact nodes in the final configuration" is read as all contact nodes at
 lift-off (the fingers' only, since the table has let go).  The Table III
 comparison uses the final finger normal force Σ f·n̂ at lift-off at the
-effective modulus, and :mod:`fem_grasp.rigid` for the rigid body.
+effective modulus, and :mod:`fem_grasp.grasp.rigid` for the rigid body.
 """
 
 from __future__ import annotations
@@ -34,8 +34,8 @@ import sys
 import time
 from typing import Any, Sequence
 
-from . import objects
-from .pickup import PickupResult, pickup
+from .grasp import objects
+from .grasp.pickup import PickupResult, pickup
 
 __all__ = ["effective_modulus", "format_tables", "main", "run_object"]
 
@@ -144,7 +144,7 @@ def format_tables(rows: Sequence[dict[str, Any]]) -> str:
 def _modulus(value: str, name: str) -> float:
     """``--young``: a number of pascals, or "scene" for the modulus of the shipped scene of ``name``."""
     if value == "scene":
-        from .scene import load_scene, resolve_scene
+        from .io.scene import load_scene, resolve_scene
 
         return load_scene(resolve_scene(name)).young
     try:

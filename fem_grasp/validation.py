@@ -8,9 +8,9 @@ cleaned values, and touch no state.
 
 Where they are called
 ---------------------
-* :func:`check_material`, :func:`check_positive` — by :class:`fem_grasp.body.Body`;
+* :func:`check_material`, :func:`check_positive` — by :class:`fem_grasp.elastic.body.Body`;
 * :func:`check_friction`, :func:`check_directions`, :func:`check_contact_nodes`,
-  :func:`check_finger_placement` — at the top of :func:`fem_grasp.pickup.pickup`
+  :func:`check_finger_placement` — at the top of :func:`fem_grasp.grasp.pickup.pickup`
   (the scene), before any solve.
 
 Mesh validity (shapes, NaN, zero volume, folds, pieces, non-manifold
@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from .mesh import TetMesh, vertex_normals
+from .mesh.tetmesh import TetMesh, vertex_normals
 
 __all__ = ["ContactNodeError", "DirectionError", "LockingWarning", "MaterialError", "PlacementError", "SceneError",
            "check_contact_nodes", "check_directions", "check_finger_placement", "check_friction",
@@ -40,7 +40,7 @@ MAX_UP = 1e-9
 MIN_HORIZONTAL = 1e-6
 
 
-#: ν above which :class:`fem_grasp.body.Body` warns that P1 tetrahedra lock (README: a coarse
+#: ν above which :class:`fem_grasp.elastic.body.Body` warns that P1 tetrahedra lock (README: a coarse
 #: cantilever's P1 deflection is 0.32 of P2's at ν = 0.45, 0.14 at 0.49, 0.053 at 0.4999).
 LOCKING_POISSON = 0.45
 
@@ -168,7 +168,7 @@ def check_directions(d1: Any, d2: Any, *, ratio: float = 1.0, up: Any = (0.0, 0.
           downward directions are accepted; the paper's have d̂·ẑ = −0.227;
         * a d̂₁ with no horizontal part (|d̂₁ − (d̂₁·up) up| < 1e-6): the
           fingers are placed facing each other along that horizontal part
-          (:func:`fem_grasp.placement.finger_contact_nodes`), so a vertical
+          (:func:`fem_grasp.grasp.placement.finger_contact_nodes`), so a vertical
           d̂₁ places nothing;
         * with s > 0, a d̂₂ whose horizontal part does not point back
           towards finger 1 (d̂₂·ĥ ≥ 0, ĥ the horizontal unit part of d̂₁):
@@ -294,7 +294,7 @@ def check_finger_placement(positions: Any, surface_nodes: Any, centers: Any, rad
                            table_z: float | None = None, tol: float | None = None) -> dict[str, Any]:
     """Validate the initial fingertip spheres against the (resting) object.
 
-    The placement of :func:`fem_grasp.pickup.pickup` puts fingertip k tangent
+    The placement of :func:`fem_grasp.grasp.pickup.pickup` puts fingertip k tangent
     to the object at its contact node p: centre ``c = p + R n̂``, n̂ the
     outward unit vertex normal at p.  This check refuses what the squeeze
     cannot start from.

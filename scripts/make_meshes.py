@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Regenerate meshes/{tomato,orange,steam_bun,football}.vtu at the paper's Table I vertex counts.
 
-Each mesh is graded to the fingertips (``fem_grasp.objects.graded_paper_mesh``):
+Each mesh is graded to the fingertips (``fem_grasp.grasp.objects.graded_paper_mesh``):
 spacing R/2 within 2R of where the paper scenes' placement rule puts the
 fingers, coarser elsewhere, at Table I's vertex count.
 
@@ -31,10 +31,12 @@ import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 try:
-    from fem_grasp import objects, shapes
+    from fem_grasp.grasp import objects
+    from fem_grasp.mesh import shapes
 except ImportError:  # running from a checkout without `pip install -e .`
     sys.path.insert(0, str(REPO))
-    from fem_grasp import objects, shapes
+    from fem_grasp.grasp import objects
+    from fem_grasp.mesh import shapes
 
 
 def dihedral_angles(points: np.ndarray, tets: np.ndarray) -> np.ndarray:
@@ -55,7 +57,7 @@ README = """\
 # Meshes of the paper's four objects
 
 Tetrahedral (P1, `tetra` cells only) VTU meshes standing in for the scanned objects of
-Table I of the paper, generated with gmsh by `fem_grasp.shapes` (the scans are not
+Table I of the paper, generated with gmsh by `fem_grasp.mesh.shapes` (the scans are not
 available). Units are metres; x is the long axis, +z points up; the ellipsoids are
 centred on the origin and the steam bun's flat base lies on z = 0.
 
@@ -65,9 +67,9 @@ centred on the origin and the steam bun's flat base lies on z = 0.
 
 Vertex counts are within ±5 % of Table I (in parentheses). The meshes are graded to the
 fingertips: spacing R/2 = 5 mm within 2R = 2 cm of the two points where the paper scenes'
-placement rule (fingers at the height of the centre of mass, `fem_grasp.objects.PAPER_PLACEMENT_RULE`)
+placement rule (fingers at the height of the centre of mass, `fem_grasp.grasp.objects.PAPER_PLACEMENT_RULE`)
 puts the fingers on a first, uniform mesh, and coarser elsewhere, so that each fingertip touches
-several nodes (Table II reports 8–15 contact nodes at lift); see `fem_grasp.objects`.
+several nodes (Table II reports 8–15 contact nodes at lift); see `fem_grasp.grasp.objects`.
 Tetrahedron and facet counts follow from gmsh's sizing. Regenerate with `make meshes` (runs `scripts/make_meshes.py`, which needs
 gmsh: Debian package `python3-gmsh`); the output is deterministic for a given gmsh
 version (these were made with gmsh {gmsh_version}).
@@ -101,7 +103,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     logging.basicConfig(level=logging.DEBUG if args.verbose else logging.WARNING, format="%(name)s: %(message)s")
     if args.verbose:
-        logging.getLogger("fem_grasp.shapes").setLevel(logging.DEBUG)
+        logging.getLogger("fem_grasp.mesh.shapes").setLevel(logging.DEBUG)
 
     import gmsh  # only to record the version; shapes has already said how to install it
 

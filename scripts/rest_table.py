@@ -2,7 +2,7 @@
 
 For each object of Table I (its weight, ν and μ) at one Young's modulus,
 print the number of contact nodes, how many of them slide, the largest sag,
-the iterations and the wall time of :func:`fem_grasp.rest.rest`, and the
+the iterations and the wall time of :func:`fem_grasp.grasp.rest.rest`, and the
 contact-law/equilibrium checks.
 
 Usage::
@@ -19,8 +19,8 @@ import sys
 import time
 from typing import Sequence
 
-from fem_grasp import objects
-from fem_grasp.rest import rest
+from fem_grasp.grasp import objects
+from fem_grasp.grasp.rest import rest
 
 
 def rows(young: str | float, names: Sequence[str] = objects.NAMES) -> list[dict]:

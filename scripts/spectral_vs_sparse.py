@@ -14,7 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from fem_grasp import objects, placement, solve_contact
+from fem_grasp import solve_contact
+from fem_grasp.grasp import objects
+from fem_grasp.grasp import placement
 
 
 def demo_contacts(body) -> tuple[np.ndarray, np.ndarray]:

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from fem_grasp import Body, MeshError, TetMesh, box_mesh
-from fem_grasp.closure import surface_normals_at
-from fem_grasp.placement import PAPER_SQUEEZE_DIRECTIONS
+from fem_grasp.grasp.closure import surface_normals_at
+from fem_grasp.grasp.placement import PAPER_SQUEEZE_DIRECTIONS
 from fem_grasp.validation import (ContactNodeError, DirectionError, LockingWarning, MaterialError, PlacementError,
                                   SceneError, check_contact_nodes, check_directions, check_finger_placement,
                                   check_friction, check_material)

@@ -1,7 +1,7 @@
 """The profiling command of issue #7 (bench/profile.py) runs and counts what it says it counts."""
 
 from bench import profile
-from fem_grasp import tracking
+from fem_grasp.contact import tracking
 
 
 def test_profile_counts_the_return_mappings_and_slip_solves_of_a_pickup(capsys):
@@ -24,7 +24,7 @@ def test_replayed_return_mappings_reach_their_recorded_outcomes(tmp_path, capsys
     """bench.replay records a pickup's return mappings and solves them again: the same code reaches the same
     outcome on every call, and a solver that changes one verdict is reported."""
     from bench import replay
-    from fem_grasp import relaxation
+    from fem_grasp.contact import relaxation
 
     path = tmp_path / "calls.pkl"
     calls = replay.capture("steam_bun", path, quick=True)  # ~20 return mappings, some failing
@@ -61,7 +61,8 @@ def test_the_floor_counts_the_factor_that_cholmod_computes():
     import pytest
 
     from bench import bench
-    from fem_grasp import compliance, fem
+    from fem_grasp.elastic import compliance
+    from fem_grasp.elastic import fem
 
     from _meshes import perturbed_box
 
@@ -89,8 +90,8 @@ def test_the_nodes_a_pickup_touched_all_have_their_compliance_columns():
     contacts and every snapshot's. The tracking needed each of them, so each must be cached after the pickup,
     and the count cannot exceed what was computed."""
     from bench import bench
-    from fem_grasp.pickup import pickup
-    from fem_grasp.scene import load_scene, resolve_scene
+    from fem_grasp.grasp.pickup import pickup
+    from fem_grasp.io.scene import load_scene, resolve_scene
 
     scene = load_scene(resolve_scene("football"), quick=True)
     result = pickup(scene.body(), **scene.pickup_kwargs())

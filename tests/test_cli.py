@@ -7,7 +7,7 @@ import sys
 import pytest
 
 from fem_grasp.cli import main
-from fem_grasp.scene import shipped_scenes
+from fem_grasp.io.scene import shipped_scenes
 
 from _ux_helpers import cache_dir, cli_run, icosphere, write_stl
 
@@ -182,9 +182,9 @@ def test_the_same_scene_writes_the_same_files_but_for_wall_times(tmp_path):
 @pytest.mark.parametrize("error", ["friction", "convergence"])
 def test_an_object_that_cannot_rest_exits_1_with_the_reason_not_as_an_internal_error(capsys, monkeypatch, tmp_path,
                                                                                      error):
-    import fem_grasp.scene as scene_mod
-    from fem_grasp.friction import FrictionError
-    from fem_grasp.rest import RestConvergenceError
+    import fem_grasp.io.scene as scene_mod
+    from fem_grasp.contact.friction import FrictionError
+    from fem_grasp.grasp.rest import RestConvergenceError
 
     exc = (FrictionError("gross sliding on the table: 3 contacts slide without bound") if error == "friction"
            else RestConvergenceError("the resting iteration did not settle in 2 iterations"))

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from fem_grasp import box_mesh
-from fem_grasp.closure import cone_generators, contact_wrenches, force_closure, placement_closure, surface_normals_at
+from fem_grasp.grasp.closure import cone_generators, contact_wrenches, force_closure, placement_closure, surface_normals_at
 
 #: A 4×3×2 cm box: fingers at the centres of the y-faces at mid-height, table under the centre.
 CENTER = np.array([0.02, 0.015, 0.01])

@@ -1,11 +1,11 @@
-"""The generalised inverse X of K (fem_grasp.compliance): every sparse solver, the column cache, kept rows."""
+"""The generalised inverse X of K (fem_grasp.elastic.compliance): every sparse solver, the column cache, kept rows."""
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
 from fem_grasp import Body, solve_contact
-from fem_grasp import compliance as cp
+from fem_grasp.elastic import compliance as cp
 
 from _meshes import perturbed_box
 
@@ -222,7 +222,7 @@ def test_a_rigidly_moved_body_shares_the_factorisation_and_solves_the_same(monke
     """Body.transformed of a factorised body turns its compliance (X' = Q X Qᵀ) instead of factorising again:
     contact forces and fields equal a fresh factorisation of the moved mesh, and X' inverts the moved K on
     balanced loads."""
-    from fem_grasp.pose import rotation_between
+    from fem_grasp.grasp.pose import rotation_between
 
     body = Body(perturbed_box(np.random.default_rng(11), divisions=(4, 3, 3)), 3e4, 0.35, weight=1.5)
     body.compliance

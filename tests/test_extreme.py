@@ -19,7 +19,7 @@ nodal load vector F̄₀ ∝ mg.  With mg ∝ E L² every force of the problem (
 gravity, friction μ f·n̂) scales by e L², every length (sag, squeeze depth ρ,
 lift height, fingertip gaps) by L, and the friction cones and the contact
 geometry are unchanged: the same problem in dimensionless form.  The
-defaults of :func:`~fem_grasp.pickup.pickup` follow (maximum squeeze ∝ L,
+defaults of :func:`~fem_grasp.grasp.pickup.pickup` follow (maximum squeeze ∝ L,
 squeeze increment ∝ ρ* = mg/(μ k₀) ∝ E L²/(E L) = L, lift-test step ∝ mg) and
 the tracking's tolerances are relative (× diameter, × force scale), so the
 whole pickup must repeat event for event at ρ/L and lift/L equal to
@@ -50,12 +50,12 @@ import numpy as np
 import pytest
 
 from fem_grasp import Body, TetMesh, box_mesh
-from fem_grasp.pickup import PickupResult, pickup
-from fem_grasp.placement import PAPER_SQUEEZE_DIRECTIONS
-from fem_grasp.rest import rest
-from fem_grasp.squeeze import initial_state
-from fem_grasp.tracking import TOL_LOCATE, Tracker, TrackingError
-from fem_grasp.tracking import run as track
+from fem_grasp.grasp.pickup import PickupResult, pickup
+from fem_grasp.grasp.placement import PAPER_SQUEEZE_DIRECTIONS
+from fem_grasp.grasp.rest import rest
+from fem_grasp.grasp.squeeze import initial_state
+from fem_grasp.contact.tracking import TOL_LOCATE, Tracker, TrackingError
+from fem_grasp.contact.tracking import run as track
 from fem_grasp.validation import LockingWarning, PlacementError
 
 LOWER, UPPER = np.array([-0.015, -0.02, 0.0]), np.array([0.015, 0.02, 0.03])
@@ -260,7 +260,7 @@ def test_friction_ten_completes_and_a_failed_hanging_relaxation_counts_as_not_he
     STALL_SWEEPS instead; the bound is lowered from 1000 to 50 so that such a return would stay cheap.
     The full pickup with the lift takes minutes, stick/slip chatter on the table (docs/limits.md).
     """
-    import fem_grasp.relaxation as relaxation
+    import fem_grasp.contact.relaxation as relaxation
 
     monkeypatch.setattr(relaxation, "STALL_SWEEPS", 50)
     failures = []
@@ -273,7 +273,7 @@ def test_friction_ten_completes_and_a_failed_hanging_relaxation_counts_as_not_he
             failures.append(str(exc))
             raise
 
-    monkeypatch.setattr("fem_grasp.tracking.relax_contacts", counting)
+    monkeypatch.setattr("fem_grasp.contact.tracking.relax_contacts", counting)
     res = _pickup(_box(), mu=10.0, step=1.2e-4, lift=False)
     res.check()
     assert res.reason.startswith("the lift test passed") and res.liftable[-1][1] >= WEIGHT
@@ -293,7 +293,7 @@ def test_a_49_vertex_ellipsoid_is_picked_up_or_fails_with_a_reason():
     hang the object (Theorem 3): the liftable weight stays 0 and the squeeze reaches its maximum depth.
     """
     pytest.importorskip("gmsh", reason="gmsh's Python module is not installed (Debian package python3-gmsh)")
-    from fem_grasp import shapes
+    from fem_grasp.mesh import shapes
 
     mesh = TetMesh(*shapes.ellipsoid((0.03, 0.04, 0.025), 0.02))
     assert 40 <= mesh.n_points <= 60

@@ -2,7 +2,7 @@ import numpy as np
 import pytest
 
 from fem_grasp import Body, box_mesh
-from fem_grasp import fem
+from fem_grasp.elastic import fem
 
 from _meshes import perturbed_box
 

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from fem_grasp.fingertip import DEFAULT_RADIUS, Fingertip, great_circle_point, slip_axis
+from fem_grasp.contact.obstacles import DEFAULT_RADIUS, Fingertip, great_circle_point, slip_axis
 
 
 def test_tangent_placement_touches_without_penetrating():

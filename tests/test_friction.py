@@ -5,9 +5,10 @@ import pytest
 from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
-from fem_grasp import Body, box_mesh, friction
-from fem_grasp.geometry import TablePlane, tangent_basis
-from fem_grasp.pose import rotation_between
+from fem_grasp import Body, box_mesh
+from fem_grasp.contact import friction
+from fem_grasp.contact.obstacles import TablePlane, tangent_basis
+from fem_grasp.grasp.pose import rotation_between
 
 UP = np.array([0.0, 0.0, 1.0])
 #: Entries of unit vectors computed two ways agree to a few ulps of 1.
@@ -232,7 +233,7 @@ def test_table_plane_geometry():
 
 
 def test_tangent_bases_are_the_tangent_basis_of_each_normal(rng):
-    from fem_grasp.geometry import tangent_bases
+    from fem_grasp.contact.obstacles import tangent_bases
 
     normals = np.vstack([rng.normal(size=(20, 3)), np.eye(3), -np.eye(3)])
     bases = tangent_bases(normals)

@@ -1,10 +1,10 @@
-"""Tests for fem_grasp.homotopy (paper footnote 2: H = (1-(1-t)^2) P + (1-t)^2 Q)."""
+"""Tests for fem_grasp.contact.homotopy (paper footnote 2: H = (1-(1-t)^2) P + (1-t)^2 Q)."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from fem_grasp.homotopy import HomotopyError, HomotopyResult, _Homotopy, newton, solve, track
+from fem_grasp.contact.homotopy import HomotopyError, HomotopyResult, _Homotopy, newton, solve, track
 
 SQRT2 = np.sqrt(2.0)
 CUBIC_ROOT = -1.7692923542386314  # the only real root of x^3 - 2x + 2

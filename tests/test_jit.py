@@ -1,7 +1,7 @@
-"""The compiled (numba) and plain-Python kernels give the same answers (fem_grasp.jit).
+"""The compiled (numba) and plain-Python kernels give the same answers (fem_grasp.contact.kernels.jit).
 
-The sweep kernels of :mod:`fem_grasp.gauss_seidel` and the slip-system
-kernels of :mod:`fem_grasp.slip_newton` are one source run two ways; the
+The sweep kernels of :mod:`fem_grasp.contact.kernels.gauss_seidel` and the slip-system
+kernels of :mod:`fem_grasp.contact.kernels.slip_newton` are one source run two ways; the
 plain-Python run happens in a subprocess with FEM_GRASP_NO_JIT=1 (the choice
 is made at import).  The sweeps must reach the same statuses in the same
 number of sweeps, with the same forces, or fail with the same message; the
@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fem_grasp import jit
-from fem_grasp.relaxation import RelaxationFailure, relax_contacts
+from fem_grasp.contact.kernels import jit
+from fem_grasp.contact.relaxation import RelaxationFailure, relax_contacts
 
 ROOT = Path(__file__).resolve().parents[1]
 UP = np.array([0.0, 0.0, 1.0])
@@ -68,7 +68,7 @@ def in_plain_python(name: str, tmp_path: Path):
     """tests.test_jit.<name>() run in a subprocess with FEM_GRASP_NO_JIT=1."""
     out = tmp_path / f"{name}.pkl"
     env = dict(os.environ, FEM_GRASP_NO_JIT="1")
-    code = ("import pickle, sys; from fem_grasp import jit; assert not jit.ENABLED; "
+    code = ("import pickle, sys; from fem_grasp.contact.kernels import jit; assert not jit.ENABLED; "
             f"from tests.test_jit import {name}; pickle.dump({name}(), open(sys.argv[1], 'wb'))")
     subprocess.run([sys.executable, "-c", code, str(out)], cwd=ROOT, env=env, check=True)
     return pickle.loads(out.read_bytes())
@@ -107,8 +107,8 @@ def test_compiled_and_plain_python_slip_systems_agree(tmp_path):
 
 def empty_projections():
     """The polish's slide projections when no contact slides (every non-sticking one released)."""
-    from fem_grasp import gauss_seidel as gs
-    from fem_grasp.relaxation import _SlideGeometry
+    from fem_grasp.contact.kernels import gauss_seidel as gs
+    from fem_grasp.contact.relaxation import _SlideGeometry
 
     proj, delta = _SlideGeometry(np.zeros((0, gs.RECORD)), np.zeros(0)).projections(np.zeros((0, 2)))
     return proj.shape, delta.shape
@@ -133,7 +133,7 @@ def test_warm_up_compiles_every_entry_point(tmp_path):
     if not jit.ENABLED:
         assert jit.warm_up() == 0.0
         return
-    code = ("import importlib, json, sys; from fem_grasp import jit; jit.warm_up(); "
+    code = ("import importlib, json, sys; from fem_grasp.contact.kernels import jit; jit.warm_up(); "
             "print(json.dumps({m: {n: len(getattr(importlib.import_module(m), n).signatures) for n in names} "
             "for m, names in jit.ENTRY_POINTS.items()}))")
     env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))

@@ -4,7 +4,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fem_grasp import objects, placement
+from fem_grasp.grasp import objects
+from fem_grasp.grasp import placement
 
 ROOT = Path(__file__).resolve().parent.parent
 

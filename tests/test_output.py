@@ -1,4 +1,4 @@
-"""Outputs (fem_grasp.output): result.json schema, ParaView time series read back with meshio, atomic writes."""
+"""Outputs (fem_grasp.io.output): result.json schema, ParaView time series read back with meshio, atomic writes."""
 
 import json
 import xml.etree.ElementTree as ET
@@ -7,7 +7,7 @@ import meshio
 import numpy as np
 import pytest
 
-from fem_grasp.output import (MARKER, SCHEMA, SCHEMA_VERSION, OutputError, atomic_write_text, hemisphere,
+from fem_grasp.io.output import (MARKER, SCHEMA, SCHEMA_VERSION, OutputError, atomic_write_text, hemisphere,
                               prepare_out_dir, read_result)
 
 from _ux_helpers import cli_run
@@ -141,7 +141,7 @@ def _files(folder):
 
 def test_an_interrupted_mesh_write_keeps_the_previous_file_and_leaves_no_temporary(tmp_path, monkeypatch):
     from fem_grasp import box_mesh
-    from fem_grasp.output import atomic_write_mesh
+    from fem_grasp.io.output import atomic_write_mesh
 
     old, new = box_mesh((0, 0, 0), (1, 1, 1), (1, 1, 1)), box_mesh((0, 0, 0), (2, 2, 2), (2, 2, 2))
     dest = atomic_write_mesh(tmp_path / "object.vtu", old.to_meshio())
@@ -162,7 +162,7 @@ def test_an_interrupted_json_write_keeps_the_previous_file(tmp_path, monkeypatch
     import pathlib
 
     from fem_grasp import Body, box_mesh
-    from fem_grasp.pickup import pickup
+    from fem_grasp.grasp.pickup import pickup
 
     body = Body(box_mesh((-0.015, -0.02, 0.0), (0.015, 0.02, 0.03), (3, 3, 3)), 2e4, 0.3, weight=0.3)
     res = pickup(body, mu_finger=0.5, mu_table=0.0, contacts=(18, 30), finger_radius=0.02)  # fails at step 1
@@ -216,8 +216,9 @@ def test_files_of_an_interrupted_run_are_cleared_by_the_next_run_even_if_it_writ
     leaves nothing that a shorter run into the same folder would keep as a stale frame."""
     import dataclasses
 
-    from fem_grasp import Body, box_mesh, output
-    from fem_grasp.pickup import pickup
+    from fem_grasp import Body, box_mesh
+    from fem_grasp.io import output
+    from fem_grasp.grasp.pickup import pickup
 
     body = Body(box_mesh((-0.015, -0.02, 0.0), (0.015, 0.02, 0.03), (4, 4, 4)), 2e4, 0.3, weight=0.3)
     long = pickup(body, mu_finger=0.5, mu_table=0.5, finger_radius=0.01, lift=False)

@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 
 from fem_grasp import Body, box_mesh
-from fem_grasp.fingertip import Fingertip
-from fem_grasp.lift_test import hang, hanging_state
-from fem_grasp.pickup import PickupResult, pickup
-from fem_grasp.rest import rest
+from fem_grasp.contact.obstacles import Fingertip
+from fem_grasp.grasp.lift_test import hang, hanging_state
+from fem_grasp.grasp.pickup import PickupResult, pickup
+from fem_grasp.grasp.rest import rest
 from fem_grasp.validation import ContactNodeError, DirectionError, PlacementError, SceneError
-from fem_grasp.tracking import FINGER1, TABLE, MixedSlipSystem, SlipFailure, Tracker
+from fem_grasp.contact.tracking import FINGER1, TABLE, MixedSlipSystem, SlipFailure, Tracker
 
 RADIUS = 0.02
 WEIGHT = 0.3
@@ -199,7 +199,7 @@ def test_implicit_increments_alone_pick_up_the_box_at_the_same_depth(lifted, mon
 def test_large_contact_sets_go_by_implicit_increments_to_the_same_depth(lifted, monkeypatch):
     """Above IMPLICIT_CONTACTS contacts every increment is a return mapping; with the threshold at 0 the
     whole box pickup goes that way and must agree with the event tracking."""
-    import fem_grasp.tracking as tracking
+    import fem_grasp.contact.tracking as tracking
 
     calls = []
     original = Tracker.implicit_step
@@ -218,9 +218,9 @@ def test_a_squeeze_that_starts_with_a_finger_off_the_object_re_establishes_conta
     """A fingertip placed tangent carries no force; round-off may release it in the first settle (seen on an
     Intel CPU).  The squeeze must then bring that finger back into contact (event A) and reach the same
     lift-off as when the touch is kept, within an increment."""
-    from fem_grasp.lift_test import LiftTest
-    from fem_grasp.placement import PAPER_SQUEEZE_DIRECTIONS
-    from fem_grasp.squeeze import initial_state, squeeze
+    from fem_grasp.grasp.lift_test import LiftTest
+    from fem_grasp.grasp.placement import PAPER_SQUEEZE_DIRECTIONS
+    from fem_grasp.grasp.squeeze import initial_state, squeeze
 
     rs = rest(_box(), 0.5)
     tracker = Tracker(rs.body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)
@@ -244,9 +244,9 @@ def test_a_squeeze_that_starts_with_a_finger_off_the_object_re_establishes_conta
 def test_the_squeeze_increment_comes_from_the_placement_not_from_what_the_first_settle_kept(lifted):
     """The default increment (1/20 of mg / (μ k₀)) reads k₀ at finger 1's placement node: it must exist even
     if the first settle released that touch (it was an IndexError), and give the pickup's own increment."""
-    from fem_grasp.pickup import _initial_stiffness
-    from fem_grasp.placement import PAPER_SQUEEZE_DIRECTIONS
-    from fem_grasp.squeeze import initial_state
+    from fem_grasp.grasp.pickup import _initial_stiffness
+    from fem_grasp.grasp.placement import PAPER_SQUEEZE_DIRECTIONS
+    from fem_grasp.grasp.squeeze import initial_state
 
     rs = rest(_box(), 0.5)
     tracker = Tracker(rs.body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)
@@ -325,8 +325,8 @@ def test_squeeze_depth_limit_is_a_failure():
 
 def test_a_failed_lift_sends_the_squeeze_on_and_the_next_lift_starts_deeper(monkeypatch, lifted):
     """Algorithm 1 step 6: a simulated lift that fails is followed by more squeeze and another lift."""
-    import fem_grasp.lift as lift_module
-    pickup_module = __import__("sys").modules["fem_grasp.pickup"]
+    import fem_grasp.grasp.lift as lift_module
+    pickup_module = __import__("sys").modules["fem_grasp.grasp.pickup"]
     real = lift_module.lift
     calls = []
 
@@ -463,9 +463,9 @@ def test_paper_tables_format():
 def _box_squeezed_3mm():
     """The box on the table squeezed 3 mm by the paper's directions, with at least three nodes sliding:
     (rest state, its tracker, the state, the finger velocities)."""
-    from fem_grasp.placement import PAPER_SQUEEZE_DIRECTIONS
-    from fem_grasp.squeeze import initial_state
-    from fem_grasp.tracking import run
+    from fem_grasp.grasp.placement import PAPER_SQUEEZE_DIRECTIONS
+    from fem_grasp.grasp.squeeze import initial_state
+    from fem_grasp.contact.tracking import run
 
     rs = rest(_box(), 0.5)
     tracker = Tracker(rs.body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)
@@ -479,7 +479,7 @@ def _box_squeezed_3mm():
 def test_a_new_contact_brings_the_columns_of_the_surface_nodes_nearest_an_obstacle():
     """A new contact's compliance columns are solved together with those of the likely next contacts
     (compliance.PREFETCH_NODES in all): the uncached surface nodes nearest a fingertip or the table."""
-    from fem_grasp.compliance import PREFETCH_NODES
+    from fem_grasp.elastic.compliance import PREFETCH_NODES
 
     rs = rest(_box(), 0.5)
     posed = Body(rs.body.mesh, 2e4, 0.3, weight=WEIGHT)  # the rest cached columns of the resting body's
@@ -502,7 +502,7 @@ def test_a_new_contact_brings_the_columns_of_the_surface_nodes_nearest_an_obstac
 
 
 def test_the_tracker_keeps_its_latest_contact_responses_within_a_byte_budget(monkeypatch):
-    from fem_grasp import tracking
+    from fem_grasp.contact import tracking
 
     rs = rest(_box(), 0.5)
     tracker = Tracker(rs.body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)
@@ -593,7 +593,7 @@ def test_a_lightly_loaded_fingertip_contact_on_a_stiff_body_slides_onto_its_cone
 # ------------------------------------------------------------ a paper object
 def test_the_football_scene_is_picked_up_and_every_snapshot_obeys_the_contact_laws():
     """The shipped football scene (graded mesh, 10 kPa) end to end: the quickest of the four paper pickups."""
-    from fem_grasp.scene import load_scene, resolve_scene
+    from fem_grasp.io.scene import load_scene, resolve_scene
 
     scene = load_scene(resolve_scene("football"))
     res = pickup(scene.body(), **scene.pickup_kwargs())
@@ -613,11 +613,12 @@ def test_centre_of_mass_rule_skips_heights_where_no_rigid_grasp_exists():
     (μ = 0.4): two fingers could not hold even a rigid bun there, so the rule moves down to where they
     could; if no height clearing the table allows it, the first valid pair is kept."""
     pytest.importorskip("gmsh", reason="gmsh's Python module is not installed (Debian package python3-gmsh)")
-    from fem_grasp import placement, shapes
-    from fem_grasp.closure import surface_normals_at
-    from fem_grasp.mesh import TetMesh
-    from fem_grasp.pickup import default_finger_contacts
-    from fem_grasp.rigid import rigid_grasp
+    from fem_grasp.grasp import placement
+    from fem_grasp.mesh import shapes
+    from fem_grasp.grasp.closure import surface_normals_at
+    from fem_grasp.mesh.tetmesh import TetMesh
+    from fem_grasp.grasp.pickup import default_finger_contacts
+    from fem_grasp.grasp.rigid import rigid_grasp
 
     body = Body(TetMesh(*shapes.dome(0.05, 0.035, 0.008)), 1e4, 0.2, weight=0.467)
     rs = rest(body, 0.4)
@@ -644,9 +645,9 @@ def test_centre_of_mass_rule_skips_heights_where_no_rigid_grasp_exists():
 def test_default_placement_on_a_box_takes_the_middle_of_the_faces_not_an_edge(rule):
     """A flat face across the squeeze direction ties every node on it; the fingers go to the middle of the
     face at the chosen height (an edge node's normal leans 45°, and no placement there was force closure)."""
-    from fem_grasp import placement
-    from fem_grasp.closure import surface_normals_at
-    from fem_grasp.pickup import default_finger_contacts
+    from fem_grasp.grasp import placement
+    from fem_grasp.grasp.closure import surface_normals_at
+    from fem_grasp.grasp.pickup import default_finger_contacts
 
     body = Body(box_mesh((-0.015, -0.02, 0.0), (0.015, 0.02, 0.03), (6, 8, 6)), 2e4, 0.3, weight=WEIGHT)
     rs = rest(body, 0.5)
@@ -675,7 +676,7 @@ def test_the_event_predicted_to_fire_first_leads_the_location():
 def test_a_slip_form_whose_newton_failed_at_a_smaller_step_is_tried_last(monkeypatch):
     """After the great-circle Newton finds no root at dt, later trials of the same motion at dt' ≥ dt start
     with the free-direction form; a trial at a smaller step still tries the great circle first."""
-    from fem_grasp.tracking import SlipFailure
+    from fem_grasp.contact.tracking import SlipFailure
 
     _, t, state, vel = _box_squeezed_3mm()
     order = []

@@ -2,7 +2,7 @@
 
 Hypothesis draws gmsh ellipsoids and fused spheres of random size and aspect, E from 1e3 to 1e7 Pa,
 ν from 0 to 0.45, μ from 0.05 to 1.5 on the fingers and the table, a random fingertip radius, squeeze
-tilt and ratio.  Each run must end in one of ``fem_grasp.pickup.OUTCOMES`` with ``check()`` passing on
+tilt and ratio.  Each run must end in one of ``fem_grasp.grasp.pickup.OUTCOMES`` with ``check()`` passing on
 every snapshot, or in the object not coming to rest on the table; any other exception is a bug.  The
 examples are derandomised (the same ones on every run); ``make verify`` draws 500 more.
 """

@@ -1,4 +1,4 @@
-"""The static stick/slide/release state of all contacts at once (fem_grasp.relaxation).
+"""The static stick/slide/release state of all contacts at once (fem_grasp.contact.relaxation).
 
 Checked against a hand-computed single contact, and on a real body (a box
 squeezed sideways on the table) against Coulomb's law at every contact.  Each
@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from fem_grasp import Body, box_mesh
-from fem_grasp.relaxation import RELEASE, SLIDE, STICK, RelaxationFailure, relax_contacts
+from fem_grasp.contact.relaxation import RELEASE, SLIDE, STICK, RelaxationFailure, relax_contacts
 
 UP = np.array([0.0, 0.0, 1.0])
 
@@ -137,7 +137,7 @@ def test_gross_slip_ends_at_the_drift_or_stall_bound(monkeypatch, bound, value, 
     change in STALL_SWEEPS sweeps the sweeps stop too (here the stall bound is set below the drift one)."""
     import re
 
-    import fem_grasp.relaxation as relaxation
+    import fem_grasp.contact.relaxation as relaxation
 
     monkeypatch.setattr(relaxation, bound, value)
     c, f, q, centers, mu = _box_on_the_table_pushed_sideways(0.6)
@@ -166,7 +166,7 @@ def test_a_contact_with_no_local_state_ends_at_the_stuck_bound(monkeypatch):
     stuck sweeps long enough for a larger bound is long enough for a smaller one."""
     import re
 
-    import fem_grasp.relaxation as relaxation
+    import fem_grasp.contact.relaxation as relaxation
 
     c, f, q, centers, mu = _box_on_the_table_pushed_sideways(1.0)
     ends = []
@@ -186,8 +186,8 @@ def test_the_polish_projection_is_the_slide_residual_of_the_sweeps(rng):
     """The polish maps each sliding contact's force to its slide residual (slide_projection, all contacts
     at once in _SlideGeometry); the sweeps evaluate the residual of one contact (slide_residual).  The two
     must agree, on a table and on a fingertip, with and without motion."""
-    from fem_grasp import gauss_seidel as gs
-    from fem_grasp.relaxation import _SlideGeometry
+    from fem_grasp.contact.kernels import gauss_seidel as gs
+    from fem_grasp.contact.relaxation import _SlideGeometry
 
     up = np.array([0.0, 0.0, 1.0])
     m = 6
@@ -239,8 +239,8 @@ def test_the_polish_jacobian_matches_finite_differences(rng):
     """The polish's Newton Jacobian (coupling blocks ∂R/∂f C ∂δ/∂x assembled contact by contact, plus each
     sliding contact's own geometric block) against central differences of its residual, on the squeezed box
     with table and fingertip contacts sliding, one table contact released and the rest sticking."""
-    from fem_grasp import gauss_seidel as gs
-    from fem_grasp.relaxation import _polish_system
+    from fem_grasp.contact.kernels import gauss_seidel as gs
+    from fem_grasp.contact.relaxation import _polish_system
 
     c, f0, q0, centers, mu, radius = _squeezed_box()
     m = len(f0)

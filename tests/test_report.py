@@ -1,10 +1,10 @@
-"""The rendered report (fem_grasp.report): pictures exist, are not blank, and report.html shows them all."""
+"""The rendered report (fem_grasp.io.report): pictures exist, are not blank, and report.html shows them all."""
 
 import numpy as np
 import pytest
 
 from fem_grasp.cli import main
-from fem_grasp.report import PICTURES
+from fem_grasp.io.report import PICTURES
 
 from _ux_helpers import cli_run
 

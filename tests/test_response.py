@@ -3,7 +3,7 @@ import pytest
 import scipy.sparse.linalg as spla
 
 from fem_grasp import Body, CollinearContactError, TetMesh, box_mesh, solve_contact
-from fem_grasp.response import contact_dofs
+from fem_grasp.elastic.response import contact_dofs
 
 from _meshes import perturbed_box
 
@@ -210,7 +210,7 @@ def test_the_surface_field_is_the_whole_fields_surface_rows(body, rng, backend):
 def test_tracked_states_compute_the_whole_field_only_when_asked(body):
     """A tracked state holds the deformed surface; ContactState.positions solves the whole field on first use
     and agrees with it on the surface."""
-    from fem_grasp.tracking import FINGER1, TABLE, Tracker
+    from fem_grasp.contact.tracking import FINGER1, TABLE, Tracker
 
     tracker = Tracker(body, radius=0.01, mu_finger=0.5, mu_table=0.5, table=None)
     nodes = contact_set(body)
@@ -229,7 +229,7 @@ def test_tracked_states_compute_the_whole_field_only_when_asked(body):
 def test_a_large_body_caches_surface_rows_and_solves_for_whole_fields(body, rng, monkeypatch):
     """Above FULL_COLUMNS_MAX_NODES vertices the compliance keeps only surface rows (one cache serves the
     surface fields) and a whole field costs a sparse solve: the same forces and fields as the full columns."""
-    import fem_grasp.body as body_module
+    import fem_grasp.elastic.body as body_module
 
     monkeypatch.setattr(body_module, "FULL_COLUMNS_MAX_NODES", body.n_nodes - 1)
     lean = body.with_material()

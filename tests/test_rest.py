@@ -6,10 +6,11 @@ import functools
 import numpy as np
 import pytest
 
-from fem_grasp import Body, TetMesh, box_mesh, objects
-from fem_grasp.pose import (_polygon_margin, _triangle_margins, hull_facets, resting_pose, rotation_between,
+from fem_grasp import Body, TetMesh, box_mesh
+from fem_grasp.grasp import objects
+from fem_grasp.grasp.pose import (_polygon_margin, _triangle_margins, hull_facets, resting_pose, rotation_between,
                             stable_facets, triangle_margin)
-from fem_grasp.rest import RestCheckError, RestConvergenceError, rest
+from fem_grasp.grasp.rest import RestCheckError, RestConvergenceError, rest
 
 #: A soft modulus that makes the sag visible (millimetres); Table I's 1e9–6e9 Pa give micrometres.
 SOFT_YOUNG = 3e4
@@ -28,7 +29,7 @@ def paper_body(name: str) -> Body:
     try:
         return objects.load(name, young=SOFT_YOUNG)
     except FileNotFoundError:
-        shapes = pytest.importorskip("fem_grasp.shapes")
+        shapes = pytest.importorskip("fem_grasp.mesh.shapes")
         pytest.importorskip("gmsh")
         row = objects.TABLE_I[name]
         return Body(shapes.paper_mesh(name), SOFT_YOUNG, row.poisson, weight=row.weight)

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from fem_grasp.rigid import rigid_grasp
+from fem_grasp.grasp.rigid import rigid_grasp
 
 UP = np.array([0.0, 0.0, 1.0])
 

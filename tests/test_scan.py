@@ -1,11 +1,11 @@
-"""Scan import (fem_grasp.scan): closed-surface checks with messages that say where, gmsh volume meshes."""
+"""Scan import (fem_grasp.mesh.scan): closed-surface checks with messages that say where, gmsh volume meshes."""
 
 import meshio
 import numpy as np
 import pytest
 
 from fem_grasp import TetMesh
-from fem_grasp.scan import (SurfaceError, Surface, check_surface, clean_surface, mesh_surface, read_surface,
+from fem_grasp.mesh.scan import (SurfaceError, Surface, check_surface, clean_surface, mesh_surface, read_surface,
                             self_intersections)
 
 from _ux_helpers import icosphere, write_stl

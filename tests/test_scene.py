@@ -1,12 +1,13 @@
-"""Scene files (fem_grasp.scene): parsing, units, error messages naming file and key, the resting-state cache."""
+"""Scene files (fem_grasp.io.scene): parsing, units, error messages naming file and key, the resting-state cache."""
 
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from fem_grasp import Body, box_mesh, objects
-from fem_grasp.scene import (SceneError, cached_rest, load_scene, parse_quantity, resolve_scene, rest_key,
+from fem_grasp import Body, box_mesh
+from fem_grasp.grasp import objects
+from fem_grasp.io.scene import (SceneError, cached_rest, load_scene, parse_quantity, resolve_scene, rest_key,
                              shipped_scenes)
 
 PAPER = ("tomato", "orange", "steam_bun", "football")

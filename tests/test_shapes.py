@@ -1,4 +1,4 @@
-"""Tests of fem_grasp.shapes (gmsh generators) and of the committed meshes/*.vtu."""
+"""Tests of fem_grasp.mesh.shapes (gmsh generators) and of the committed meshes/*.vtu."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fem_grasp import shapes
+from fem_grasp.mesh import shapes
 
 MESH_DIR = Path(__file__).resolve().parents[1] / "meshes"
 TABLE_I_VERTICES = {"tomato": 490, "orange": 600, "steam_bun": 658, "football": 875}

@@ -34,7 +34,7 @@ SOLVE = 1e-9  # contact solves
 
 def _ellipsoid() -> TetMesh:
     pytest.importorskip("gmsh")
-    from fem_grasp.shapes import ellipsoid
+    from fem_grasp.mesh.shapes import ellipsoid
 
     return TetMesh(*ellipsoid((0.04, 0.03, 0.025), 0.012))
 

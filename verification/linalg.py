@@ -15,7 +15,7 @@ from typing import Callable, Iterator
 import numpy as np
 import scipy.sparse as sp
 
-from fem_grasp.compliance import factorize as _package_factorize  # bound before any swap below
+from fem_grasp.elastic.compliance import factorize as _package_factorize  # bound before any swap below
 
 log = logging.getLogger(__name__)
 
@@ -107,7 +107,7 @@ def fem_grasp_factorization_by_mumps() -> Iterator[None]:
     factorisation is swapped, so that contact solves on meshes of 50 000+
     vertices finish in seconds without CHOLMOD.
     """
-    import fem_grasp.compliance as compliance
+    import fem_grasp.elastic.compliance as compliance
 
     original = compliance.factorize
     compliance.factorize = factorized

@@ -158,7 +158,7 @@ def variants(quick: bool) -> list[Variant]:
 # --------------------------------------------------------------------- cases
 def _scene_case(name: str, quick: bool) -> Callable[[], tuple[Any, dict]]:
     def build():
-        from fem_grasp.scene import load_scene, resolve_scene
+        from fem_grasp.io.scene import load_scene, resolve_scene
 
         scene = load_scene(resolve_scene(name), quick=quick)
         return scene.body(), scene.pickup_kwargs()
@@ -181,7 +181,7 @@ def _box_case(mu: float) -> Callable[[], tuple[Any, dict]]:
 def _ellipsoid_case() -> tuple[Any, dict]:
     """A small gmsh ellipsoid with the default placement (the random-scene test's kind of body)."""
     from fem_grasp import Body, TetMesh
-    from fem_grasp.shapes import ellipsoid
+    from fem_grasp.mesh.shapes import ellipsoid
 
     mesh = TetMesh(*ellipsoid((0.03, 0.025, 0.02), 0.008))
     return Body(mesh, 2e4, 0.35, weight=0.5), {"mu_finger": 0.5, "finger_radius": 0.01}
@@ -222,8 +222,8 @@ def _jittered(body, seed: int):
 
 def run_case(build: Callable[[], tuple[Any, dict]], jitter_seed: int | None) -> dict[str, Any]:
     """One pickup and the figures :func:`compare` reads (or the exception it raised)."""
-    from fem_grasp.pickup import pickup
-    from fem_grasp.rest import rest
+    from fem_grasp.grasp.pickup import pickup
+    from fem_grasp.grasp.rest import rest
 
     t0 = time.perf_counter()
     try:

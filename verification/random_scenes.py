@@ -5,8 +5,8 @@ aspect, a random material (E from 1e3 to 1e7 Pa, ν from 0 to 0.45), random
 friction on the fingers and the table (μ from 0.05 to 1.5), a random
 fingertip radius, squeeze tilt (0–40° below the horizontal) and ratio s
 (0–1), and the default finger placement.  Every such scene is valid input,
-so :func:`run_scene` must end in one of :data:`fem_grasp.pickup.OUTCOMES`
-with :meth:`~fem_grasp.pickup.PickupResult.check` passing on every snapshot
+so :func:`run_scene` must end in one of :data:`fem_grasp.grasp.pickup.OUTCOMES`
+with :meth:`~fem_grasp.grasp.pickup.PickupResult.check` passing on every snapshot
 — or, before the pickup proper, in the object not coming to rest on the table
 (:data:`NO_REST`).  Any other exception is a bug.
 
@@ -84,7 +84,7 @@ class RandomScene:
     def mesh(self):
         """The gmsh mesh of the shape, at about :data:`TARGET_VERTICES` vertices; and its smallest radius."""
         from fem_grasp import TetMesh
-        from fem_grasp.shapes import ellipsoid, fused_spheres
+        from fem_grasp.mesh.shapes import ellipsoid, fused_spheres
 
         if self.shape == "ellipsoid":
             axes = (self.size, self.size * self.aspect_y, self.size * self.aspect_z)
@@ -110,7 +110,7 @@ class RandomScene:
 def run_scene(scene: RandomScene) -> dict[str, Any]:
     """Pick the scene up; the outcome, the checks, and any exception with its traceback."""
     from fem_grasp import Body
-    from fem_grasp.pickup import pickup
+    from fem_grasp.grasp.pickup import pickup
 
     t0 = time.perf_counter()
     row: dict[str, Any] = {"scene": asdict(scene)}
@@ -133,7 +133,7 @@ def run_scene(scene: RandomScene) -> dict[str, Any]:
 
 def problems(row: dict[str, Any]) -> list[str]:
     """What is wrong with a run (empty: a named outcome, every check passed)."""
-    from fem_grasp.pickup import OUTCOMES
+    from fem_grasp.grasp.pickup import OUTCOMES
 
     out = []
     if row["outcome"] == "crash":

@@ -23,7 +23,7 @@ import numpy as np
 from scipy.spatial import Delaunay
 
 from fem_grasp import Body, CollinearContactError, TetMesh, box_mesh
-from fem_grasp.response import ContactResponse
+from fem_grasp.elastic.response import ContactResponse
 
 from .crosscheck import contact_cases, crosscheck_mesh, rel_max_diff
 from .dolfinx_ref import DolfinxModel

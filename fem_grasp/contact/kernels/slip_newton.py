@@ -1,11 +1,11 @@
 """The slip system's equations (6)–(8), their Jacobian and the damped Newton iteration, as array kernels.
 
-:class:`fem_grasp.tracking.MixedSlipSystem` builds, for one increment, the
+:class:`fem_grasp.contact.tracking.MixedSlipSystem` builds, for one increment, the
 affine maps from its unknowns x to the sliding nodes' forces and slips; these
 functions evaluate the system on them.  A pickup solves thousands of such
 systems of 2–100 unknowns, where numpy's per-call overhead is most of the
 cost, so they are written in the array subset that numba compiles
-(:mod:`fem_grasp.jit`) and that runs unchanged, as numpy, without it.
+(:mod:`fem_grasp.contact.kernels.jit`) and that runs unchanged, as numpy, without it.
 
 Arguments shared by every function (p sliding nodes, N unknowns):
 

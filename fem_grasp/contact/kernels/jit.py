@@ -84,8 +84,8 @@ def warm_up() -> float:
     import time
 
     from . import gauss_seidel as gs
-    from .relaxation import _SlideGeometry, relax_contacts
-    from .tracking import FINGER1, TABLE, MixedSlipSystem
+    from ..relaxation import _SlideGeometry, relax_contacts
+    from ..tracking import FINGER1, TABLE, MixedSlipSystem
 
     if not ENABLED:
         return 0.0
@@ -114,5 +114,5 @@ def warm_up() -> float:
 
 
 #: The kernels called from Python (the others are compiled into them): what :func:`warm_up` must reach.
-ENTRY_POINTS = {"fem_grasp.gauss_seidel": ("sweep", "motion", "slide_projections", "outside_sphere"),
-                "fem_grasp.slip_newton": ("residual", "jacobian", "newton")}
+ENTRY_POINTS = {"fem_grasp.contact.kernels.gauss_seidel": ("sweep", "motion", "slide_projections", "outside_sphere"),
+                "fem_grasp.contact.kernels.slip_newton": ("residual", "jacobian", "newton")}

@@ -13,7 +13,7 @@ index sets 𝕀, 𝕁, 𝕂) and which of them slide (ℙ) — stays fixed betwe
 * **D** slip-to-stick: the slip rate d(slip)/dt of a sliding contact reaches zero.
 
 Within one configuration the contact forces are affine in the contact
-displacements, F̄ = C Δ̄ + λ F̄₀ (eq. 5, :class:`~fem_grasp.response.ContactResponse`,
+displacements, F̄ = C Δ̄ + λ F̄₀ (eq. 5, :class:`~fem_grasp.elastic.response.ContactResponse`,
 λ the gravity load factor), so one increment t → t + Δt is:
 
 1. *held* prediction: every finger contact moves with its finger by Δt v_f
@@ -26,7 +26,7 @@ displacements, F̄ = C Δ̄ + λ F̄₀ (eq. 5, :class:`~fem_grasp.response.Cont
    method from the held state, then from the root already found for the
    same base state at the nearest parameter (continuation in t: the event
    location below solves the same system at many nearby t), with the
-   Newton-homotopy continuation of :mod:`fem_grasp.homotopy` (paper
+   Newton-homotopy continuation of :mod:`fem_grasp.contact.homotopy` (paper
    footnote 2) as fallback.  The warm start took the football's lift from
    24 s to 6 s (756 homotopy paths to 24).
 
@@ -48,7 +48,7 @@ it slides, or the slip system of several coupled sliding nodes loses its
 root.  The body then reaches a static state by a finite slip.  The tracker
 takes that step as a return mapping (:meth:`Tracker.implicit_step`):
 every contact held, then the static stick / slide / release state of all of
-them at once (:func:`fem_grasp.relaxation.relax_contacts`), with new
+them at once (:func:`fem_grasp.contact.relaxation.relax_contacts`), with new
 contacts added as they appear.  This is used (i) when a settle after events
 finds no slip solution or a node toggles more than three times, (ii) when an
 increment's slip system still fails after ``MAX_HALVINGS`` halvings (the
@@ -68,7 +68,7 @@ for its whole 2 cm squeeze, to the same final state.  The price is that
 events are located only to the increment.  Only if no
 static state exists either (gross slip) does the tracking stop with
 :class:`TrackingError`.  The lift test's hanging settles use the same
-return mapping (:mod:`fem_grasp.lift_test`).
+return mapping (:mod:`fem_grasp.grasp.lift_test`).
 
 Modelling choices (the paper is silent or vague here)
 -----------------------------------------------------
@@ -117,13 +117,14 @@ from typing import Callable, Sequence
 import numpy as np
 import scipy.linalg as la
 
-from . import homotopy, slip_newton
-from .body import Body
-from .compliance import PREFETCH_NODES
+from . import homotopy
+from .kernels import slip_newton
+from ..elastic.body import Body
+from ..elastic.compliance import PREFETCH_NODES
 from .relaxation import RELEASE, SLIDE, RelaxationFailure, relax_contacts
-from .geometry import TablePlane, tangent_bases
-from .response import CollinearContactError, ContactResponse, check_contact_set
-from .threads import one_blas_thread
+from .obstacles import TablePlane, tangent_bases
+from ..elastic.response import CollinearContactError, ContactResponse, check_contact_set
+from ..threads import one_blas_thread
 
 __all__ = ["FINGER1", "FINGER2", "TABLE", "OBSTACLES", "ContactState", "ContactEvent", "MixedSlipSystem",
            "SlipFailure", "Tracker", "TrackingError"]
@@ -500,7 +501,7 @@ class MixedSlipSystem:
 
     @np.errstate(over="ignore", invalid="ignore")
     def _newton(self, y: np.ndarray, tol: float, max_iter: int = 40) -> np.ndarray | None:
-        """Damped Newton's method on the scaled system (:func:`fem_grasp.slip_newton.newton`); None if it fails.
+        """Damped Newton's method on the scaled system (:func:`fem_grasp.contact.kernels.slip_newton.newton`); None if it fails.
 
         Converged when every row |P_j| ≤ max(tol, noise_j) (rows of lightly
         loaded nodes are only resolved to round-off), or when the step
@@ -520,7 +521,7 @@ class MixedSlipSystem:
         same sliding set at a nearby parameter: continuation along the path);
         ``"homotopy"``: the Newton-homotopy continuation
         ``H(y, t) = P(y) − (1−t)² P(y₀)`` of paper footnote 2
-        (:func:`fem_grasp.homotopy.track`), whose path shrinks every cone
+        (:func:`fem_grasp.contact.homotopy.track`), whose path shrinks every cone
         residual from its held value to zero.
         """
         if self.n == 0:
@@ -594,7 +595,7 @@ class Tracker:
     mu_finger, mu_table : friction coefficients μ_ℱ, μ_𝒫 (> 0)
     table : TablePlane or None
         The supporting plane (None: no table, the object hangs from the fingers).
-    backend : "sparse" or "spectral" (see :class:`~fem_grasp.response.ContactResponse`)
+    backend : "sparse" or "spectral" (see :class:`~fem_grasp.elastic.response.ContactResponse`)
     """
 
     def __init__(self, body: Body, *, radius: float, mu_finger: float, mu_table: float,
@@ -1106,7 +1107,7 @@ class Tracker:
         """Advance by ``dt`` (0: stay) in one implicit increment, as a return mapping.
 
         Every contact is held (fingertip contacts move with their finger),
-        then :func:`~fem_grasp.relaxation.relax_contacts` finds the static
+        then :func:`~fem_grasp.contact.relaxation.relax_contacts` finds the static
         stick / slide / release state of all of them at once; nodes that would
         penetrate an obstacle are added and the relaxation repeated.  Used
         where the rate problem of the event tracking has no solution (module

@@ -2,7 +2,7 @@
 
 Fingertip ℱ₁ translates by ρ d̂₁ and ℱ₂ by s ρ d̂₂ while ρ, the squeeze depth,
 grows from 0.  The contact index sets 𝕀, 𝕁, 𝕂 and the sliding set ℙ change
-only at events A–D, tracked by :class:`~fem_grasp.tracking.Tracker` (which
+only at events A–D, tracked by :class:`~fem_grasp.contact.tracking.Tracker` (which
 holds the paper's machinery: eqs. (5)–(8), homotopy, event location).  After
 every increment ``step`` in ρ (events inside an increment split it but do not
 repeat the test) the lift test of §III-B updates the liftable weight w(ρ)
@@ -28,7 +28,7 @@ import numpy as np
 from .closure import surface_normals_at
 from .lift_test import LiftTest
 from .rest import RestState
-from .tracking import FINGER1, FINGER2, TABLE, ContactEvent, ContactState, Tracker, TrackingError, run
+from ..contact.tracking import FINGER1, FINGER2, TABLE, ContactEvent, ContactState, Tracker, TrackingError, run
 
 __all__ = ["SqueezeOutcome", "initial_state", "squeeze"]
 

@@ -1,12 +1,12 @@
 """Initial resting configuration of a soft object on a table (paper §III-A, Algorithm 1 step 2).
 
 The object is first placed rigidly on a stable support triangle △p_q p_r p_s
-(:mod:`fem_grasp.pose`), then sags under gravity while its contact region
+(:mod:`fem_grasp.grasp.pose`), then sags under gravity while its contact region
 with the table 𝒫 grows.  :func:`rest` follows the paper's iteration:
 
 1. P ← ∅ (no sliding node yet in this iteration).
 2.–3. Solve the deformation with every contact node held where it is
-   (eqs. 3–5, :class:`~fem_grasp.response.ContactResponse`).
+   (eqs. 3–5, :class:`~fem_grasp.elastic.response.ContactResponse`).
 4. Stop if no node lies below 𝒫, every contact force is compressive and
    inside its friction cone.
 5. New contact (event A): the node furthest below 𝒫 joins the contact set.
@@ -19,7 +19,7 @@ with the table 𝒫 grows.  :func:`rest` follows the paper's iteration:
 6. Contacts whose force lies outside the friction cone form the sliding set P.
 7. Their slip distances d_k solve the quadratic system (6) (node k moves by
    −d_k t̂_k, t̂_k its tangential force direction at the start of the slip);
-   see :func:`fem_grasp.friction.settle_plane_slip`.
+   see :func:`fem_grasp.contact.friction.settle_plane_slip`.
 
 The state is kept as total contact displacements, so "holding" a contact
 means keeping its prescribed displacement; step 2 of a later iteration then
@@ -45,7 +45,7 @@ Frictionless table (μ = 0)
 --------------------------
 Every contact then slides freely and the cone is its axis: each iteration
 sets the tangential contact displacements so that every friction force
-vanishes (:func:`fem_grasp.friction.frictionless_tangential_displacements`).
+vanishes (:func:`fem_grasp.contact.friction.frictionless_tangential_displacements`).
 The horizontal rigid motion (two translations and the spin about the
 vertical) is then undetermined; it is fixed by holding the centre of mass's
 horizontal position and the body's mean spin about the vertical axis through
@@ -70,12 +70,12 @@ from typing import Any
 
 import numpy as np
 
-from . import friction
-from .body import Body
-from .compliance import PREFETCH_NODES
-from .geometry import TablePlane
+from ..contact import friction
+from ..elastic.body import Body
+from ..elastic.compliance import PREFETCH_NODES
+from ..contact.obstacles import TablePlane
 from .pose import RestingPose, resting_pose
-from .response import (CollinearContactError, ContactResponse, ContactSolution, check_contact_set,
+from ..elastic.response import (CollinearContactError, ContactResponse, ContactSolution, check_contact_set,
                        equilibrium_residual)
 
 __all__ = ["RestState", "RestIteration", "RestConvergenceError", "RestCheckError", "rest"]
@@ -523,13 +523,13 @@ def rest(body: Body, mu_table: float, *, down: np.ndarray | None = None, table_z
         (μ = 0: frictionless table, see the module notes).
     down : (3,) array_like, optional
         Which way is down in the body's frame (default −z); selects the
-        stable hull facet it rests on (:func:`fem_grasp.pose.resting_pose`).
+        stable hull facet it rests on (:func:`fem_grasp.grasp.pose.resting_pose`).
     table_z : float
         Height of the table plane z = table_z in the output frame.
     support : (3,) int, optional
         A user-named support triangle △p_q p_r p_s.
     backend : {"sparse", "spectral"}
-        Backend of :class:`~fem_grasp.response.ContactResponse`.
+        Backend of :class:`~fem_grasp.elastic.response.ContactResponse`.
     max_iterations : int, optional
         Iteration budget; default three times the number of surface nodes
         (an iteration adds contacts, and a node may be released and land again).
@@ -555,7 +555,7 @@ def rest(body: Body, mu_table: float, *, down: np.ndarray | None = None, table_z
         If the iteration does not settle within ``max_iterations`` or loses
         its support (tensile contacts leaving fewer than three or collinear
         contacts).
-    fem_grasp.friction.FrictionError
+    fem_grasp.contact.friction.FrictionError
         If a slip system (6) has no admissible solution.
     """
     start = time.perf_counter()

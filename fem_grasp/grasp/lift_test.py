@@ -10,8 +10,8 @@ Hanging at a trial weight (:func:`hang`)
 ----------------------------------------
 The finger configuration is held at the trial weight (gravity load factor
 λ = w / mg) and settled in place by a return mapping
-(:meth:`~fem_grasp.tracking.Tracker.implicit_step` with the fingers still,
-:func:`~fem_grasp.relaxation.relax_contacts`): every contact ends sticking,
+(:meth:`~fem_grasp.contact.tracking.Tracker.implicit_step` with the fingers still,
+:func:`~fem_grasp.contact.relaxation.relax_contacts`): every contact ends sticking,
 sliding onto its cone along its fingertip's great circle (eqs. 7–8), or
 released (B); nodes that come to penetrate a fingertip are added (A).
 The weight **is held** when a static state is found and each finger keeps at
@@ -39,8 +39,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .response import CollinearContactError, check_contact_set
-from .tracking import FINGER1, FINGER2, ContactState, Tracker, TrackingError
+from ..elastic.response import CollinearContactError, check_contact_set
+from ..contact.tracking import FINGER1, FINGER2, ContactState, Tracker, TrackingError
 
 __all__ = ["HangResult", "LiftTest", "hang", "hanging_state"]
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .mesh import TetMesh
+from ..mesh.tetmesh import TetMesh
 
-#: Rules for choosing the initial finger contacts (:func:`fem_grasp.pickup.default_finger_contacts`).
+#: Rules for choosing the initial finger contacts (:func:`fem_grasp.grasp.pickup.default_finger_contacts`).
 PLACEMENT_RULES = ("least-force", "centre-of-mass-height")
 #: ``pickup()``'s rule and a scene's when it names none (the paper scenes name "centre-of-mass-height").
 DEFAULT_PLACEMENT_RULE = "least-force"

@@ -14,7 +14,7 @@ backends solve the bordered system (3)
 
 with B = V̄₀ the orthonormal rigid modes at the contact DOFs.  ``"spectral"``
 uses the paper's A = Σ v̄v̄ᵀ/λ and D; ``"sparse"`` uses a generalised inverse
-X of K in their place (:mod:`fem_grasp.compliance`), which gives the same F̄.
+X of K in their place (:mod:`fem_grasp.elastic.compliance`), which gives the same F̄.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.linalg as la
 
-from .threads import blas_threads_for
+from ..threads import blas_threads_for
 
 if TYPE_CHECKING:
     from .body import Body
@@ -279,7 +279,7 @@ class ContactResponse:
         """(s, 3) the displacement field of :meth:`solve` at ``mesh.surface_nodes`` only.
 
         The sparse backend reads only the surface rows of the cached compliance columns
-        (:meth:`~fem_grasp.compliance.Compliance.combine_surface`): what the contact tracking needs
+        (:meth:`~fem_grasp.elastic.compliance.Compliance.combine_surface`): what the contact tracking needs
         at every trial state, a fraction of the cost of the whole field on a large mesh.
         """
         d = self._check_displacements(displacements)

@@ -1,6 +1,6 @@
 """Static frictional contact at fixed obstacles: nodal projected Gauss–Seidel (a return mapping).
 
-The event tracking of :mod:`fem_grasp.tracking` follows the *rate* problem of
+The event tracking of :mod:`fem_grasp.contact.tracking` follows the *rate* problem of
 §III-C: between events the sliding set ℙ is fixed and its slips solve
 eqs. (6)–(8).  Where friction is strong compared with the coupling between
 tangential slip and normal force (μ = 0.4–0.5 on coarse P1 patches), that
@@ -30,7 +30,7 @@ The coupled problem is solved node by node (projected Gauss–Seidel, the
 classical solver of nonsmooth contact mechanics): each visit solves contact
 k's own problem exactly with the others frozen — a 2×2 Newton iteration for a
 slide, warm-started from the previous sweep — and updates every force by the
-rank-3 change C[:, k] Δδ_k (the sweep is :func:`fem_grasp.gauss_seidel.sweep`,
+rank-3 change C[:, k] Δδ_k (the sweep is :func:`fem_grasp.contact.kernels.gauss_seidel.sweep`,
 compiled by numba when it is installed).  Sweeps repeat until no force changes
 by more than ``tol`` × the force scale.  For the Tresca (fixed normal force) problem this
 is block coordinate descent on a convex energy and converges; the Coulomb
@@ -52,10 +52,10 @@ from typing import Callable
 
 import numpy as np
 
-from . import gauss_seidel as gs
-from .gauss_seidel import RELEASE, SLIDE, STICK
-from .jit import as_kernel_data
-from .threads import blas_threads_for
+from .kernels import gauss_seidel as gs
+from .kernels.gauss_seidel import RELEASE, SLIDE, STICK
+from .kernels.jit import as_kernel_data
+from ..threads import blas_threads_for
 
 __all__ = ["RelaxationFailure", "Relaxation", "relax_contacts", "STICK", "SLIDE", "RELEASE"]
 
@@ -104,8 +104,8 @@ _EYE3 = np.eye(3)
 
 
 class _SlideGeometry:
-    """The slide projections of :func:`~fem_grasp.gauss_seidel.slide_projection` for many sliding contacts
-    (the polish); ``records`` are their rows of :func:`~fem_grasp.gauss_seidel.contact_records`."""
+    """The slide projections of :func:`~fem_grasp.contact.kernels.gauss_seidel.slide_projection` for many sliding contacts
+    (the polish); ``records`` are their rows of :func:`~fem_grasp.contact.kernels.gauss_seidel.contact_records`."""
 
     def __init__(self, records: np.ndarray, mu: np.ndarray) -> None:
         self.rows = as_kernel_data(np.asarray(records, float).reshape(-1, gs.RECORD))
@@ -292,7 +292,7 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
     local_tol = 1e-3 * tol * fs_scale
     stick_tol = tol * fs_scale
     mu = np.asarray(mu, float)
-    # The sweep's working state, as arrays (compiled) or lists (plain Python): see fem_grasp.jit.
+    # The sweep's working state, as arrays (compiled) or lists (plain Python): see fem_grasp.contact.kernels.jit.
     k_rec, k_c, k_mu = as_kernel_data(rec), as_kernel_data(c), as_kernel_data(mu)
     f, d, u = as_kernel_data(f0), as_kernel_data(np.zeros((m, 3))), as_kernel_data(np.zeros((m, 2)))
     has_u, status = as_kernel_data(np.zeros(m), np.int64), as_kernel_data(np.full(m, STICK), np.int64)

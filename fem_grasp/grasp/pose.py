@@ -39,8 +39,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from .body import Body
-from .geometry import tangent_bases
+from ..elastic.body import Body
+from ..contact.obstacles import tangent_bases
 
 __all__ = ["Facet", "RestingPose", "hull_facets", "stable_facets", "resting_pose", "rotation_between",
            "triangle_margin"]
@@ -132,7 +132,7 @@ def rotation_between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def _plane_frame(normal: np.ndarray) -> np.ndarray:
     """(2, 3) orthonormal in-plane axes (e1, e2) with e1 × e2 = normal."""
-    from .geometry import tangent_basis
+    from ..contact.obstacles import tangent_basis
 
     return tangent_basis(normal)
 

@@ -1,4 +1,4 @@
-"""``report.html`` and its pictures, from an output folder written by :func:`fem_grasp.output.write_run`.
+"""``report.html`` and its pictures, from an output folder written by :func:`fem_grasp.io.output.write_run`.
 
 Pictures (PNG, beside report.html):
 
@@ -343,7 +343,7 @@ def write_report(out: str | Path) -> Path:
 
     Raises
     ------
-    fem_grasp.output.OutputError
+    fem_grasp.io.output.OutputError
         No (readable) result.json in ``out``.
     """
     out = Path(out)

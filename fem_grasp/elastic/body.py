@@ -9,8 +9,8 @@ import numpy as np
 import scipy.sparse as sp
 
 from . import fem
-from .mesh import TetMesh
-from .validation import MaterialError, check_material, check_positive
+from ..mesh.tetmesh import TetMesh
+from ..validation import MaterialError, check_material, check_positive
 
 if TYPE_CHECKING:
     from .compliance import Compliance
@@ -87,7 +87,7 @@ class Body:
         """The same body rigidly moved (see :meth:`TetMesh.transformed`).
 
         If this body's sparse compliance is already factorised, the moved body shares that
-        factorisation, turned with it (:meth:`~fem_grasp.compliance.Compliance.rotated`), instead of
+        factorisation, turned with it (:meth:`~fem_grasp.elastic.compliance.Compliance.rotated`), instead of
         factorising its own: the resting pose of a factorised body costs no second factorisation, and
         holds no second factor.
         """
@@ -176,7 +176,7 @@ class Body:
         """X G (3n,): the grounded compliance applied to gravity (sparse backend).
 
         The same for every contact set, so computed once per body (one full solve); each
-        :class:`~fem_grasp.response.ContactResponse` takes its D̄ of eq. (3) and its field from it.
+        :class:`~fem_grasp.elastic.response.ContactResponse` takes its D̄ of eq. (3) and its field from it.
         """
         return self.compliance.apply(self.gravity_loads)
 

@@ -5,7 +5,7 @@ per unit lift height) from the squeeze configuration.  The contacts with the
 table 𝒫 break gradually (event B) as the fingers take over the weight; finger
 contacts may slide, stick, establish or break like during the squeeze —
 "modeling, however, is no different from that of squeezing", so the same
-:class:`~fem_grasp.tracking.Tracker` runs with the lift height as parameter.
+:class:`~fem_grasp.contact.tracking.Tracker` runs with the lift height as parameter.
 
 * **Failure**: every contact node of one finger slides ("the object slides on
   the finger"), or the tracking finds no quasi-static state (gross slip,
@@ -22,7 +22,7 @@ from typing import Callable
 
 import numpy as np
 
-from .tracking import FINGER1, FINGER2, TABLE, ContactEvent, ContactState, Tracker, TrackingError, run
+from ..contact.tracking import FINGER1, FINGER2, TABLE, ContactEvent, ContactState, Tracker, TrackingError, run
 
 __all__ = ["LiftOutcome", "lift"]
 

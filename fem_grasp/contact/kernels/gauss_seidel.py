@@ -1,13 +1,13 @@
 """One projected Gauss–Seidel sweep of the return mapping, and each contact's local problem.
 
-:func:`fem_grasp.relaxation.relax_contacts` finds the static
+:func:`fem_grasp.contact.relaxation.relax_contacts` finds the static
 stick/slide/release state of all contacts by sweeps over the contacts; each
 visit solves contact k's own problem exactly with the others frozen (stick,
 release, or slide onto its cone along the great circle of its slip, eqs. 7–8)
 and updates every force by the rank-3 change C[:, k] Δδ_k.  This module is
 that sweep.  It is called hundreds of thousands of times per pickup on
 3-vectors, so it is written in scalar arithmetic that numba compiles when it
-is installed (:mod:`fem_grasp.jit`); without numba the same source runs as
+is installed (:mod:`fem_grasp.contact.kernels.jit`); without numba the same source runs as
 plain Python on lists.
 
 A contact is described by one row of floats (:func:`contact_records`):
@@ -23,7 +23,7 @@ import math
 
 import numpy as np
 
-from .geometry import tangent_bases
+from ..obstacles import tangent_bases
 from .jit import jit
 
 __all__ = ["STICK", "SLIDE", "RELEASE", "contact_records", "motion", "slide_residual", "slide_projection",
@@ -127,7 +127,7 @@ def slide_projection(g, mu, u0, u1):
     """The 2×3 map f ↦ slide residual at motion (u0, u1) (rows first), then δ: 9 floats.
 
     :func:`slide_residual` is this map applied to f = fs + C_kk δ; the coupled Newton polish of
-    :mod:`fem_grasp.relaxation` applies it to the forces of all contacts.
+    :mod:`fem_grasp.contact.relaxation` applies it to the forces of all contacts.
     """
     d0, d1, d2, n0, n1, n2, s0, s1, s2 = motion(g, u0, u1)
     e0, e1, e2, c0, c1, c2 = _tangent_frame(g, n0, n1, n2)

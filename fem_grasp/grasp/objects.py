@@ -13,10 +13,10 @@ weight stalls near half its weight, the steam bun's at zero).  Table II
 reports 8–15 contact nodes at lift.  :func:`graded_paper_mesh` therefore
 keeps Table I's vertex count but spends it where the fingers touch: a
 first, uniform mesh is put to rest and the paper scenes' placement rule
-(:data:`PAPER_PLACEMENT_RULE`, :func:`fem_grasp.pickup.default_finger_contacts`,
+(:data:`PAPER_PLACEMENT_RULE`, :func:`fem_grasp.grasp.pickup.default_finger_contacts`,
 the paper's squeeze directions, Table I's μ) chooses p_i, p_j on it; the committed mesh is then
 remeshed with spacing R/2 within 2R of those two points
-(:meth:`fem_grasp.shapes.Refinement.around`) and coarser elsewhere.
+(:meth:`fem_grasp.mesh.shapes.Refinement.around`) and coarser elsewhere.
 
 Units
 -----
@@ -34,16 +34,16 @@ from pathlib import Path
 
 import numpy as np
 
-from .body import Body
-from .mesh import TetMesh
+from ..elastic.body import Body
+from ..mesh.tetmesh import TetMesh
 
 #: Folder holding the committed paper meshes.
-MESH_DIR = Path(__file__).resolve().parent.parent / "meshes"
+MESH_DIR = Path(__file__).resolve().parents[2] / "meshes"
 
 #: Order of magnitude of the modulus the paper's Tables II/III imply (Pa).
 EFFECTIVE_YOUNG_ESTIMATE = 1e4
 
-#: Placement rule of the paper scenes (:func:`fem_grasp.pickup.default_finger_contacts`): the fingers
+#: Placement rule of the paper scenes (:func:`fem_grasp.grasp.pickup.default_finger_contacts`): the fingers
 #: touch at the height of the centre of mass.  The "least-force" rule prefers contacts below it, whose
 #: inward normals tilt upward: they need less force for a rigid body, but a deep squeeze there pushes
 #: a soft body up out of the grasp and the liftable weight falls again (the tomato fails so).
@@ -115,11 +115,11 @@ def finger_contact_points(mesh: TetMesh, name: str, finger_radius: float | None 
     """(2, 3) positions, in the mesh's frame, of the default finger contacts p_i, p_j on ``mesh``.
 
     The mesh is given Table I's ν, weight and μ and the modulus ``young``, put
-    to rest (:func:`fem_grasp.rest.rest`), and the placement ``rule`` chooses
-    p_i, p_j for the paper's squeeze directions, as :func:`fem_grasp.pickup.pickup` does
+    to rest (:func:`fem_grasp.grasp.rest.rest`), and the placement ``rule`` chooses
+    p_i, p_j for the paper's squeeze directions, as :func:`fem_grasp.grasp.pickup.pickup` does
     (``max_squeeze`` defaults to :data:`PAPER_MAX_SQUEEZE`, else 40 % of the width).
     """
-    from .fingertip import DEFAULT_RADIUS
+    from ..contact.obstacles import DEFAULT_RADIUS
     from .pickup import default_finger_contacts, default_max_squeeze
     from .placement import PAPER_SQUEEZE_DIRECTIONS
     from .rest import rest
@@ -143,8 +143,8 @@ def graded_paper_mesh(name: str, target_vertices: int | None = None, rel_tol: fl
     Needs gmsh.  Raises RuntimeError if the count cannot be reached (too few
     vertices for the refined regions, e.g. below about 250 for the tomato).
     """
-    from . import shapes
-    from .fingertip import DEFAULT_RADIUS
+    from ..mesh import shapes
+    from ..contact.obstacles import DEFAULT_RADIUS
 
     radius = DEFAULT_RADIUS if finger_radius is None else float(finger_radius)
     uniform = shapes.paper_mesh(name, target_vertices, rel_tol)

@@ -14,7 +14,7 @@ and moves opposite to its tangential force.
 Slip systems
 ------------
 With the contact set fixed the forces are affine in the contact
-displacements, ``F̄ = C Δ̄ + F̄₀`` (eq. 5, :class:`~fem_grasp.response.ContactResponse`).
+displacements, ``F̄ = C Δ̄ + F̄₀`` (eq. 5, :class:`~fem_grasp.elastic.response.ContactResponse`).
 If the contact displacements are in turn affine in some slip unknowns x,
 ``Δ̄ = Δ̄_held + E x + e₀``, then every sliding node's force is affine in x and
 each cone-boundary condition is one quadratic equation in x.
@@ -31,7 +31,7 @@ each cone-boundary condition is one quadratic equation in x.
   ``n̂·(f_k × u_k) = 0`` (Coulomb's law with maximum dissipation).
 
 :func:`solve_slip` solves the square system with the homotopy continuation of
-:mod:`fem_grasp.homotopy` (paper footnote 2).
+:mod:`fem_grasp.contact.homotopy` (paper footnote 2).
 
 With the directions t̂_k frozen, eq. (6) may have no real root: when several
 coupled nodes slide, a slip changes the others' friction *across* their t̂, and
@@ -52,7 +52,7 @@ from typing import Sequence
 import numpy as np
 
 from . import homotopy
-from .geometry import tangent_basis
+from .obstacles import tangent_basis
 
 __all__ = [
     "FrictionError",
@@ -377,7 +377,7 @@ def solve_slip(system: SlipSystem, x0: np.ndarray | None = None, *, tol: float =
     cone residual shrinks from its stick value to zero along the path, so the
     root reached is the one continuously connected to the held state — the
     smallest slip that brings each node back onto its cone.  If that path
-    fails, :func:`fem_grasp.homotopy.solve` (Newton, then the default
+    fails, :func:`fem_grasp.contact.homotopy.solve` (Newton, then the default
     homotopy) is tried.
 
     Raises

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .mesh import signed_volumes
+from ..mesh.tetmesh import signed_volumes
 
 #: Gravitational acceleration used by the paper (m/s²).
 STANDARD_GRAVITY = 9.8

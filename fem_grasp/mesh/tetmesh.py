@@ -382,7 +382,7 @@ class TetMesh:
     @classmethod
     def from_surface(cls, path: str | PathLike, target_vertices: int | None = None,
                      size: float | None = None) -> "TetMesh":
-        """Mesh the solid inside a closed triangle surface (STL, OBJ, PLY) with gmsh; see :mod:`fem_grasp.scan`."""
+        """Mesh the solid inside a closed triangle surface (STL, OBJ, PLY) with gmsh; see :mod:`fem_grasp.mesh.scan`."""
         from .scan import mesh_surface
 
         return mesh_surface(path, target_vertices=target_vertices, size=size)

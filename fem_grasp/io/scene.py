@@ -3,9 +3,9 @@
 A scene names the object (a paper object, a volume mesh, a closed surface
 scan, or a box), its material, the two friction coefficients μ_ℱ (fingers)
 and μ_𝒫 (table), the fingertip radius, the initial contacts (node indices or
-the default rule of :func:`fem_grasp.pickup.default_finger_contacts`), the
+the default rule of :func:`fem_grasp.grasp.pickup.default_finger_contacts`), the
 squeeze directions and ratio, and the solver settings of
-:func:`fem_grasp.pickup.pickup`.  Example (every key but ``[object]`` is
+:func:`fem_grasp.grasp.pickup.pickup`.  Example (every key but ``[object]`` is
 optional)::
 
     name = "tomato"
@@ -60,8 +60,8 @@ from typing import Any
 
 import numpy as np
 
-from .placement import DEFAULT_PLACEMENT_RULE, PLACEMENT_RULES
-from .validation import SceneError as _ValidationSceneError
+from ..grasp.placement import DEFAULT_PLACEMENT_RULE, PLACEMENT_RULES
+from ..validation import SceneError as _ValidationSceneError
 
 __all__ = ["SceneError", "Scene", "ObjectSpec", "load_scene", "parse_scene", "shipped_scenes", "resolve_scene",
            "SCENE_DIR", "parse_quantity"]
@@ -69,7 +69,7 @@ __all__ = ["SceneError", "Scene", "ObjectSpec", "load_scene", "parse_scene", "sh
 log = logging.getLogger(__name__)
 
 #: Folder of the scenes shipped with the package (``fem-grasp run tomato`` looks here).
-SCENE_DIR = Path(__file__).resolve().parent / "scenes"
+SCENE_DIR = Path(__file__).resolve().parents[1] / "scenes"
 
 STANDARD_GRAVITY = 9.8
 
@@ -171,7 +171,7 @@ class Scene:
     """A parsed, validated scene (SI units throughout).
 
     ``young``, ``poisson``, ``weight``/``density``/``mass`` and friction may be None
-    in the file for a paper object (Table I and :data:`~fem_grasp.objects.EFFECTIVE_YOUNG_ESTIMATE`
+    in the file for a paper object (Table I and :data:`~fem_grasp.grasp.objects.EFFECTIVE_YOUNG_ESTIMATE`
     fill them); they are always set on a parsed :class:`Scene`.
     """
 
@@ -203,7 +203,7 @@ class Scene:
     # ------------------------------------------------------------ building
     def load_mesh(self, cache_dir: Path | None = None) -> "Any":
         """The object's :class:`~fem_grasp.mesh.TetMesh` (gmsh meshes are cached in ``cache_dir``)."""
-        from .mesh import TetMesh, box_mesh
+        from ..mesh.tetmesh import TetMesh, box_mesh
 
         spec = self.object
         if spec.kind == "box":
@@ -211,19 +211,19 @@ class Scene:
             return box_mesh((-lx / 2, -ly / 2, 0.0), (lx / 2, ly / 2, lz), spec.divisions)
         if spec.kind == "paper":
             if spec.vertices is None:
-                from . import objects
+                from ..grasp import objects
 
                 return objects.load_mesh(spec.paper)
-            from .shapes import PAPER_SHAPES
+            from ..mesh.shapes import PAPER_SHAPES
 
             # the shape's spec is in the key: a changed stand-in shape must not be served from the cache
             return _cached_mesh(cache_dir, ("paper", spec.paper, spec.vertices, PAPER_SHAPES[spec.paper]),
                                 lambda: _paper_mesh(spec.paper, spec.vertices))
         path = spec.mesh
-        from .scan import SURFACE_SUFFIXES
+        from ..mesh.scan import SURFACE_SUFFIXES
 
         if path.suffix.lower() in SURFACE_SUFFIXES:
-            from . import scan
+            from ..mesh import scan
 
             data = path.read_bytes()
             return _cached_mesh(cache_dir, ("surface", _digest(data), spec.vertices, spec.size),
@@ -231,15 +231,15 @@ class Scene:
         return TetMesh.from_file(path)
 
     def body(self, cache_dir: Path | None = None) -> "Any":
-        """The :class:`~fem_grasp.body.Body` of this scene."""
-        from .body import Body
+        """The :class:`~fem_grasp.elastic.body.Body` of this scene."""
+        from ..elastic.body import Body
 
         mesh = self.load_mesh(cache_dir)
         kw = {"weight": self.weight} if self.weight is not None else {"density": self.density}
         return Body(mesh, self.young, self.poisson, gravity=self.gravity, **kw)
 
     def pickup_kwargs(self) -> dict[str, Any]:
-        """Keyword arguments of :func:`fem_grasp.pickup.pickup` (all but ``body`` and ``rest_state``)."""
+        """Keyword arguments of :func:`fem_grasp.grasp.pickup.pickup` (all but ``body`` and ``rest_state``)."""
         return {"mu_finger": self.mu_finger, "mu_table": self.mu_table, "finger_radius": self.finger_radius,
                 "contacts": self.contacts, "directions": tuple(np.array(d, float) for d in self.directions),
                 "ratio": self.ratio, "max_squeeze": self.max_squeeze, "step": self.step, "backend": self.backend,
@@ -260,14 +260,14 @@ def _digest(data: bytes) -> str:
 
 
 def _paper_mesh(name: str, vertices: int) -> Any:
-    from . import shapes
+    from ..mesh import shapes
 
     return shapes.paper_mesh(name, vertices)
 
 
 def _cached_mesh(cache_dir: Path | None, key: tuple, build: Any) -> Any:
     """Build a mesh, or load it from ``cache_dir`` (an .npz keyed by ``key`` and the gmsh version)."""
-    from .mesh import TetMesh
+    from ..mesh.tetmesh import TetMesh
 
     if cache_dir is None:
         return build()
@@ -452,9 +452,9 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
     ``quick`` merges the ``[quick]`` table over the others.  Relative mesh
     paths are taken from ``base_dir``.
     """
-    from . import objects
-    from .fingertip import DEFAULT_RADIUS
-    from .placement import PAPER_SQUEEZE_DIRECTIONS
+    from ..grasp import objects
+    from ..contact.obstacles import DEFAULT_RADIUS
+    from ..grasp.placement import PAPER_SQUEEZE_DIRECTIONS
 
     _check_keys(data, "", src)
     quick_over = data.get("quick", {})
@@ -664,7 +664,7 @@ def rest_key(body: Any, mu_table: float, table_z: float = 0.0, down: Any = None)
 
 
 def save_rest(path: Path, state: Any) -> None:
-    """Write what :func:`load_rest` needs to rebuild a :class:`~fem_grasp.rest.RestState` (atomic .npz)."""
+    """Write what :func:`load_rest` needs to rebuild a :class:`~fem_grasp.grasp.rest.RestState` (atomic .npz)."""
     import io
 
     from .output import atomic_write_bytes
@@ -686,11 +686,11 @@ def load_rest(path: Path, body: Any, backend: str = "sparse") -> Any:
     The posed body is rebuilt from the stored rigid motion; the contact
     solution is recomputed from the stored contact displacements (one solve),
     and the entry is rejected unless that reproduces the stored forces and
-    positions and :meth:`~fem_grasp.rest.RestState.check` passes.  The
+    positions and :meth:`~fem_grasp.grasp.rest.RestState.check` passes.  The
     iteration history is not stored (``history`` is empty).
     """
-    from .pose import RestingPose
-    from .rest import RestState
+    from ..grasp.pose import RestingPose
+    from ..grasp.rest import RestState
 
     try:
         with np.load(path) as z:
@@ -721,14 +721,14 @@ def load_rest(path: Path, body: Any, backend: str = "sparse") -> Any:
 
 def cached_rest(body: Any, mu_table: float, *, backend: str = "sparse", down: Any = None,
                 cache_dir: Path | None = None) -> tuple[Any, bool]:
-    """The resting state of ``body`` (:func:`fem_grasp.rest.rest`), reused from ``cache_dir`` when valid.
+    """The resting state of ``body`` (:func:`fem_grasp.grasp.rest.rest`), reused from ``cache_dir`` when valid.
 
     Returns
     -------
     (RestState, bool)
         The state and whether it came from the cache.
     """
-    from .rest import rest
+    from ..grasp.rest import rest
 
     path = None
     if cache_dir is not None:

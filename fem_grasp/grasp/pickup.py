@@ -2,22 +2,22 @@
 
 :func:`pickup` runs
 
-1. the force-closure test of the initial placement (:mod:`fem_grasp.closure`);
-2. the resting configuration on the table (:func:`fem_grasp.rest.rest`, §III-A);
+1. the force-closure test of the initial placement (:mod:`fem_grasp.grasp.closure`);
+2. the resting configuration on the table (:func:`fem_grasp.grasp.rest.rest`, §III-A);
 3.–4. the squeeze with the lift test after every increment
-   (:mod:`fem_grasp.squeeze`, :mod:`fem_grasp.lift_test`, §III-B/C);
-5. the lift (:mod:`fem_grasp.lift`);
+   (:mod:`fem_grasp.grasp.squeeze`, :mod:`fem_grasp.grasp.lift_test`, §III-B/C);
+5. the lift (:mod:`fem_grasp.grasp.lift`);
 6. failure when the squeeze reaches its maximum depth,
 
 and returns a :class:`PickupResult` with the whole story: events, snapshots
 at every event, liftable-weight history, forces, timings, and the rigid-body
-comparison of Table III (:mod:`fem_grasp.rigid`).  Failures (no force
+comparison of Table III (:mod:`fem_grasp.grasp.rigid`).  Failures (no force
 closure, gross slip, too little friction, …) are results, not exceptions.
 
 Default scene (the paper's §IV, where it is silent our choice)
 -------------------------------------------------------------
 * squeeze directions d̂₁ = (0, 0.974, −0.227), d̂₂ = (0, −0.974, −0.227),
-  ratio s = 1; fingertip radius :data:`fem_grasp.fingertip.DEFAULT_RADIUS`;
+  ratio s = 1; fingertip radius :data:`fem_grasp.contact.obstacles.DEFAULT_RADIUS`;
 * μ_ℱ = μ_𝒫 = :data:`DEFAULT_FRICTION` unless given (``mu_table`` defaults to
   ``mu_finger``, the paper has one μ per object);
 * finger contacts p_i, p_j (:func:`default_finger_contacts`): among the
@@ -54,11 +54,11 @@ Checks (:meth:`Snapshot.check`)
 -------------------------------
 On every snapshot, with F_s = mg + max |f_k| and L the mesh diameter:
 equilibrium of contact forces and gravity (force and torque) ≤ 1e-9
-relative (:func:`fem_grasp.response.equilibrium_residual`); no surface node
+relative (:func:`fem_grasp.elastic.response.equilibrium_residual`); no surface node
 inside a fingertip or below the table by more than 1e-9 L, and every contact
 node on its obstacle to 1e-9 L; normal forces ≥ −1e-9 F_s; sticking contacts
 ``|f_t| − μ f·n̂ ≤ 1e-8 f·n̂ + 2e-7 F_s`` (2e-7 F_s covers contacts carrying
-less than the force floor 1e-7 F_s of :mod:`fem_grasp.tracking`, whose
+less than the force floor 1e-7 F_s of :mod:`fem_grasp.contact.tracking`, whose
 stick/slip state is not assessed); sliding contacts on their cone,
 ``| |f_t| − μ f·n̂ | ≤ 1e-8 f·n̂ + 1e-9 F_s``.
 """
@@ -76,20 +76,20 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from . import placement
-from .body import Body
+from ..elastic.body import Body
 from .closure import ClosureResult, placement_closure, surface_normals_at
-from .fingertip import DEFAULT_RADIUS
-from .geometry import TablePlane
+from ..contact.obstacles import DEFAULT_RADIUS
+from ..contact.obstacles import TablePlane
 from .lift import lift as run_lift
 from .lift_test import LiftTest
 from .placement import DEFAULT_PLACEMENT_RULE, PAPER_SQUEEZE_DIRECTIONS, PLACEMENT_RULES
-from .response import equilibrium_residual
+from ..elastic.response import equilibrium_residual
 from .rest import RestState, rest
 from .rigid import RigidGrasp, rigid_grasp
 from .squeeze import initial_state, squeeze
-from .validation import (ContactNodeError, PlacementError, SceneError, check_contact_nodes, check_directions,
+from ..validation import (ContactNodeError, PlacementError, SceneError, check_contact_nodes, check_directions,
                          check_finger_placement, check_friction, check_positive)
-from .tracking import FINGER1, FINGER2, OBSTACLES, ContactEvent, ContactState, Tracker, TrackingError
+from ..contact.tracking import FINGER1, FINGER2, OBSTACLES, ContactEvent, ContactState, Tracker, TrackingError
 
 __all__ = ["DEFAULT_FRICTION", "OUTCOMES", "LiftAttempt", "PickupCheckError", "PickupResult", "Snapshot",
            "default_finger_contacts", "default_max_squeeze", "pickup"]
@@ -438,7 +438,7 @@ class PickupResult:
         """The whole result as JSON; written to ``path`` when given (atomically: never half a file)."""
         text = json.dumps(self.to_dict(), indent=indent, allow_nan=True)
         if path is not None:
-            from .output import atomic_write_text
+            from ..io.output import atomic_write_text
 
             atomic_write_text(path, text)
         return text
@@ -464,7 +464,7 @@ def default_finger_contacts(rest_state: RestState, direction: np.ndarray, mu_fin
     clear the table by ``max(R/10, |d̂₁·ẑ| max_squeeze)`` (they do not reach
     it within the maximum squeeze), start outside the object, and are force
     closure.  ``rule="least-force"`` takes the candidate whose rigid grasp
-    (:func:`fem_grasp.rigid.rigid_grasp`, Table III's measure) needs the
+    (:func:`fem_grasp.grasp.rigid.rigid_grasp`, Table III's measure) needs the
     least total normal force, ties going to the height nearest the centre of
     mass; ``rule="centre-of-mass-height"`` the first valid candidate from the
     centre of mass's height outwards whose rigid grasp is feasible (else the
@@ -533,7 +533,7 @@ def default_finger_contacts(rest_state: RestState, direction: np.ndarray, mu_fin
 def _initial_stiffness(tracker: Tracker, placed: ContactState, velocities: np.ndarray) -> float:
     """k₀: rate of the normal force at the initial contact of finger 1 per unit ρ, N/m.
 
-    ``placed`` is the state of :func:`~fem_grasp.squeeze.initial_state`, before it is settled: both
+    ``placed`` is the state of :func:`~fem_grasp.grasp.squeeze.initial_state`, before it is settled: both
     fingertips touch there by construction.  (The settle may release a touch that carries no force, by
     round-off; the finger then re-establishes contact by event A as it moves in, and the increment must
     not depend on which way the round-off went.)
@@ -564,14 +564,14 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
     ----------
     body : Body
         The object, in any orientation (it is posed on the table by
-        :func:`fem_grasp.rest.rest`; ``result.body`` is the posed body).
+        :func:`fem_grasp.grasp.rest.rest`; ``result.body`` is the posed body).
     mu_finger, mu_table : friction coefficients μ_ℱ, μ_𝒫 (module notes for defaults)
     finger_radius : fingertip radius R, metres
     contacts : (p_i, p_j), node indices of the posed body; default rule in the module notes
     directions : squeeze directions (d̂₁, d̂₂)
     ratio : s ≥ 0: ℱ₂ moves s ρ d̂₂ while ℱ₁ moves ρ d̂₁
     max_squeeze, step : maximum squeeze depth and squeeze increment, metres (module notes)
-    backend : "sparse" or "spectral" (:class:`~fem_grasp.response.ContactResponse`)
+    backend : "sparse" or "spectral" (:class:`~fem_grasp.elastic.response.ContactResponse`)
     rest_state : a resting state of ``body`` computed before (skips step 2)
     lift_test_step : h of the lift test, newtons (default mg/20)
     max_lift : maximum lift height, metres (default: the object's height)

@@ -29,12 +29,12 @@ variable ``FEM_GRASP_SOLVER`` (``cholmod``, ``superlu``, ``mumps`` or
 Memory: rows kept per cached column
 -----------------------------------
 By default a cached column holds all 3n rows of X (what
-:class:`~fem_grasp.response.ContactResponse` uses to rebuild the whole
+:class:`~fem_grasp.elastic.response.ContactResponse` uses to rebuild the whole
 displacement field).  At 100k vertices that is 7 MB per contact node.  With
 ``rows=`` a set of nodes (typically ``mesh.surface_nodes``, about a tenth of
 the nodes of a large mesh), only those nodes' rows are cached; the whole field
 is then recovered when needed by one more solve (:meth:`Compliance.combine`
-applies X to the contact forces placed at their DOFs).  :class:`~fem_grasp.body.Body`
+applies X to the contact forces placed at their DOFs).  :class:`~fem_grasp.elastic.body.Body`
 does this above ``body.FULL_COLUMNS_MAX_NODES`` vertices: the contact tracking
 reads only the surface (``surface=``, :meth:`Compliance.combine_surface`).
 """
@@ -53,8 +53,8 @@ import scipy.linalg as la
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from .mesh import check_rotation
-from .threads import outer_blas_threads
+from ..mesh.tetmesh import check_rotation
+from ..threads import outer_blas_threads
 
 log = logging.getLogger(__name__)
 

@@ -43,8 +43,8 @@ import numpy as np
 from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, QhullError
 
-from .geometry import tangent_basis
-from .mesh import vertex_normals
+from ..contact.obstacles import tangent_basis
+from ..mesh.tetmesh import vertex_normals
 
 __all__ = ["ClosureResult", "cone_generators", "contact_wrenches", "force_closure", "surface_normals_at",
            "placement_closure"]

@@ -376,7 +376,7 @@ def mesh_surface(source: str | Path | Surface, target_vertices: int | None = Non
     RuntimeError
         gmsh could not mesh it.
     """
-    from .mesh import TetMesh
+    from .tetmesh import TetMesh
     from .shapes import mesh_with_vertex_count
 
     if target_vertices is not None and size is not None:

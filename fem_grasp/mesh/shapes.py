@@ -23,7 +23,7 @@ two fingers could not hold even a rigid bun there.)  Axes: x is the long axis, +
 points up; ellipsoids are centred on the origin and the bun's base lies on z = 0.
 
 gmsh is an optional dependency (Debian package ``python3-gmsh``); it is imported
-only inside the functions that need it, so ``import fem_grasp.shapes`` always works.
+only inside the functions that need it, so ``import fem_grasp.mesh.shapes`` always works.
 Every gmsh call runs in its own quiet, single-threaded, deterministic session:
 the same arguments give bit-identical arrays.
 """
@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterator
 import numpy as np
 
 if TYPE_CHECKING:  # pragma: no cover
-    from .mesh import TetMesh
+    from .tetmesh import TetMesh
 
 log = logging.getLogger(__name__)
 
@@ -98,7 +98,7 @@ def _apply_refinement(gmsh: Any, refine: "Refinement | None", mesh_size: float) 
     field.setAsBackgroundMesh(smallest)
 
 GMSH_MISSING = (
-    "fem_grasp.shapes needs gmsh's Python module to generate meshes. On Debian/Ubuntu install "
+    "fem_grasp.mesh.shapes needs gmsh's Python module to generate meshes. On Debian/Ubuntu install "
     "the package python3-gmsh (`apt-get install python3-gmsh`) and run with /usr/bin/python3 or a "
     "venv created with `--system-site-packages`; elsewhere `pip install gmsh`. "
     "Ready-made meshes of the paper's objects are in meshes/*.vtu."
@@ -717,13 +717,13 @@ def paper_mesh(name: str, target_vertices: int | None = None, rel_tol: float = 0
         Relative tolerance on the vertex count.
     refine : Refinement, optional
         A finer mesh around given points; the search then sets the outer mesh
-        size (see :func:`fem_grasp.objects.graded_paper_mesh`).
+        size (see :func:`fem_grasp.grasp.objects.graded_paper_mesh`).
 
     Returns
     -------
     TetMesh
     """
-    from .mesh import TetMesh
+    from .tetmesh import TetMesh
 
     spec = _paper_shape_spec(name)
     target = spec.vertices if target_vertices is None else int(target_vertices)
