@@ -115,8 +115,8 @@ def machine() -> dict[str, Any]:
         mem = float("nan")
     import scipy
 
-    from fem_grasp.elastic import compliance
     from fem_grasp.contact.kernels import jit
+    from fem_grasp.elastic import compliance
 
     return {"cpu": cpu, "cores": os.cpu_count(), "memory_gib": round(mem, 1), "python": platform.python_version(),
             "numpy": np.__version__, "scipy": scipy.__version__, "default_solver": compliance.choose_solver(),

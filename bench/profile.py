@@ -49,8 +49,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
 
     import contextlib
 
-    from fem_grasp.contact import relaxation
-    from fem_grasp.contact import tracking
+    from fem_grasp.contact import relaxation, tracking
     from fem_grasp.grasp.pickup import pickup
     from fem_grasp.io.scene import load_scene, resolve_scene
 

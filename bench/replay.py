@@ -26,8 +26,7 @@ OUT = Path(__file__).resolve().parent / "out"
 
 def capture(scene_name: str, out: Path, quick: bool = False) -> list[tuple]:
     """Run the scene's pickup, recording each relax_contacts call as (args, kwargs, outcome)."""
-    from fem_grasp.contact import relaxation
-    from fem_grasp.contact import tracking
+    from fem_grasp.contact import relaxation, tracking
     from fem_grasp.grasp.pickup import pickup
     from fem_grasp.io.scene import load_scene, resolve_scene
 

@@ -14,8 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from fem_grasp import solve_contact
-from fem_grasp.grasp import objects
-from fem_grasp.grasp import placement
+from fem_grasp.grasp import objects, placement
 
 
 def run(name: str = "tomato", young: float = objects.EFFECTIVE_YOUNG_ESTIMATE, squeeze: float = 2e-3,

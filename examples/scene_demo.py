@@ -9,8 +9,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from fem_grasp.io.output import write_run
 from fem_grasp.grasp.pickup import pickup
+from fem_grasp.io.output import write_run
 from fem_grasp.io.scene import load_scene, resolve_scene
 
 

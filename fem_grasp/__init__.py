@@ -1,58 +1,71 @@
 """fem_grasp: two-finger squeeze-and-lift of soft 3D objects with P1 finite elements.
 
-Implements "Picking up Soft 3D Objects with Two Fingers" (squeeze, lift test
-and lift of a deformable body by two rigid hemispherical fingertips).  The core
-imports with numpy and scipy alone.
+Implements *Picking up Soft 3D Objects with Two Fingers* (squeeze, lift test and lift of a deformable
+body by two rigid hemispherical fingertips).  The subpackages follow the paper and import one way,
+``mesh`` < ``elastic`` < ``contact`` < ``grasp`` < ``io``: meshes, the linear elasticity of §II, the
+frictional contact of §III-A/C, Algorithm 1 of §III, and files.  The core imports with numpy and scipy
+alone; ``fem_grasp.objects``, ``fem_grasp.shapes`` and the other modules below load on first use.
 """
 
-from .contact import friction
-from .contact import obstacles
-from .grasp import pose
-from .elastic.body import Body
-from .contact.obstacles import Fingertip
-from .contact.friction import FrictionError
-from .contact.obstacles import TablePlane
-from .mesh.tetmesh import MeshError, TetMesh, box_mesh
-from .grasp.pose import RestingPose, resting_pose
-from .elastic.response import CollinearContactError, ContactResponse, ContactSolution, solve_contact
-from .grasp.rest import RestCheckError, RestConvergenceError, RestState, rest
+from __future__ import annotations
 
-__all__ = [
-    "Body",
-    "CollinearContactError",
-    "ContactResponse",
-    "ContactSolution",
-    "Fingertip",
-    "FrictionError",
-    "MeshError",
-    "RestCheckError",
-    "RestConvergenceError",
-    "RestState",
-    "RestingPose",
-    "TablePlane",
-    "TetMesh",
-    "box_mesh",
-    "friction",
-    "geometry",
-    "pose",
-    "rest",
-    "resting_pose",
-    "solve_contact",
-]
+import importlib
+from typing import Any
+
+from . import contact, elastic, errors, grasp, io, mesh
+from .contact import ContactEvent, ContactState, Fingertip, TablePlane
+from .elastic import Body, ContactResponse, ContactSolution, solve_contact
+from .errors import (
+    CollinearContactError,
+    ContactNodeError,
+    DirectionError,
+    FrictionError,
+    LockingWarning,
+    MaterialError,
+    MeshError,
+    PlacementError,
+    RestCheckError,
+    RestConvergenceError,
+    SceneError,
+    TrackingError,
+)
+from .grasp import (
+    ClosureResult,
+    PickupResult,
+    RestingPose,
+    RestState,
+    RigidGrasp,
+    Snapshot,
+    force_closure,
+    pickup,
+    rest,
+    resting_pose,
+    rigid_grasp,
+)
+from .mesh import TetMesh, box_mesh
+
 __version__ = "0.1.0"
 
-# Algorithm 1 (issue #5): force closure, squeeze, lift test, lift, pickup, rigid comparison.
-from .grasp.closure import ClosureResult, force_closure  # noqa: E402
-from .grasp.pickup import PickupResult, Snapshot, pickup  # noqa: E402
-from .grasp.rigid import RigidGrasp, rigid_grasp  # noqa: E402
-from .contact.tracking import ContactEvent, ContactState, TrackingError  # noqa: E402
+#: Modules reachable as attributes of the package, imported on first use (``fem_grasp.objects.load(...)``).
+_LAZY = {"objects": "fem_grasp.grasp.objects", "placement": "fem_grasp.grasp.placement",
+         "shapes": "fem_grasp.mesh.shapes", "scan": "fem_grasp.mesh.scan", "scene": "fem_grasp.io.scene",
+         "output": "fem_grasp.io.output", "report": "fem_grasp.io.report"}
 
-__all__ += ["ClosureResult", "ContactEvent", "ContactState", "PickupResult", "RigidGrasp", "Snapshot",
-            "TrackingError", "force_closure", "pickup", "rigid_grasp"]
+__all__ = ["Body", "ClosureResult", "CollinearContactError", "ContactEvent", "ContactNodeError", "ContactResponse",
+           "ContactSolution", "ContactState", "DirectionError", "Fingertip", "FrictionError", "LockingWarning",
+           "MaterialError", "MeshError", "PickupResult", "PlacementError", "RestCheckError", "RestConvergenceError",
+           "RestState", "RestingPose", "RigidGrasp", "SceneError", "Snapshot", "TablePlane", "TetMesh",
+           "TrackingError", "box_mesh", "contact", "elastic", "errors", "force_closure", "grasp", "io", "mesh",
+           "pickup", "rest", "resting_pose", "rigid_grasp", "solve_contact", *_LAZY]
 
-# Input validation (issue #8): the named errors a user can catch.
-from .validation import (ContactNodeError, DirectionError, LockingWarning, MaterialError,  # noqa: E402
-                         PlacementError, SceneError)
 
-__all__ += ["ContactNodeError", "DirectionError", "LockingWarning", "MaterialError", "PlacementError", "SceneError"]
+def __getattr__(name: str) -> Any:
+    if name in _LAZY:
+        module = importlib.import_module(_LAZY[name])
+        globals()[name] = module
+        return module
+    raise AttributeError(f"module 'fem_grasp' has no attribute {name!r}")
 
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

@@ -85,7 +85,7 @@ def _out(args: argparse.Namespace, text: str = "") -> None:
 
 
 def _cache_dir(args: argparse.Namespace) -> Path | None:
-    from .io.scene import default_cache_dir
+    from .io.cache import default_cache_dir
 
     if args.no_cache:
         return None
@@ -98,10 +98,10 @@ def _load_scene(args: argparse.Namespace) -> Any:
     scene = load_scene(resolve_scene(args.scene), quick=args.quick)
     young = getattr(args, "young", None)
     if young is not None:
-        from .io.scene import _positive, parse_quantity
+        from .io.scene import check_quantity, parse_quantity
 
         young = parse_quantity(young, "pressure", "--young")
-        _positive("--young", young, "Pa")
+        check_quantity("--young", young, "Pa")
     return with_overrides(scene, backend=getattr(args, "backend", None), young=young,
                           lift=False if getattr(args, "no_lift", False) else None)
 
@@ -151,9 +151,9 @@ def _summary_lines(scene: Any, result: Any, rest_cached: bool) -> list[str]:
 
 # ------------------------------------------------------------------ commands
 def cmd_run(args: argparse.Namespace) -> int:
-    from .io.output import prepare_out_dir, write_run
     from .grasp.pickup import pickup
-    from .io.scene import cached_rest
+    from .io.cache import cached_rest
+    from .io.output import prepare_out_dir, write_run
 
     scene = _load_scene(args)
     out = Path(args.out) if args.out else None
@@ -199,8 +199,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 
 
 def cmd_rest(args: argparse.Namespace) -> int:
+    from .io.cache import cached_rest
     from .io.output import prepare_out_dir, write_rest
-    from .io.scene import cached_rest
 
     scene = _load_scene(args)
     out = Path(args.out) if args.out else None
@@ -223,7 +223,7 @@ def cmd_rest(args: argparse.Namespace) -> int:
 
 
 def cmd_mesh(args: argparse.Namespace) -> int:
-    from .io.output import atomic_write_mesh
+    from ._files import atomic_write_mesh
     from .mesh.scan import DENSE_SCAN_VERTICES, SURFACE_SUFFIXES, check_surface, mesh_surface, read_surface
 
     src, dst = Path(args.input), Path(args.output)
@@ -420,12 +420,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _dispatch(args: argparse.Namespace) -> int:
-    from .mesh.tetmesh import MeshError
-    from .io.output import OutputError
-    from .contact.friction import FrictionError
-    from .grasp.rest import RestConvergenceError
-    from .mesh.scan import SurfaceError
-    from .io.scene import SceneError
+    from .errors import FrictionError, MeshError, OutputError, RestConvergenceError, SceneError, SurfaceError
 
     try:
         return int(args.func(args))

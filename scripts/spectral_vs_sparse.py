@@ -15,8 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from fem_grasp import solve_contact
-from fem_grasp.grasp import objects
-from fem_grasp.grasp import placement
+from fem_grasp.grasp import objects, placement
 
 
 def demo_contacts(body) -> tuple[np.ndarray, np.ndarray]:

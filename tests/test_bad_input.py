@@ -1,8 +1,8 @@
 """Bad input is refused with a specific exception that names the problem (issue #8).
 
-Complements tests/test_mesh.py (shapes, dtypes, NaN, out-of-range, duplicate
-and zero-volume tets), tests/test_fem.py (E and ν through ``Body``) and
-tests/test_response.py (collinear and malformed contact sets), which are not
+Complements tests/mesh/test_mesh.py (shapes, dtypes, NaN, out-of-range, duplicate
+and zero-volume tets), tests/elastic/test_fem.py (E and ν through ``Body``) and
+tests/elastic/test_response.py (collinear and malformed contact sets), which are not
 repeated here.  Every case is listed in docs/limits.md.
 """
 
@@ -12,11 +12,14 @@ import numpy as np
 import pytest
 
 from fem_grasp import Body, MeshError, TetMesh, box_mesh
-from fem_grasp.grasp.closure import surface_normals_at
-from fem_grasp.grasp.placement import PAPER_SQUEEZE_DIRECTIONS
-from fem_grasp.validation import (ContactNodeError, DirectionError, LockingWarning, MaterialError, PlacementError,
-                                  SceneError, check_contact_nodes, check_directions, check_finger_placement,
-                                  check_friction, check_material)
+from fem_grasp.errors import ContactNodeError, DirectionError, LockingWarning, MaterialError, PlacementError, SceneError
+from fem_grasp.grasp.placement import (
+    PAPER_SQUEEZE_DIRECTIONS,
+    check_contact_nodes,
+    check_directions,
+    check_finger_placement,
+)
+from fem_grasp.validation import check_friction, check_material
 
 UNIT = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
 
@@ -289,7 +292,7 @@ R = 0.01
 
 
 def tangent(mesh, nodes, radius=R):
-    out = surface_normals_at(mesh, mesh.points)
+    out = mesh.outward_normals(mesh.points)
     return mesh.points[nodes] + radius * out[nodes], out
 
 
@@ -332,7 +335,7 @@ def test_fingertip_on_the_wrong_side_does_not_face_the_object():
     # inner side; with the normals it is refused as not facing the object.
     m = box_mesh((0, 0, 0), (0.04, 0.04, 0.002), (2, 2, 1))
     k = int(np.argmin(np.linalg.norm(m.points - [0.02, 0.02, 0.002], axis=1)))  # top centre node
-    out = surface_normals_at(m, m.points)
+    out = m.outward_normals(m.points)
     c = m.points[[k]] - R * out[[k]]  # tangent from the inside (below the top face)
     with pytest.raises(PlacementError, match=rf"fingertip 1 does not face the object.*node {k}"):
         check_finger_placement(m.points, m.surface_nodes, c, R, contact_nodes=[k], normals=out)

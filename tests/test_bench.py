@@ -2,6 +2,7 @@
 
 from bench import profile
 from fem_grasp.contact import tracking
+from tests.helpers import perturbed_box
 
 
 def test_profile_counts_the_return_mappings_and_slip_solves_of_a_pickup(capsys):
@@ -61,10 +62,7 @@ def test_the_floor_counts_the_factor_that_cholmod_computes():
     import pytest
 
     from bench import bench
-    from fem_grasp.elastic import compliance
-    from fem_grasp.elastic import fem
-
-    from _meshes import perturbed_box
+    from fem_grasp.elastic import compliance, fem
 
     if not compliance.cholmod_available():
         pytest.skip("the floor section counts a CHOLMOD factor; scikit-sparse is not installed")

@@ -8,8 +8,8 @@ import pytest
 
 from fem_grasp.cli import main
 from fem_grasp.io.scene import shipped_scenes
+from tests.helpers import cache_dir, cli_run, icosphere, write_stl
 
-from _ux_helpers import cache_dir, cli_run, icosphere, write_stl
 
 @pytest.mark.parametrize("scene", sorted(shipped_scenes()))
 def test_every_shipped_scene_runs_quick_and_the_exit_status_matches_the_result(scene):
@@ -182,9 +182,8 @@ def test_the_same_scene_writes_the_same_files_but_for_wall_times(tmp_path):
 @pytest.mark.parametrize("error", ["friction", "convergence"])
 def test_an_object_that_cannot_rest_exits_1_with_the_reason_not_as_an_internal_error(capsys, monkeypatch, tmp_path,
                                                                                      error):
-    import fem_grasp.io.scene as scene_mod
-    from fem_grasp.contact.friction import FrictionError
-    from fem_grasp.grasp.rest import RestConvergenceError
+    import fem_grasp.io.cache as cache_mod
+    from fem_grasp.errors import FrictionError, RestConvergenceError
 
     exc = (FrictionError("gross sliding on the table: 3 contacts slide without bound") if error == "friction"
            else RestConvergenceError("the resting iteration did not settle in 2 iterations"))
@@ -192,7 +191,7 @@ def test_an_object_that_cannot_rest_exits_1_with_the_reason_not_as_an_internal_e
     def no_rest(*a, **k):
         raise exc
 
-    monkeypatch.setattr(scene_mod, "cached_rest", no_rest)
+    monkeypatch.setattr(cache_mod, "cached_rest", no_rest)
     code = main(["run", "football", "--quick", "--no-cache", "--out", str(tmp_path / "o")])
     err = capsys.readouterr().err
     assert code == 1, err

@@ -7,7 +7,6 @@ reference's verdict, its squeeze depth within one increment, its finger forces w
 tolerance, and pass check() on every snapshot.  ``make verify`` runs the wider sweep on the full scenes.
 """
 
-import numpy as np
 import pytest
 
 from verification import perturbation as pt

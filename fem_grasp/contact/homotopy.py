@@ -23,7 +23,7 @@ from typing import Callable, Optional
 import numpy as np
 import scipy.linalg as la
 
-__all__ = ["HomotopyResult", "HomotopyError", "newton", "track", "solve"]
+__all__ = ["SLIP_INITIAL_STEP", "SLIP_MAX_STEP", "HomotopyResult", "HomotopyError", "newton", "track", "solve"]
 
 log = logging.getLogger(__name__)
 
@@ -39,6 +39,10 @@ _REASONS = {
 _COND_MAX = 1e14        # condition number above which a Jacobian counts as singular
 _CORRECTOR_TOL = 1e-9   # relative Newton-step size at which the path corrector stops
 _CORRECTOR_ITERS = 6
+#: First and largest continuation steps in t for the slip systems of eqs. (6)–(8) (plane slip and mixed slip
+#: alike): larger than :func:`track`'s defaults because their paths from the held state are short and smooth.
+SLIP_INITIAL_STEP = 0.25
+SLIP_MAX_STEP = 1.0
 
 
 @dataclass(frozen=True)

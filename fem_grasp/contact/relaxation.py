@@ -52,10 +52,11 @@ from typing import Callable
 
 import numpy as np
 
+from ..errors import RelaxationFailure
+from ..threads import blas_threads_for
 from .kernels import gauss_seidel as gs
 from .kernels.gauss_seidel import RELEASE, SLIDE, STICK
-from .kernels.jit import as_kernel_data
-from ..threads import blas_threads_for
+from .kernels.jit import as_kernel_data, warm_up_sample
 
 __all__ = ["RelaxationFailure", "Relaxation", "relax_contacts", "STICK", "SLIDE", "RELEASE"]
 
@@ -72,10 +73,6 @@ STUCK_SWEEPS = 50
 STALL_SWEEPS = 1000
 #: Halvings of a polish Newton step (down to 1/8) before the polish gives up and the sweeps continue.
 POLISH_HALVINGS = 4
-
-
-class RelaxationFailure(RuntimeError):
-    """No static stick/slip/release state was found (friction cannot hold the contacts: gross slip)."""
 
 
 @dataclass(frozen=True)
@@ -101,23 +98,6 @@ class Relaxation:
 
 
 _EYE3 = np.eye(3)
-
-
-class _SlideGeometry:
-    """The slide projections of :func:`~fem_grasp.contact.kernels.gauss_seidel.slide_projection` for many sliding contacts
-    (the polish); ``records`` are their rows of :func:`~fem_grasp.contact.kernels.gauss_seidel.contact_records`."""
-
-    def __init__(self, records: np.ndarray, mu: np.ndarray) -> None:
-        self.rows = as_kernel_data(np.asarray(records, float).reshape(-1, gs.RECORD))
-        self.mu = as_kernel_data(mu)
-
-    def projections(self, us: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(p, 2, 3) maps f ↦ slide residual at the motions ``us`` (p, 2), and the slips δ (p, 3)."""
-        p = len(self.mu)
-        out = as_kernel_data(np.empty((p, 9)))
-        gs.slide_projections(self.rows, self.mu, as_kernel_data(us), out)
-        out = np.asarray(out, float).reshape(p, 9)  # plain Python returns [] for p = 0, not (0, 9)
-        return out[:, :6].reshape(p, 2, 3), out[:, 6:]
 
 
 def _backtrack(fun, x: np.ndarray, step: np.ndarray, norm: float, halvings: int) -> tuple[float, tuple] | None:
@@ -158,7 +138,7 @@ def _polish_system(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarra
     k_r = np.array([act[i] for i in i_r], dtype=np.int64)
     xs_idx = offs[i_s][:, None] + np.arange(2)[None, :]  # (p, 2) positions of u_k in x
     xr_idx = offs[i_r][:, None] + np.arange(3)[None, :]  # (q, 3) positions of δ_k in x
-    geo = _SlideGeometry(rec[k_s], mu[k_s])
+    geo = gs.SlideGeometry(rec[k_s], mu[k_s])
     rows = np.concatenate([3 * k + np.arange(3) for k in act])
     q = len(act)
     c_rows = c[np.ix_(rows, rows)].reshape(q, 3, 3 * q)  # C_act, each contact's three rows
@@ -244,11 +224,11 @@ def _polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, stat
             if not (f[k] @ n > 0.0 and 0.0 < float(np.linalg.norm(xk)) <= max_slip):
                 return None
             u2[k] = xk
-        elif float(xk @ rec[k, 6:9]) < 0.0 and not gs.outside_sphere(rec[k], *map(float, xk)):
+        elif float(xk @ rec[k, gs.REC_N0:gs.REC_N0 + 3]) < 0.0 and not gs.outside_sphere(rec[k], *map(float, xk)):
             return None  # Signorini: in the contact's own frame, or clear of its fingertip (see the sweep)
     for k in range(m):
         if status[k] == STICK:
-            n = rec[k, 6:9]
+            n = rec[k, gs.REC_N0:gs.REC_N0 + 3]
             fn = float(f[k] @ n)
             if fn < 0.0 or float(np.linalg.norm(f[k] - fn * n)) > mu[k] * fn + stick_tol:
                 return None
@@ -365,10 +345,26 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
     f = f0 + (c @ d.reshape(-1)).reshape(m, 3)
     if not (np.isfinite(f).all() and np.isfinite(d).all()):
         raise RelaxationFailure("the relaxation produced non-finite forces or displacements")
-    normals = rec[:, 6:9].copy()
+    normals = rec[:, gs.REC_N0:gs.REC_N0 + 3].copy()
     for k in np.flatnonzero(sliding):
         normals[k] = gs.motion(rec[k], float(u[k, 0]), float(u[k, 1]))[3:6]
     slips = np.where(sliding, np.linalg.norm(u, axis=1), 0.0)
     log.debug("relaxation: %d sweeps, %d stick, %d slide, %d release", sweep, int((status == STICK).sum()),
               int((status == SLIDE).sum()), int((status == RELEASE).sum()))
     return Relaxation(d, f, normals, status, slips, sweep)
+
+
+@warm_up_sample
+def _compile_the_return_mapping() -> None:
+    """A return mapping of one table and one fingertip contact: its sweep, and what its Newton polish and its
+    end call per contact (the kernels of :mod:`~fem_grasp.contact.kernels.gauss_seidel`)."""
+    up = np.array([0.0, 0.0, 1.0])
+    centre = np.array([0.0, 0.0, 0.02])
+    positions = np.array([[0.0, 0.0, 0.0], centre - [0.0, 0.0, 0.01]])
+    mu = np.array([0.5, 0.5])
+    relax_contacts(100.0 * np.eye(6), np.array([[0.8, 0.0, 1.0], [0.0, 0.8, 1.0]]), positions, [None, centre], up,
+                   mu, 1.0)
+    records = gs.contact_records(positions, [None, centre], up, np.stack([np.eye(3), np.eye(3)]))
+    gs.SlideGeometry(records, mu).projections(np.zeros((2, 2)))
+    gs.outside_sphere(records[1], 0.0, 0.0, 0.0)
+    gs.motion(records[1], 0.0, 0.0)

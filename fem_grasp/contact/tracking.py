@@ -51,7 +51,7 @@ every contact held, then the static stick / slide / release state of all of
 them at once (:func:`fem_grasp.contact.relaxation.relax_contacts`), with new
 contacts added as they appear.  This is used (i) when a settle after events
 finds no slip solution or a node toggles more than three times, (ii) when an
-increment's slip system still fails after ``MAX_HALVINGS`` halvings (the
+increment's slip system still fails after ``INCREMENT_HALVINGS`` halvings (the
 increment is then taken implicitly, and the next one tries Newton alone), and (iii) when a node chatters between stick and slip
 without progress in the parameter (one implicit increment of ``step``).
 Events inside an implicit increment are recorded at its end.
@@ -109,31 +109,26 @@ parameters are located to ``1e-10 L`` in t (well inside the 1e-9 L geometric che
 from __future__ import annotations
 
 import logging
-import warnings
 from dataclasses import dataclass, field, replace
+from enum import Enum
 from functools import cached_property
 from typing import Callable, Sequence
 
 import numpy as np
-import scipy.linalg as la
 
-from . import homotopy
-from .kernels import slip_newton
 from ..elastic.body import Body
 from ..elastic.compliance import PREFETCH_NODES
-from .relaxation import RELEASE, SLIDE, RelaxationFailure, relax_contacts
-from .obstacles import TablePlane, tangent_bases
-from ..elastic.response import CollinearContactError, ContactResponse, check_contact_set
+from ..elastic.response import ContactResponse, check_contact_set
+from ..errors import CollinearContactError, RelaxationFailure, TrackingError
 from ..threads import one_blas_thread
+from .obstacles import FINGER1, FINGER2, OBSTACLES, TABLE, Fingertip, TablePlane
+from .relaxation import RELEASE, SLIDE, relax_contacts
+from .slip_system import MixedSlipSystem, SlipFailure
 
-__all__ = ["FINGER1", "FINGER2", "TABLE", "OBSTACLES", "ContactState", "ContactEvent", "MixedSlipSystem",
-           "SlipFailure", "Tracker", "TrackingError"]
+__all__ = ["FINGER1", "FINGER2", "OBSTACLES", "TABLE", "ContactEvent", "ContactState", "MixedSlipSystem", "Parameter",
+           "SlipFailure", "Tracker", "TrackingError", "run"]
 
 log = logging.getLogger(__name__)
-
-FINGER1, FINGER2, TABLE = 0, 1, 2
-#: Names of the contact bodies, indexed by the ``owner`` codes above.
-OBSTACLES = ("finger1", "finger2", "table")
 
 #: Event thresholds (see module notes).
 TOL_PENETRATION = 1e-10  # × diameter
@@ -144,7 +139,7 @@ TOL_RATE = 1e-9  # slip per unit parameter
 #: Event localisation tolerance in t, × diameter.
 TOL_LOCATE = 1e-10
 #: Failed halvings of an increment before it is taken as one implicit step (:meth:`Tracker.implicit_step`).
-MAX_HALVINGS = 2
+INCREMENT_HALVINGS = 2
 #: A contact sliding further than this × diameter in one implicit step is gross slip.
 MAX_SLIP = 0.1
 #: With more contacts than this, increments are taken implicitly (module notes, "Large contact sets").
@@ -153,14 +148,42 @@ IMPLICIT_CONTACTS = 40
 #: (each holds dense (3m+6)² matrices: 16 responses of 600 contacts took 1.3 GB at 100k vertices).
 RESPONSE_CACHE = 16
 RESPONSE_CACHE_BYTES = 256 * 2**20
+#: Gravity's own fields (contacts held at zero) kept per tracker for states below full load (the lift test's
+#: hanging weights revisit a few contact sets).
+ZERO_FIELD_CACHE = 16
+#: A sliding contact whose normal force falls below this fraction of the force floor sticks (event D): the
+#: factor ten below the floor of event C is a hysteresis against C/D chatter of lightly loaded nodes.
+STICK_HYSTERESIS = 0.1
+#: A node toggling between stick and slip more often than this within one settle has no rate solution there
+#: (a friction limit): the settle is finished by an implicit step.
+MAX_SETTLE_TOGGLES = 3
+#: A node switching between stick and slip more than this many times within ``CHATTER_WINDOW`` × diameter of
+#: the parameter is chattering: the run crosses the spot with one implicit increment.
+CHATTER_TOGGLES = 8
+CHATTER_WINDOW = 1e-6
+#: Beyond a turning point of the slip system, a candidate sticking node is accepted when the parameter can
+#: advance by max(``TURNING_PROBE`` × diameter, ``TURNING_PROBE_REL`` × |t|) from the new state.
+TURNING_PROBE = 1e-6
+TURNING_PROBE_REL = 1e-3
+#: Smallest increment of the parameter, × diameter, before the halvings of a failing slip solve give up.
+MIN_STEP = 1e-9
+#: A held force's tangential part shorter than this fraction of the force has no direction (no slip axis).
+DIRECTION_FLOOR = 1e-12
 
 
-class TrackingError(RuntimeError):
-    """The quasi-static tracking cannot go on (no slip solution, lost support, pinched node, …)."""
+class Parameter(str, Enum):
+    """What the tracked parameter t is: the attribute of :class:`ContactState` it moves.
 
+    The squeeze (§III-C) moves the fingers with ρ, the lift with the lift height, and the resting
+    iteration and the lift test's hanging settles raise the gravity load factor λ.
+    """
 
-class SlipFailure(RuntimeError):
-    """A slip system has no admissible root near the held state."""
+    SQUEEZE_DEPTH = "squeeze_depth"
+    LIFT_HEIGHT = "lift_height"
+    LOAD = "load"
+
+    __str__ = str.__str__  # messages and getattr read the attribute name
+    __format__ = str.__format__
 
 
 # ======================================================================= state
@@ -183,7 +206,7 @@ class ContactState:
     normals : (m, 3) inward unit normals n̂ at the contacts
     surface_positions : (s, 3) deformed positions p̃ of the surface nodes (``mesh.surface_nodes``)
     slip : (m,) slip accumulated by each contact since it was established, metres
-    position_source : computes the (n, 3) deformed positions of every node (:attr:`positions`)
+    position_source : computes the (n, 3) deformed positions of every node (:attr:`ContactState.positions`)
     """
 
     phase: str
@@ -251,328 +274,6 @@ class ContactEvent:
                 "squeeze_depth": float(self.squeeze_depth), "lift_height": float(self.lift_height)}
 
 
-# ================================================================ slip system
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise cross product of two (k, 3) arrays (np.cross without its overhead)."""
-    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
-                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
-
-
-class MixedSlipSystem:
-    """The coupled slip system of eqs. (6)–(8) for one increment.
-
-    Each sliding node k moves by δ_k, affine in its own unknowns, and the
-    contact forces are affine in all of them, ``F(x) = F_held + C δ(x)``
-    (eq. 5).  Two forms are built:
-
-    * **great circle** (``free=False``, the paper's): a table node moves by
-      δ_k = −d_k t̂_k (unknown d_k); a fingertip node moves on the great
-      circle through it whose plane holds its normal and its tangential
-      force, q_k = O + c_k r_k + s_k (N̂_k × r_k) (unknowns c_k, s_k).
-      Equations: (6) or (7) at every sliding node, (8) c_k² + s_k² = 1.
-    * **free direction** (``free=True``, Coulomb's law with maximum
-      dissipation): a table node moves by δ_k = a_k ê₁ + b_k ê₂; a fingertip
-      node to q_k = O + c_k r_k + u_k (ê₁ × r_k) + v_k (ê₂ × r_k) — the great
-      circle with an unknown axis N̂_k ∝ (u_k ê₁ + v_k ê₂) — with
-      c_k² + u_k² + v_k² = 1 (eq. 8).  The extra equation per node,
-      n̂_k · (f_k × δ_k) = 0, makes the friction parallel to the slip.  Used
-      when the great-circle system has no root near the held state: a node
-      that must slide far (e.g. one that starts to slide just after it
-      touched) can acquire a friction component across a frozen direction
-      that no slip along it removes.
-
-    The fingertip unknown c_k is carried as c_k = 1 + γ_k (held state γ = 0):
-    the slip δ_k = γ_k r_k + … then has no −r_k offset, whose force C r_k
-    (~E·R) would otherwise bury a lightly loaded contact's force in round-off.
-
-    The cone of a fingertip node uses the normal at its new position,
-    n̂_k = (q_k − O)/R; the table normal is ẑ.  r_k = p̃_k − O is the node's
-    position relative to the fingertip centre before the increment.
-
-    Parameters
-    ----------
-    stiffness : (3m, 3m) reduced stiffness C
-    held_forces : (m, 3) forces of the held prediction
-    force_rate : (m, 3) dF_held/dt (for the slip rates of event D)
-    sliding : (p,) positions of the sliding nodes in the contact set
-    kinds : (p,) TABLE or a finger code per sliding node
-    mu : (p,) friction coefficients
-    directions : (p, 3) unit tangential force directions t̂_k of the held prediction
-    radii_vectors : (p, 3) finger: r_k (|r_k| = R); ignored for table nodes
-    up : (3,) the table's normal
-    radius : fingertip radius R
-    free : bool, the free-direction form
-    """
-
-    def __init__(self, stiffness: np.ndarray, held_forces: np.ndarray, force_rate: np.ndarray,
-                 sliding: np.ndarray, kinds: np.ndarray, mu: np.ndarray, directions: np.ndarray,
-                 radii_vectors: np.ndarray, up: np.ndarray, radius: float, free: bool = False) -> None:
-        self.c = stiffness
-        self.fh = held_forces
-        self.df = force_rate
-        self.sliding = np.asarray(sliding, dtype=np.int64)
-        self.kinds = np.asarray(kinds, dtype=np.int64)
-        self.mu = np.asarray(mu, dtype=float)
-        self.t_held = np.asarray(directions, dtype=float)
-        self.radius = float(radius)
-        self.free = bool(free)
-        m = len(held_forces)
-        p = len(self.sliding)
-        self.finger = self.kinds != TABLE
-        self.n0 = np.broadcast_to(np.asarray(up, float), (p, 3)).copy()
-        self.kappa = np.where(self.finger, 1.0 / self.radius, 0.0)
-        # Per-node layouts, built for all nodes at once: node j's unknowns are x[loc_idx[j, :k_j]] and
-        # its slip is δ_j = loc_e[j] @ x[loc_idx[j]] (index n points at a padding zero).
-        fi = np.flatnonzero(self.finger)
-        ta = np.flatnonzero(~self.finger)
-        r = np.asarray(radii_vectors, dtype=float).reshape(-1, 3)[fi] if len(fi) else np.zeros((0, 3))
-        t = self.t_held
-        self.loc_e = np.zeros((p, 3, 3))
-        if len(fi):
-            nrm = r / self.radius
-            self.n0[fi] = nrm
-            self.loc_e[fi, :, 0] = r
-            if free:
-                e12 = tangent_bases(nrm)
-                self.loc_e[fi, :, 1] = _cross(e12[:, 0], r)
-                self.loc_e[fi, :, 2] = _cross(e12[:, 1], r)
-            else:
-                axis = _cross(nrm, t[fi])
-                axis /= np.linalg.norm(axis, axis=1, keepdims=True)
-                self.loc_e[fi, :, 1] = _cross(axis, r)
-        if len(ta):
-            if free:
-                e12 = tangent_bases(self.n0[ta])
-                self.loc_e[ta, :, 0] = e12[:, 0]
-                self.loc_e[ta, :, 1] = e12[:, 1]
-            else:
-                self.loc_e[ta, :, 0] = -t[ta]
-        # Unknowns (γ_k, s_k) with c_k = 1 + γ_k: δ_k = γ_k r_k + s_k N̂_k × r_k carries no −r_k offset, whose
-        # product with C (~E·R) would swamp a small contact force in round-off.  Every unknown starts at 0.
-        sizes = np.where(self.finger, 3 if free else 2, 2 if free else 1)
-        first = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-        n = int(sizes.sum())
-        self.n = n
-        self.x0 = np.zeros(n)
-        slot = np.arange(3)
-        valid = slot[None, :] < sizes[:, None]
-        self.loc_idx = np.where(valid, first[:, None] + slot[None, :], n)
-        # ∂δ_j/∂x: column loc_idx[j, c] of node j's block is loc_e[j, :, c] (padding column n, dropped).
-        d_map = np.zeros((p, n + 1, 3))
-        d_map[np.arange(p)[:, None], self.loc_idx] = self.loc_e.transpose(0, 2, 1)
-        self.d_map = np.ascontiguousarray(d_map[:, :n].transpose(0, 2, 1))
-        e = np.zeros((3 * m, n))
-        e.reshape(m, 3, n)[self.sliding] = self.d_map
-        self.e = e
-        self.g = stiffness @ e  # dF/dx
-        self.g_sl = self.g.reshape(m, 3, n)[self.sliding]  # (p, 3, N)
-        self.base = held_forces.reshape(-1)  # δ(0) = 0: the held state
-        # Scales: distance unknowns by the slip that changes the force by its own size; the
-        # dimensionless fingertip unknowns by one.
-        fscale = float(np.abs(held_forces).max()) if held_forces.size else 1.0
-        self.own = np.maximum(np.linalg.norm(held_forces[self.sliding], axis=1), 1e-12 * max(fscale, 1e-300))
-        self.xscale = np.ones(n)
-        gnorm = np.linalg.norm(self.g, axis=0)
-        if len(ta):
-            idx = self.loc_idx[ta]
-            ok = idx < n
-            own_t = np.broadcast_to(self.own[ta, None], idx.shape)[ok]
-            g_t = gnorm[idx[ok]]
-            self.xscale[idx[ok]] = np.where(g_t > 0, own_t / np.where(g_t > 0, g_t, 1.0), 1.0)
-        self.sphere_rows = fi
-        self.align_rows = np.arange(p) if free else np.zeros(0, dtype=np.int64)
-        n_sph, n_al = len(self.sphere_rows), len(self.align_rows)
-        if p + n_sph + n_al != n:
-            raise ValueError("the slip system is not square")
-        if free:
-            xs = np.append(self.xscale, 0.0)[self.loc_idx]  # padding slots read 0
-            mean_scale = xs.sum(axis=1) / sizes
-            typical = self.own * np.where(self.finger, self.radius, mean_scale)
-        else:
-            typical = np.zeros(0)
-        self.row_scale = np.concatenate([1.0 / self.own**2, np.ones(n_sph), 1.0 / np.maximum(typical, 1e-300)])
-        # Round-off in a force is ~ε·max|F|: a lightly loaded node's normalised rows are only
-        # resolved to that relative to its own force.
-        eps = np.finfo(float).eps
-        self.row_noise = np.concatenate([10.0 * eps * fscale / self.own, np.zeros(n_sph),
-                                         10.0 * eps * fscale / self.own[self.align_rows]])
-        self.sph_idx = self.loc_idx[fi, :3 if free else 2] if n_sph else np.zeros((0, 2), dtype=np.int64)
-        self.g_sl2 = self.g_sl.reshape(3 * p, n)
-        self.base_sl = self.base.reshape(-1, 3)[self.sliding].reshape(-1)
-        self._xpad = np.zeros(n + 1)
-        # The arguments of the slip_newton kernels after x.
-        self._kernel_args = (np.ascontiguousarray(self.base_sl), np.ascontiguousarray(self.g_sl2),
-                             self.d_map.reshape(3 * p, n), np.ascontiguousarray(self.n0),
-                             np.ascontiguousarray(self.kappa), np.ascontiguousarray(self.mu),
-                             np.ascontiguousarray(self.sph_idx, dtype=np.int64), self.free)
-
-    # --------------------------------------------------------------- maps
-    def forces(self, x: np.ndarray) -> np.ndarray:
-        return (self.base + self.g @ x).reshape(-1, 3)
-
-    def displacements(self, x: np.ndarray) -> np.ndarray:
-        """(m, 3) change of the contact displacements from the held prediction."""
-        return (self.e @ x).reshape(-1, 3)
-
-    def slips(self, x: np.ndarray) -> np.ndarray:
-        """(p, 3) δ_k of the sliding nodes."""
-        xp = self._xpad
-        xp[:-1] = x
-        xe = xp[self.loc_idx]  # (p, 3)
-        return (self.loc_e * xe[:, None, :]).sum(axis=2)
-
-    def _sliding_forces(self, x: np.ndarray) -> np.ndarray:
-        return (self.base_sl + self.g_sl2 @ x).reshape(-1, 3)
-
-    def normals(self, x: np.ndarray) -> np.ndarray:
-        """(p, 3) normals at the sliding nodes (fingertip: at q_k)."""
-        return self.n0 + self.kappa[:, None] * self.slips(x)  # fingertip: (r + δ)/R
-
-    @np.errstate(over="ignore", invalid="ignore")
-    def residual(self, x: np.ndarray) -> np.ndarray:
-        """The system's equations at x: cone (6)/(7) per sliding node, (8) per fingertip node, alignment."""
-        return self._residual(x)
-
-    @np.errstate(over="ignore", invalid="ignore")
-    def jacobian(self, x: np.ndarray) -> np.ndarray:
-        """∂residual/∂x."""
-        return self._jacobian(x)
-
-    # The raw versions run inside an errstate of the caller (solve, once, not once per evaluation).
-    def _residual(self, x: np.ndarray) -> np.ndarray:
-        return slip_newton.residual(np.ascontiguousarray(x, dtype=float), *self._kernel_args)
-
-    def _jacobian(self, x: np.ndarray) -> np.ndarray:
-        return slip_newton.jacobian(np.ascontiguousarray(x, dtype=float), *self._kernel_args)
-
-    def residual_rate(self, x: np.ndarray) -> np.ndarray:
-        """∂residual/∂t at fixed x (held forces move at ``force_rate``)."""
-        f = self._sliding_forces(x)
-        n = self.normals(x)
-        df = self.df[self.sliding]
-        fn = np.einsum("ki,ki->k", f, n)
-        cone = 2.0 * (1.0 + self.mu**2) * fn * np.einsum("ki,ki->k", n, df) - 2.0 * np.einsum("ki,ki->k", f, df)
-        out = [cone, np.zeros(len(self.sphere_rows))]
-        if len(self.align_rows):
-            d = self.slips(x)
-            out.append(np.einsum("ki,ki->k", df, _cross(d, n)))
-        return np.concatenate(out)
-
-    def _friction_directions(self, x: np.ndarray) -> np.ndarray:
-        f = self.forces(x)[self.sliding]
-        n = self.normals(x)
-        ft = f - np.einsum("ki,ki->k", f, n)[:, None] * n
-        norm = np.linalg.norm(ft, axis=1, keepdims=True)
-        return np.where(norm > 0, ft / np.where(norm > 0, norm, 1.0), self.t_held)
-
-    def amounts(self, x: np.ndarray) -> np.ndarray:
-        """(p,) slip of each sliding node against its friction in this increment, −t̂_k·δ_k, metres."""
-        return -np.einsum("ki,ki->k", self._friction_directions(x), self.slips(x))
-
-    def rates(self, x: np.ndarray) -> np.ndarray:
-        """(p,) d(slip)/dt = −t̂_k·dδ_k/dt by the implicit-function theorem; NaN if the Jacobian is singular."""
-        if not len(self.sliding):
-            return np.zeros(0)
-        jac = self.jacobian(x) * self.row_scale[:, None]
-        rhs = -self.residual_rate(x) * self.row_scale
-        try:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore", la.LinAlgWarning)
-                lu = la.lu_factor(jac, check_finite=True)
-            if np.abs(np.diag(lu[0])).min() <= 1e-14 * np.abs(np.diag(lu[0])).max():
-                raise la.LinAlgError("singular")
-            dx = la.lu_solve(lu, rhs)
-        except (la.LinAlgError, ValueError):
-            return np.full(len(self.sliding), np.nan)
-        return -np.einsum("ki,ki->k", self._friction_directions(x), np.einsum("kij,j->ki", self.d_map, dx))
-
-    def admissible(self, x: np.ndarray) -> bool:
-        """No compressive sliding contact has its friction reversed (the far root through the cone's axis).
-
-        A sliding contact whose normal force has become tensile is left to the
-        event test B (its root continues through the cone's apex).
-        """
-        f = self.forces(x)[self.sliding]
-        n = self.normals(x)
-        fn = np.einsum("ki,ki->k", f, n)
-        ft = f - fn[:, None] * n
-        along = np.einsum("ki,ki->k", ft, self.t_held)
-        return bool(np.all((fn <= 0) | (along >= -1e-6 * np.linalg.norm(ft, axis=1))))
-
-    @np.errstate(over="ignore", invalid="ignore")
-    def _newton(self, y: np.ndarray, tol: float, max_iter: int = 40) -> np.ndarray | None:
-        """Damped Newton's method on the scaled system (:func:`fem_grasp.contact.kernels.slip_newton.newton`); None if it fails.
-
-        Converged when every row |P_j| ≤ max(tol, noise_j) (rows of lightly
-        loaded nodes are only resolved to round-off), or when the step
-        stalls within 10 times that.
-        """
-        ok, y = slip_newton.newton(np.array(y, dtype=float), np.maximum(tol, self.row_noise), max_iter, self.xscale,
-                                   self.row_scale, *self._kernel_args)
-        return y if ok else None
-
-    @np.errstate(over="ignore", invalid="ignore")
-    def solve(self, tol: float = 1e-12, methods: Sequence[str] = ("newton", "homotopy"),
-              start: np.ndarray | None = None) -> np.ndarray:
-        """The root continuously connected to the held state; raises :class:`SlipFailure`.
-
-        ``"newton"``: damped Newton's method from the held state, then, if
-        that fails and ``start`` is given, from ``start`` (the root of the
-        same sliding set at a nearby parameter: continuation along the path);
-        ``"homotopy"``: the Newton-homotopy continuation
-        ``H(y, t) = P(y) − (1−t)² P(y₀)`` of paper footnote 2
-        (:func:`fem_grasp.contact.homotopy.track`), whose path shrinks every cone
-        residual from its held value to zero.
-        """
-        if self.n == 0:
-            return np.zeros(0)
-        scale = self.xscale
-        rs = self.row_scale
-
-        def fun(y: np.ndarray) -> np.ndarray:
-            return rs * self._residual(y * scale)
-
-        def jac(y: np.ndarray) -> np.ndarray:
-            return rs[:, None] * self._jacobian(y * scale) * scale[None, :]
-
-        y0 = self.x0 / scale
-        attempts: list[str] = []
-        y = None
-        if "newton" in methods:
-            y = self._newton(y0, tol)
-            if y is not None:
-                x = y * scale
-                if self.admissible(x):
-                    return x
-                attempts.append("Newton reached a non-physical root")
-            else:
-                attempts.append("Newton did not converge")
-            if start is not None and len(start) == self.n and np.isfinite(start).all():
-                y = self._newton(start / scale, tol)
-                if y is not None and self.admissible(y * scale):
-                    return y * scale
-                attempts.append("Newton from the nearby root did not converge")
-        if "homotopy" in methods:
-            p0 = fun(y0)
-            try:
-                res = homotopy.track(fun, jac, y0, start=lambda y: fun(y) - p0, start_jac=jac, tol=1e-8,
-                                     initial_step=0.25, max_step=1.0, max_steps=200, min_step=1e-6)
-                y = self._newton(np.asarray(res.x, dtype=float), tol)
-                if y is not None and self.admissible(y * scale):
-                    return y * scale
-                attempts.append("homotopy reached a non-physical root")
-            except homotopy.HomotopyError as exc:
-                attempts.append(f"homotopy: {exc}")
-        r = np.abs(fun(y0 if y is None else y))
-        worst = int(np.argmax(r))
-        j = worst if worst < len(self.sliding) else (
-            int(self.sphere_rows[worst - len(self.sliding)]) if worst < len(self.sliding) + len(self.sphere_rows)
-            else int(self.align_rows[worst - len(self.sliding) - len(self.sphere_rows)]))
-        raise SlipFailure(f"no admissible slip for {len(self.sliding)} sliding node(s) "
-                          f"({'free' if self.free else 'great-circle'} form; worst row {worst} at contact "
-                          f"{int(self.sliding[j])}, held force {self.own[j]:.3g} N): " + "; ".join(attempts))
-
-
 # ==================================================================== tracker
 @dataclass
 class _Trial:
@@ -638,7 +339,7 @@ class Tracker:
         resp = self._responses.get(key)
         if resp is None:
             try:
-                resp = self.body.contact_response(np.asarray(key, dtype=np.int64), backend=self.backend)
+                resp = ContactResponse(self.body, np.asarray(key, dtype=np.int64), backend=self.backend)
             except CollinearContactError as exc:
                 raise TrackingError(f"the object is no longer held: {exc}") from None
             self._responses[key] = resp
@@ -680,7 +381,7 @@ class Tracker:
         zero = zero_fields.get(key)
         if zero is None:
             zero = solve(resp, np.zeros_like(disp))
-            if len(zero_fields) >= 16:
+            if len(zero_fields) >= ZERO_FIELD_CACHE:
                 zero_fields.pop(next(iter(zero_fields)))
             zero_fields[key] = zero
         return full - (1.0 - load) * zero
@@ -690,14 +391,21 @@ class Tracker:
         nodes, disp = np.array(nodes, dtype=np.int64), np.array(disp, float)
         return lambda: self.points + self.field(nodes, disp, load)
 
+    def fingertips(self, centers: np.ndarray) -> tuple[Fingertip, Fingertip]:
+        """ℱ₁ and ℱ₂ at ``centers`` (2, 3)."""
+        return Fingertip(centers[FINGER1], self.radius), Fingertip(centers[FINGER2], self.radius)
+
+    def obstacles(self, centers: np.ndarray) -> tuple[Fingertip, Fingertip, TablePlane | None]:
+        """Every obstacle, indexed by the owner codes (the table is None without one)."""
+        return (*self.fingertips(centers), self.table)
+
     def normals(self, owner: np.ndarray, positions: np.ndarray, centers: np.ndarray) -> np.ndarray:
         """(m, 3) inward normals of contacts at ``positions`` (m, 3)."""
         out = np.broadcast_to(self.up, positions.shape).copy()
-        for f in (FINGER1, FINGER2):
+        for f, tip in enumerate(self.fingertips(centers)):
             sel = owner == f
             if sel.any():
-                d = positions[sel] - centers[f]
-                out[sel] = d / np.linalg.norm(d, axis=1, keepdims=True)
+                out[sel] = tip.inward_normals(positions[sel])
         return out
 
     # --------------------------------------------------------------- states
@@ -719,7 +427,7 @@ class Tracker:
                             self._position_source(nodes, disp, load))
 
     def trial(self, base: ContactState, dt: float, velocities: np.ndarray, load_rate: float = 0.0,
-              param: str = "squeeze_depth", methods: Sequence[str] = ("newton", "homotopy")) -> _Trial:
+              param: Parameter = Parameter.SQUEEZE_DEPTH, methods: Sequence[str] = ("newton", "homotopy")) -> _Trial:
         """The state after an increment dt of the parameter with the configuration of ``base`` held fixed.
 
         Raises :class:`SlipFailure` when the slip system has no admissible root.
@@ -734,7 +442,7 @@ class Tracker:
             vel[base.owner == f] = velocities[f]
         disp_h = base.disp + dt * vel
         centers = base.centers + dt * np.asarray(velocities, float)
-        if param == "load":  # the gravity load factor itself is the parameter
+        if param == Parameter.LOAD:  # the gravity load factor itself is the parameter
             load_rate = 1.0
         load = base.load + dt * load_rate
         fh = (c @ disp_h.reshape(-1)).reshape(-1, 3) + load * f0
@@ -748,7 +456,7 @@ class Tracker:
         for src in (base.forces[sl], fh[sl]):
             ft = src - np.einsum("ki,ki->k", src, n_b)[:, None] * n_b
             ftn = np.linalg.norm(ft, axis=1)
-            ok = ftn > 1e-12 * max(float(np.abs(src).max(initial=0.0)), 1e-300)
+            ok = ftn > DIRECTION_FLOOR * max(float(np.abs(src).max(initial=0.0)), 1e-300)
             t_hat[ok] = ft[ok] / ftn[ok, None]
         if np.any(np.linalg.norm(t_hat, axis=1) == 0):
             raise SlipFailure("a sliding contact has no tangential force, so no slip direction")
@@ -806,7 +514,7 @@ class Tracker:
         rates = np.zeros(m)
         amounts[sl] = system.amounts(x)
         rates[sl] = rates_s
-        kw = {} if param == "load" else {param: getattr(base, param) + dt}
+        kw = {} if param == Parameter.LOAD else {param: getattr(base, param) + dt}
         state = replace(base, load=load, centers=centers, disp=disp, forces=forces, normals=normals,
                         surface_positions=surface, position_source=self._position_source(base.nodes, disp, load),
                         slip=base.slip + np.abs(amounts), **kw)
@@ -822,12 +530,10 @@ class Tracker:
     def obstacle_gaps(self, surface_positions: np.ndarray, centers: np.ndarray) -> np.ndarray:
         """(s, 3) signed distance of each surface node (at ``surface_positions``) from ℱ₁, ℱ₂ and 𝒫 (inf for
         no table)."""
-        p = surface_positions
-        gaps = np.full((len(p), 3), np.inf)
-        for f in (FINGER1, FINGER2):
-            gaps[:, f] = np.linalg.norm(p - centers[f], axis=1) - self.radius
-        if self.table is not None:
-            gaps[:, TABLE] = self.table.signed_distance(p)
+        gaps = np.full((len(surface_positions), 3), np.inf)
+        for code, obstacle in enumerate(self.obstacles(centers)):
+            if obstacle is not None:
+                gaps[:, code] = obstacle.signed_distance(surface_positions)
         return gaps
 
     def force_scale(self, state: ContactState) -> float:
@@ -853,7 +559,7 @@ class Tracker:
         c_val = np.where(st.sliding, -np.inf, (ft - mu * fn - TOL_CONE * np.maximum(fn, 0.0)) / fscale
                          - TOL_FORCE_FLOOR)
         slip_test = -trial.rates - TOL_RATE
-        d_val = np.where(st.sliding, np.maximum(slip_test, 0.1 * TOL_FORCE_FLOOR - fn / fscale), -np.inf)
+        d_val = np.where(st.sliding, np.maximum(slip_test, STICK_HYSTERESIS * TOL_FORCE_FLOOR - fn / fscale), -np.inf)
         ids = np.arange(st.n_contacts)
         return {"A": (a_val, a_ids), "B": (b_val, ids), "C": (c_val, ids), "D": (d_val, ids)}
 
@@ -895,7 +601,7 @@ class Tracker:
 
     # ------------------------------------------------------------- stepping
     def advance(self, base: ContactState, dt: float, velocities: np.ndarray, *, load_rate: float = 0.0,
-                param: str = "squeeze_depth", phase: str | None = None,
+                param: Parameter = Parameter.SQUEEZE_DEPTH, phase: str | None = None,
                 min_step: float | None = None) -> tuple[ContactState, list[ContactEvent]]:
         """Advance by ``dt`` or up to the first event (applied, with its cascade).
 
@@ -906,7 +612,7 @@ class Tracker:
         phase = phase or base.phase
         if len(base.nodes) > self.implicit_contacts:
             return self.implicit_step(base, dt, velocities, load_rate=load_rate, param=param, phase=phase)
-        min_step = 1e-9 * self.diameter if min_step is None else min_step
+        min_step = MIN_STEP * self.diameter if min_step is None else min_step
         fscale = self.force_scale(base)
         h = dt
         halvings = 0
@@ -920,7 +626,7 @@ class Tracker:
             except SlipFailure as exc:
                 h *= 0.5
                 halvings += 1
-                if (self.implicit or halvings > MAX_HALVINGS) and h >= min_step:
+                if (self.implicit or halvings > INCREMENT_HALVINGS) and h >= min_step:
                     # The rate problem has no solution near here (a friction limit): one implicit step.
                     log.debug("%s = %.6g: slip system fails (%s); implicit step of %.3g", param,
                               getattr(base, param), exc, 2.0 * h if self.implicit else h)
@@ -1014,7 +720,7 @@ class Tracker:
         state, more = self.settle(state, velocities, phase=phase, load_rate=load_rate, param=param)
         return state, events + more
 
-    def _zero_trial(self, base: ContactState, velocities: np.ndarray, load_rate: float, param: str) -> _Trial:
+    def _zero_trial(self, base: ContactState, velocities: np.ndarray, load_rate: float, param: Parameter) -> _Trial:
         """The zero increment from ``base``: the trial that produced it, if an advance or settle just returned
         it, else :meth:`trial` at dt = 0.  A re-solve would reach the same state and differ only in its slip
         rates, anchored on the new increment's held forces (an O(step) difference)."""
@@ -1024,7 +730,7 @@ class Tracker:
         return self.trial(base, 0.0, velocities, load_rate, param)
 
     def _turning_point(self, trial: _Trial | None, exc: Exception, velocities: np.ndarray, phase: str,
-                       load_rate: float, param: str) -> tuple[ContactState, list[ContactEvent]]:
+                       load_rate: float, param: Parameter) -> tuple[ContactState, list[ContactEvent]]:
         """Handle a turning point of the slip system: its root disappears as the parameter grows.
 
         The sliding set cannot be kept beyond it.  Events that fire at the
@@ -1042,7 +748,7 @@ class Tracker:
             return state, events + more
         st = trial.state
         rates = np.where(st.sliding, trial.rates, np.inf)
-        probe = max(1e-6 * self.diameter, 1e-3 * abs(getattr(st, param)))
+        probe = max(TURNING_PROBE * self.diameter, TURNING_PROBE_REL * abs(getattr(st, param)))
         for j in np.argsort(rates)[: int(st.sliding.sum())]:
             vals = {k: (np.full_like(v, -np.inf), i) for k, (v, i) in trial.values.items()}
             vals["D"][0][j] = 1.0
@@ -1059,7 +765,7 @@ class Tracker:
                             f"runs away whichever sliding node sticks (gross slip); {exc}")
 
     def settle(self, state: ContactState, velocities: np.ndarray, *, phase: str, load_rate: float = 0.0,
-               param: str = "squeeze_depth", max_cascade: int = 200) -> tuple[ContactState, list[ContactEvent]]:
+               param: Parameter = Parameter.SQUEEZE_DEPTH, max_cascade: int = 200) -> tuple[ContactState, list[ContactEvent]]:
         """Re-solve at the same parameter after a configuration change; apply cascading events."""
         events: list[ContactEvent] = []
         toggles: dict[int, int] = {}
@@ -1082,7 +788,7 @@ class Tracker:
             for e in ev:
                 if e.kind in "CD":
                     toggles[e.node] = toggles.get(e.node, 0) + 1
-                    if toggles[e.node] > 3:
+                    if toggles[e.node] > MAX_SETTLE_TOGGLES:
                         # Friction limit of the rate problem: sticking, the node leaves its cone; sliding,
                         # its slip rate is negative.  The static state is reached by a finite slip.
                         state, ev2 = self.implicit_step(
@@ -1094,15 +800,9 @@ class Tracker:
         raise TrackingError(f"contact events keep cascading at {param} = {getattr(state, param):.6g} "
                             f"({max_cascade} rounds): the configuration chatters")
 
-    def _project(self, p: np.ndarray, o: int, centers: np.ndarray) -> np.ndarray:
-        """The point of obstacle ``o`` nearest to ``p`` (where a new contact is placed, event A)."""
-        if o == TABLE:
-            return self.table.project(p[None, :])[0]
-        d = p - centers[o]
-        return centers[o] + self.radius * d / np.linalg.norm(d)
 
     def implicit_step(self, base: ContactState, dt: float, velocities: np.ndarray, *, load_rate: float = 0.0,
-                      param: str = "squeeze_depth", phase: str | None = None, why: str = "",
+                      param: Parameter = Parameter.SQUEEZE_DEPTH, phase: str | None = None, why: str = "",
                       max_rounds: int = 50) -> tuple[ContactState, list[ContactEvent]]:
         """Advance by ``dt`` (0: stay) in one implicit increment, as a return mapping.
 
@@ -1116,7 +816,7 @@ class Tracker:
         """
         phase = phase or base.phase
         self.implicit = True
-        if param == "load":
+        if param == Parameter.LOAD:
             load_rate = 1.0
         m = base.n_contacts
         vel = np.zeros((m, 3))
@@ -1128,7 +828,7 @@ class Tracker:
         disp = base.disp + dt * vel
         slip = base.slip.copy()
         fscale = self.force_scale(base)
-        kw = {} if param == "load" else {param: getattr(base, param) + dt}
+        kw = {} if param == Parameter.LOAD else {param: getattr(base, param) + dt}
         at = replace(base, **kw)
         events: list[ContactEvent] = []
 
@@ -1170,7 +870,7 @@ class Tracker:
                     continue
                 if any(k == a[0] for a in added):
                     continue
-                added.append((k, int(o), self._project(surface[s_pos], int(o), centers) - self.points[k]))
+                added.append((k, int(o), self.obstacles(centers)[int(o)].project_point(surface[s_pos]) - self.points[k]))
                 record("A", k, int(o))
             if not added and not released.any():
                 break
@@ -1242,7 +942,7 @@ class Tracker:
                                     f"{OBSTACLES[owner[nodes.index(k)]]}: pinched nodes are not modelled")
             if any(k == a[0] for a in added):
                 continue
-            added.append((k, o, self._project(st.surface_positions[s], o, st.centers) - self.points[k]))
+            added.append((k, o, self.obstacles(st.centers)[o].project_point(st.surface_positions[s]) - self.points[k]))
             record("A", k, o)
         self.prefetch_columns([a[0] for a in added], st.surface_positions, st.centers)
         keep = [j for j in range(len(nodes)) if j not in remove]
@@ -1273,7 +973,7 @@ class Tracker:
 
 
 def run(tracker: Tracker, state: ContactState, velocities: np.ndarray, *, stop: float, step: float,
-        param: str = "squeeze_depth", phase: str | None = None,
+        param: Parameter = Parameter.SQUEEZE_DEPTH, phase: str | None = None,
         after_step: Callable[[ContactState, list[ContactEvent]], bool] | None = None,
         on_event: Callable[[ContactState, list[ContactEvent]], None] | None = None,
         max_events: int = 5000) -> tuple[ContactState, list[ContactEvent], bool]:
@@ -1290,12 +990,12 @@ def run(tracker: Tracker, state: ContactState, velocities: np.ndarray, *, stop: 
 
 
 def _run(tracker: Tracker, state: ContactState, velocities: np.ndarray, *, stop: float, step: float,
-         param: str, phase: str | None, after_step: Callable | None, on_event: Callable | None,
+         param: Parameter, phase: str | None, after_step: Callable | None, on_event: Callable | None,
          max_events: int) -> tuple[ContactState, list[ContactEvent], bool]:
     events: list[ContactEvent] = []
     n_events = 0
     toggles: dict[int, list[float]] = {}
-    window = 1e-6 * tracker.diameter
+    window = CHATTER_WINDOW * tracker.diameter
     while getattr(state, param) < stop - 1e-15 * max(1.0, abs(stop)):
         dt = min(step, stop - getattr(state, param))
         state, ev = tracker.advance(state, dt, velocities, param=param, phase=phase)
@@ -1311,7 +1011,7 @@ def _run(tracker: Tracker, state: ContactState, velocities: np.ndarray, *, stop:
                 if e.kind in "CD":
                     hist = [t for t in toggles.get(e.node, []) if now - t <= window] + [now]
                     toggles[e.node] = hist
-                    if len(hist) > 8:
+                    if len(hist) > CHATTER_TOGGLES:
                         chatter = e
             if chatter is not None:
                 # Sticking, its force leaves the cone; sliding, its slip rate is negative: the rate problem

@@ -8,13 +8,16 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.sparse as sp
 
-from . import fem
+from ..errors import MaterialError
 from ..mesh.tetmesh import TetMesh
-from ..validation import MaterialError, check_material, check_positive
+from ..validation import check_material, check_positive
+from . import fem
+
+__all__ = ["Body", "FULL_COLUMNS_MAX_NODES"]
+
 
 if TYPE_CHECKING:
     from .compliance import Compliance
-    from .response import ContactResponse
     from .spectral import SpectralDecomposition
 
 #: Above this many vertices a body caches only the surface rows of its compliance columns (:attr:`Body.compliance`).
@@ -59,7 +62,6 @@ class Body:
         if not isinstance(mesh, TetMesh):
             raise TypeError(f"mesh must be a TetMesh, got {type(mesh).__name__}")
         young, poisson = check_material(young, poisson)
-        fem.check_material(young, poisson)
         gravity = check_positive(gravity, "gravity", "m/s² (an acceleration)")
         if (weight is None) == (density is None):
             raise MaterialError("give exactly one of weight (N) or density (kg/m³)")
@@ -196,9 +198,3 @@ class Body:
         from .spectral import spectral_decomposition
 
         return spectral_decomposition(self.stiffness, self.rigid_modes, self.gravity_loads)
-
-    def contact_response(self, nodes: np.ndarray, backend: str = "sparse") -> "ContactResponse":
-        """The response of eq. (5) for the contact index set ``nodes``; see :class:`ContactResponse`."""
-        from .response import ContactResponse
-
-        return ContactResponse(self, nodes, backend=backend)

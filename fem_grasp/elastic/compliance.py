@@ -56,6 +56,9 @@ import scipy.sparse.linalg as spla
 from ..mesh.tetmesh import check_rotation
 from ..threads import outer_blas_threads
 
+__all__ = ["Compliance", "PREFETCH_NODES", "SOLVERS", "SOLVER_ENV", "cholmod_available", "choose_solver",
+           "factorize", "grounding_dofs"]
+
 log = logging.getLogger(__name__)
 
 #: Sparse solvers of :func:`factorize`.

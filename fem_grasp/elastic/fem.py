@@ -13,17 +13,15 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..mesh.tetmesh import signed_volumes
+from ..validation import check_material
+
+__all__ = ["ASSEMBLY_BLOCK", "STANDARD_GRAVITY", "StiffnessPattern", "element_dofs", "element_stiffness",
+           "gravity_loads", "lame_parameters", "lumped_volumes", "rigid_modes", "shape_gradients",
+           "stiffness_matrix", "stiffness_pattern"]
+
 
 #: Gravitational acceleration used by the paper (m/s²).
 STANDARD_GRAVITY = 9.8
-
-
-def check_material(young: float, poisson: float) -> None:
-    """Raise ``ValueError`` unless E > 0 and −1 < ν < ½ (paper eq. 2)."""
-    if not np.isfinite(young) or young <= 0:
-        raise ValueError(f"Young's modulus E must be a positive number of pascals, got {young!r}")
-    if not np.isfinite(poisson) or not -1.0 < poisson < 0.5:
-        raise ValueError(f"Poisson's ratio ν must lie strictly inside (-1, 1/2), got {poisson!r}")
 
 
 def lame_parameters(young: float, poisson: float) -> tuple[float, float]:
@@ -32,7 +30,7 @@ def lame_parameters(young: float, poisson: float) -> tuple[float, float]:
     Eq. (2) is ``∫ μ ε:ε + (λ/2)(tr ε)² dV`` with μ = E/(2(1+ν)) and
     λ/2 = μ ν/(1−2ν).
     """
-    check_material(young, poisson)
+    young, poisson = check_material(young, poisson, warn=False)
     mu = young / (2.0 * (1.0 + poisson))
     lam = young * poisson / ((1.0 + poisson) * (1.0 - 2.0 * poisson))
     return lam, mu

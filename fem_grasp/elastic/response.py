@@ -28,10 +28,15 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.linalg as la
 
+from ..errors import CollinearContactError
 from ..threads import blas_threads_for
 
 if TYPE_CHECKING:
     from .body import Body
+
+__all__ = ["BACKENDS", "COLLINEAR_TOLERANCE", "CollinearContactError", "ContactResponse", "ContactSolution",
+           "MAX_CONDITION", "WARN_CONDITION", "check_contact_set", "contact_dofs", "equilibrium_residual",
+           "solve_contact"]
 
 log = logging.getLogger(__name__)
 
@@ -47,10 +52,6 @@ COLLINEAR_TOLERANCE = 1e-8
 #: contacts approach a line at angle θ, so 1e12 refuses θ below ~1e-6 rad.
 MAX_CONDITION = 1e12
 WARN_CONDITION = 1e9
-
-
-class CollinearContactError(ValueError):
-    """The contact set leaves a rigid rotation free (Theorem 3): M is singular."""
 
 
 def contact_dofs(nodes: np.ndarray) -> np.ndarray:
@@ -319,4 +320,4 @@ def solve_contact(body: "Body", nodes: np.ndarray, displacements: np.ndarray, ba
     CollinearContactError
         If fewer than three distinct nodes are given or they are collinear.
     """
-    return body.contact_response(nodes, backend=backend).solve(displacements)
+    return ContactResponse(body, nodes, backend=backend).solve(displacements)

@@ -13,6 +13,8 @@ import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
 
+__all__ = ["SpectralDecomposition", "orthonormal_modes", "spectral_decomposition"]
+
 log = logging.getLogger(__name__)
 
 

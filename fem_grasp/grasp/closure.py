@@ -44,9 +44,8 @@ from scipy.optimize import linprog
 from scipy.spatial import ConvexHull, QhullError
 
 from ..contact.obstacles import tangent_basis
-from ..mesh.tetmesh import vertex_normals
 
-__all__ = ["ClosureResult", "cone_generators", "contact_wrenches", "force_closure", "surface_normals_at",
+__all__ = ["ClosureResult", "cone_generators", "contact_wrenches", "force_closure",
            "placement_closure"]
 
 log = logging.getLogger(__name__)
@@ -194,14 +193,6 @@ def force_closure(points: np.ndarray, normals: np.ndarray, mu: np.ndarray, cente
     return result(True, margin, quality, "")
 
 
-def surface_normals_at(mesh, positions: np.ndarray) -> np.ndarray:
-    """(n, 3) outward unit vertex normals of ``mesh``'s surface at deformed ``positions`` (area-weighted).
-
-    Zero for interior nodes.
-    """
-    return vertex_normals(positions, mesh.surface_faces)
-
-
 def placement_closure(body, positions: np.ndarray, finger_nodes: tuple[int, int], support_triangle: np.ndarray,
                       mu_finger: float, mu_table: float, *, edges: int = DEFAULT_EDGES,
                       up: np.ndarray | None = None) -> ClosureResult:
@@ -224,7 +215,7 @@ def placement_closure(body, positions: np.ndarray, finger_nodes: tuple[int, int]
     if i == j:
         return ClosureResult(False, 0.0, 0.0, 0, "both fingers touch the same node", p[[i]], np.zeros((1, 3)),
                              np.array([mu_finger]))
-    out = surface_normals_at(body.mesh, p)
+    out = body.mesh.outward_normals(p)
     if not (np.linalg.norm(out[i]) > 0 and np.linalg.norm(out[j]) > 0):
         raise ValueError(f"finger contact nodes {i}, {j} must be surface nodes of the mesh")
     up = np.array([0.0, 0.0, 1.0]) if up is None else np.asarray(up, dtype=float)

@@ -22,7 +22,9 @@ from typing import Callable
 
 import numpy as np
 
-from ..contact.tracking import FINGER1, FINGER2, TABLE, ContactEvent, ContactState, Tracker, TrackingError, run
+from ..contact.obstacles import FINGER1, FINGER2, TABLE
+from ..contact.tracking import ContactEvent, ContactState, Parameter, Tracker, run
+from ..errors import TrackingError
 
 __all__ = ["LiftOutcome", "lift"]
 
@@ -82,7 +84,7 @@ def lift(tracker: Tracker, state: ContactState, *, max_height: float, step: floa
         return False
 
     try:
-        final, _, stopped = run(tracker, state, velocities, stop=max_height, step=step, param="lift_height",
+        final, _, stopped = run(tracker, state, velocities, stop=max_height, step=step, param=Parameter.LIFT_HEIGHT,
                                 phase="lift", after_step=after, on_event=record)
     except TrackingError as exc:
         out.reason = f"lift failed at height {out.state.lift_height:.4g} m: {exc}"

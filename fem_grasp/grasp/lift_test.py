@@ -19,11 +19,11 @@ least one sticking contact; it is **not held** when every contact of one
 finger slides (the object slides on that finger), when no static state
 exists (gross slip), or when too few contacts remain to fix the body
 (Theorem 3).  A load step with no static state is halved, up to
-``MAX_HALVINGS`` times, before the weight counts as not held: a
+``LOAD_HALVINGS`` times, before the weight counts as not held: a
 quasi-static loading path may pass where one jump does not.
 
 Incremental tracking (:class:`LiftTest`)
----------------------------------------
+----------------------------------------
 w(0) = 0.  After each squeeze increment l the weights w(ρ_{l−1}) + h,
 w(ρ_{l−1}) + 2h, … are tested until one is not held, at w(ρ_{l−1}) + kh, and
 w(ρ_l) = w(ρ_{l−1}) + (k−1)h (the paper's rule).  The paper assumes w grows
@@ -39,8 +39,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..elastic.response import CollinearContactError, check_contact_set
-from ..contact.tracking import FINGER1, FINGER2, ContactState, Tracker, TrackingError
+from ..contact.obstacles import FINGER1, FINGER2, TABLE
+from ..contact.tracking import ContactState, Parameter, Tracker
+from ..elastic.response import check_contact_set
+from ..errors import CollinearContactError, TrackingError
 
 __all__ = ["HangResult", "LiftTest", "hang", "hanging_state"]
 
@@ -52,7 +54,7 @@ DEFAULT_STEP_FRACTION = 0.05
 #: Each costs a failing return mapping, the dearest part of a pickup.  Six (h/64) took twice the time on
 #: the tomato; w(ρ) was higher by 2–3 steps h at 3 of its 23 increments (the next increment caught up),
 #: with the same lift-off depth and forces.
-MAX_HALVINGS = 3
+LOAD_HALVINGS = 3
 
 
 @dataclass(frozen=True)
@@ -77,7 +79,7 @@ def hanging_state(tracker: Tracker, state: ContactState) -> HangResult:
     """The finger contacts of ``state`` without the table, at zero weight, settled (see module notes)."""
     if tracker.table is not None:
         raise ValueError("the lift test needs a tracker without a table")
-    fingers = state.owner != 2
+    fingers = state.owner != TABLE
     nodes = state.nodes[fingers]
     if fingers.sum() < 3:
         return HangResult(0.0, False, "fewer than three finger contacts cannot fix the body", None)
@@ -90,13 +92,13 @@ def hanging_state(tracker: Tracker, state: ContactState) -> HangResult:
                                    lift_height=state.lift_height, load=0.0, centers=state.centers, nodes=nodes,
                                    owner=state.owner[fingers], disp=state.disp[fingers],
                                    sliding=state.sliding[fingers], slip=state.slip[fingers])
-        settled, _ = tracker.implicit_step(start, 0.0, np.zeros((2, 3)), param="lift_height", phase="lift test")
+        settled, _ = tracker.implicit_step(start, 0.0, np.zeros((2, 3)), param=Parameter.LIFT_HEIGHT, phase="lift test")
     except TrackingError as exc:
         return HangResult(0.0, False, f"the fingers cannot hold it: {exc}", None)
     return _verdict(0.0, settled)
 
 
-def hang(tracker: Tracker, start: ContactState, weight: float, *, max_depth: int = MAX_HALVINGS) -> HangResult:
+def hang(tracker: Tracker, start: ContactState, weight: float, *, max_depth: int = LOAD_HALVINGS) -> HangResult:
     """Raise the weight of a hanging configuration ``start`` to ``weight`` and settle; held or not.
 
     ``start`` is a settled finger-only configuration (:func:`hanging_state`
@@ -111,7 +113,7 @@ def hang(tracker: Tracker, start: ContactState, weight: float, *, max_depth: int
                                    lift_height=start.lift_height, load=load, centers=start.centers,
                                    nodes=start.nodes, owner=start.owner, disp=start.disp,
                                    sliding=start.sliding, slip=start.slip)
-        settled, _ = tracker.implicit_step(begin, 0.0, np.zeros((2, 3)), param="lift_height", phase="lift test")
+        settled, _ = tracker.implicit_step(begin, 0.0, np.zeros((2, 3)), param=Parameter.LIFT_HEIGHT, phase="lift test")
     except TrackingError as exc:
         if max_depth <= 0:
             return HangResult(weight, False, f"the fingers cannot hold it: {exc}", None)

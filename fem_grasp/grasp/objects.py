@@ -37,6 +37,11 @@ import numpy as np
 from ..elastic.body import Body
 from ..mesh.tetmesh import TetMesh
 
+__all__ = ["EFFECTIVE_YOUNG_ESTIMATE", "MESH_DIR", "NAMES", "PAPER_MAX_SQUEEZE", "PAPER_PLACEMENT_RULE",
+           "PaperObject", "TABLE_I", "finger_contact_points", "graded_paper_mesh", "load", "load_mesh",
+           "mesh_path", "paper_object"]
+
+
 #: Folder holding the committed paper meshes.
 MESH_DIR = Path(__file__).resolve().parents[2] / "meshes"
 
@@ -143,8 +148,8 @@ def graded_paper_mesh(name: str, target_vertices: int | None = None, rel_tol: fl
     Needs gmsh.  Raises RuntimeError if the count cannot be reached (too few
     vertices for the refined regions, e.g. below about 250 for the tomato).
     """
-    from ..mesh import shapes
     from ..contact.obstacles import DEFAULT_RADIUS
+    from ..mesh import shapes
 
     radius = DEFAULT_RADIUS if finger_radius is None else float(finger_radius)
     uniform = shapes.paper_mesh(name, target_vertices, rel_tol)

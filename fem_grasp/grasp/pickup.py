@@ -2,12 +2,12 @@
 
 :func:`pickup` runs
 
-1. the force-closure test of the initial placement (:mod:`fem_grasp.grasp.closure`);
-2. the resting configuration on the table (:func:`fem_grasp.grasp.rest.rest`, §III-A);
-3.–4. the squeeze with the lift test after every increment
-   (:mod:`fem_grasp.grasp.squeeze`, :mod:`fem_grasp.grasp.lift_test`, §III-B/C);
-5. the lift (:mod:`fem_grasp.grasp.lift`);
-6. failure when the squeeze reaches its maximum depth,
+* step 1, the force-closure test of the initial placement (:mod:`fem_grasp.grasp.closure`);
+* step 2, the resting configuration on the table (:func:`fem_grasp.grasp.rest.rest`, §III-A);
+* steps 3–4, the squeeze with the lift test after every increment
+  (:mod:`fem_grasp.grasp.squeeze`, :mod:`fem_grasp.grasp.lift_test`, §III-B/C);
+* step 5, the lift (:mod:`fem_grasp.grasp.lift`);
+* step 6, failure when the squeeze reaches its maximum depth,
 
 and returns a :class:`PickupResult` with the whole story: events, snapshots
 at every event, liftable-weight history, forces, timings, and the rigid-body
@@ -15,7 +15,7 @@ comparison of Table III (:mod:`fem_grasp.grasp.rigid`).  Failures (no force
 closure, gross slip, too little friction, …) are results, not exceptions.
 
 Default scene (the paper's §IV, where it is silent our choice)
--------------------------------------------------------------
+--------------------------------------------------------------
 * squeeze directions d̂₁ = (0, 0.974, −0.227), d̂₂ = (0, −0.974, −0.227),
   ratio s = 1; fingertip radius :data:`fem_grasp.contact.obstacles.DEFAULT_RADIUS`;
 * μ_ℱ = μ_𝒫 = :data:`DEFAULT_FRICTION` unless given (``mu_table`` defaults to
@@ -52,14 +52,14 @@ Default scene (the paper's §IV, where it is silent our choice)
 
 Checks (:meth:`Snapshot.check`)
 -------------------------------
-On every snapshot, with F_s = mg + max |f_k| and L the mesh diameter:
-equilibrium of contact forces and gravity (force and torque) ≤ 1e-9
-relative (:func:`fem_grasp.elastic.response.equilibrium_residual`); no surface node
-inside a fingertip or below the table by more than 1e-9 L, and every contact
-node on its obstacle to 1e-9 L; normal forces ≥ −1e-9 F_s; sticking contacts
-``|f_t| − μ f·n̂ ≤ 1e-8 f·n̂ + 2e-7 F_s`` (2e-7 F_s covers contacts carrying
-less than the force floor 1e-7 F_s of :mod:`fem_grasp.contact.tracking`, whose
-stick/slip state is not assessed); sliding contacts on their cone,
+Every snapshot is held to the contact laws and equilibrium by the one checker
+of :mod:`fem_grasp.grasp.checks` (its table :data:`~fem_grasp.grasp.checks.CHECK_TOLERANCES`,
+with F_s = mg + max |f_k| and L the mesh diameter): equilibrium ≤ 1e-9
+relative; no surface node inside an obstacle by more than 1e-9 L, every
+contact node on its obstacle to 1e-9 L; normal forces ≥ −1e-9 F_s; sticking
+contacts ``|f_t| − μ f·n̂ ≤ 1e-8 f·n̂ + 2e-7 F_s`` (2e-7 F_s covers contacts
+carrying less than the force floor 1e-7 F_s of :mod:`fem_grasp.contact.tracking`,
+whose stick/slip state is not assessed); sliding contacts on their cone,
 ``| |f_t| − μ f·n̂ | ≤ 1e-8 f·n̂ + 1e-9 F_s``.
 """
 
@@ -69,27 +69,33 @@ import json
 import logging
 import time
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from functools import cached_property
+from pathlib import Path
 from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from . import placement
+from ..contact.obstacles import DEFAULT_RADIUS, FINGER1, FINGER2, OBSTACLES, TABLE, Fingertip, TablePlane
+from ..contact.tracking import ContactEvent, ContactState, Tracker
 from ..elastic.body import Body
-from .closure import ClosureResult, placement_closure, surface_normals_at
-from ..contact.obstacles import DEFAULT_RADIUS
-from ..contact.obstacles import TablePlane
+from ..errors import ContactNodeError, PickupCheckError, PlacementError, SceneError, TrackingError
+from ..validation import check_friction, check_positive
+from . import placement
+from .checks import contact_law_figures
+from .closure import ClosureResult, placement_closure
 from .lift import lift as run_lift
 from .lift_test import LiftTest
-from .placement import DEFAULT_PLACEMENT_RULE, PAPER_SQUEEZE_DIRECTIONS, PLACEMENT_RULES
-from ..elastic.response import equilibrium_residual
+from .placement import (
+    DEFAULT_PLACEMENT_RULE,
+    PAPER_SQUEEZE_DIRECTIONS,
+    PLACEMENT_RULES,
+    check_contact_nodes,
+    check_directions,
+    check_finger_placement,
+)
 from .rest import RestState, rest
 from .rigid import RigidGrasp, rigid_grasp
 from .squeeze import initial_state, squeeze
-from ..validation import (ContactNodeError, PlacementError, SceneError, check_contact_nodes, check_directions,
-                         check_finger_placement, check_friction, check_positive)
-from ..contact.tracking import FINGER1, FINGER2, OBSTACLES, ContactEvent, ContactState, Tracker, TrackingError
 
 __all__ = ["DEFAULT_FRICTION", "OUTCOMES", "LiftAttempt", "PickupCheckError", "PickupResult", "Snapshot",
            "default_finger_contacts", "default_max_squeeze", "pickup"]
@@ -112,21 +118,6 @@ OUTCOMES: dict[str, str] = {
     "lift failed": "every simulated lift failed: the object slid on a finger, friction could not hold it, "
                    "or it was still on the table at the maximum lift height",
 }
-#: Tolerances of :meth:`Snapshot.check` (module notes).
-CHECK_TOLERANCES: dict[str, float] = {
-    "equilibrium": 1e-9,
-    "penetration": 1e-9,  # × diameter
-    "contact_gap": 1e-9,  # × diameter
-    "tensile": 1e-9,  # × F_s
-    "cone_stick": 1e-8,  # × f·n̂
-    "stick_floor": 2e-7,  # × F_s
-    "cone_slide": 1e-8,  # × f·n̂
-    "slide_floor": 1e-9,  # × F_s
-}
-
-
-class PickupCheckError(AssertionError):
-    """A snapshot fails one of its contact-law or equilibrium checks."""
 
 
 # ================================================================ snapshots
@@ -147,7 +138,7 @@ class Snapshot:
     contact_forces : same keys → (k, 3) forces on the object, newtons
     sliding : same keys → (k,) bool
     events : the events that produced this snapshot
-    position_source : computes the (n, 3) deformed positions of every node (:attr:`positions`)
+    position_source : computes the (n, 3) deformed positions of every node (:attr:`Snapshot.positions`)
     """
 
     label: str
@@ -223,74 +214,19 @@ class Snapshot:
 
     def check(self, body: Body, table: TablePlane, mu_finger: float, mu_table: float,
               tolerances: dict[str, float] | None = None, raise_on_failure: bool = True) -> dict[str, Any]:
-        """Verify equilibrium, non-penetration and Coulomb's law (module notes); return the figures."""
-        tol = dict(CHECK_TOLERANCES)
-        tol.update(tolerances or {})
-        diam = body.mesh.diameter
-        forces = self.all_forces
-        f_res, t_res = equilibrium_residual(body, self.all_nodes, forces)
-        fs = body.weight + float(np.abs(forces).max(initial=0.0))
-        surf = body.mesh.surface_nodes
-        p = self.surface_positions if np.array_equal(surf, self.surface_nodes) else self.positions[surf]
-        own = {int(k): name for name in OBSTACLES for k in self.contact_nodes[name]}
-        pen = 0.0
-        for f, name in ((FINGER1, "finger1"), (FINGER2, "finger2")):
-            gap = np.linalg.norm(p - self.finger_centers[f], axis=1) - self.finger_radius
-            mask = np.array([own.get(int(k)) != name for k in surf])
-            if mask.any():
-                pen = max(pen, float(-gap[mask].min()))
-        gap_t = table.signed_distance(p)
-        mask = np.array([own.get(int(k)) != "table" for k in surf])
-        if mask.any():
-            pen = max(pen, float(-gap_t[mask].min()))
-        contact_gap = 0.0
-        nrm = self.normals(table)
-        worst = {"tensile": 0.0, "stick": -np.inf, "slide": 0.0}
-        for f, name in enumerate(OBSTACLES):
-            k = self.contact_nodes[name]
-            if not len(k):
-                continue
-            q = self.node_positions(k)
-            g = (np.linalg.norm(q - self.finger_centers[f], axis=1) - self.finger_radius if name != "table"
-                 else table.signed_distance(q))
-            contact_gap = max(contact_gap, float(np.abs(g).max()))
-            fv = self.contact_forces[name]
-            fn = np.einsum("ki,ki->k", fv, nrm[name])
-            ft = np.linalg.norm(fv - fn[:, None] * nrm[name], axis=1)
-            mu = mu_table if name == "table" else mu_finger
-            worst["tensile"] = max(worst["tensile"], float((-fn).max()) / fs)
-            sl = self.sliding[name]
-            excess = ft - mu * fn
-            if (~sl).any():
-                worst["stick"] = max(worst["stick"], float(((excess - tol["cone_stick"] * np.maximum(fn, 0))
-                                                            / fs)[~sl].max()))
-            if sl.any():
-                worst["slide"] = max(worst["slide"], float(((np.abs(excess) - tol["cone_slide"] * np.maximum(fn, 0))
-                                                            / fs)[sl].max()))
-        figures: dict[str, Any] = {
-            "label": self.label, "squeeze_depth": self.squeeze_depth, "lift_height": self.lift_height,
-            "force_residual": f_res, "torque_residual": t_res, "max_penetration": pen,
-            "max_contact_gap": contact_gap, "max_tensile": worst["tensile"],
-            "max_stick_excess": worst["stick"], "max_slide_error": worst["slide"],
-        }
-        failures = []
-        if f_res > tol["equilibrium"] or t_res > tol["equilibrium"]:
-            failures.append(f"equilibrium residuals {f_res:.3g} (force), {t_res:.3g} (torque)")
-        if pen > tol["penetration"] * diam:
-            failures.append(f"a node penetrates an obstacle by {pen:.3g} m")
-        if contact_gap > tol["contact_gap"] * diam:
-            failures.append(f"a contact node is {contact_gap:.3g} m off its obstacle")
-        if worst["tensile"] > tol["tensile"]:
-            failures.append(f"a contact pulls ({worst['tensile']:.3g} F_s)")
-        if worst["stick"] > tol["stick_floor"]:
-            failures.append(f"a sticking contact is outside its cone by {worst['stick']:.3g} F_s")
-        if worst["slide"] > tol["slide_floor"]:
-            failures.append(f"a sliding contact is off its cone by {worst['slide']:.3g} F_s")
-        figures["ok"] = not failures
-        figures["failures"] = failures
-        if failures and raise_on_failure:
+        """Verify equilibrium, non-penetration and Coulomb's law (:mod:`fem_grasp.grasp.checks`); return the figures."""
+        owner = np.concatenate([np.full(len(self.contact_nodes[name]), code) for code, name in enumerate(OBSTACLES)])
+        nodes = self.all_nodes
+        mu = np.where(owner == TABLE, mu_table, mu_finger)
+        fingertips = [Fingertip(c, self.finger_radius) for c in self.finger_centers]
+        figures = {"label": self.label, "squeeze_depth": self.squeeze_depth, "lift_height": self.lift_height}
+        figures.update(contact_law_figures(
+            body, (*fingertips, table), owner, nodes, self.node_positions(nodes), self.all_forces,
+            np.concatenate([self.sliding[name] for name in OBSTACLES]), mu, self.surface_nodes,
+            self.surface_positions, tolerances))
+        if figures["failures"] and raise_on_failure:
             raise PickupCheckError(f"snapshot '{self.label}' at ρ = {self.squeeze_depth:.6g} m, lift "
-                                   f"{self.lift_height:.6g} m fails its checks: " + "; ".join(failures))
+                                   f"{self.lift_height:.6g} m fails its checks: " + "; ".join(figures["failures"]))
         return figures
 
     def to_dict(self) -> dict[str, Any]:
@@ -438,7 +374,7 @@ class PickupResult:
         """The whole result as JSON; written to ``path`` when given (atomically: never half a file)."""
         text = json.dumps(self.to_dict(), indent=indent, allow_nan=True)
         if path is not None:
-            from ..io.output import atomic_write_text
+            from .._files import atomic_write_text
 
             atomic_write_text(path, text)
         return text
@@ -477,7 +413,7 @@ def default_finger_contacts(rest_state: RestState, direction: np.ndarray, mu_fin
     body = rest_state.body
     mesh = body.mesh
     pos = rest_state.positions
-    out = surface_normals_at(mesh, pos)
+    out = mesh.outward_normals(pos)
     z = pos[mesh.surface_nodes, 2]
     z0, z1 = float(z.min()), float(z.max())
     height = z1 - z0
@@ -629,7 +565,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
                                                           what="finger contact node"))
         if len(ij) != 2:
             raise ContactNodeError(f"give two finger contact nodes (p_i, p_j), got {len(ij)}")
-        out = surface_normals_at(posed.mesh, rs.positions)
+        out = posed.mesh.outward_normals(rs.positions)
         check_finger_placement(rs.positions, posed.mesh.surface_nodes,
                                rs.positions[list(ij)] + finger_radius * out[list(ij)], finger_radius,
                                contact_nodes=ij, normals=out, directions=np.stack([d1, ratio * d2]))
@@ -638,7 +574,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
     result.closure = closure
     timings["closure"] = time.perf_counter() - t0
     com = (posed.mesh.volumes @ rs.positions[posed.mesh.tets].mean(axis=1)) / posed.mesh.volume
-    out = surface_normals_at(posed.mesh, rs.positions)
+    out = posed.mesh.outward_normals(rs.positions)
     result.rigid = rigid_grasp(rs.positions[list(ij)], -out[list(ij)], com, posed.weight, mu_f)
     if not closure.closed:
         result.reason = f"the initial placement is not force closure (Algorithm 1 step 1): {closure.reason}"

@@ -39,8 +39,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import ConvexHull
 
-from ..elastic.body import Body
 from ..contact.obstacles import tangent_bases
+from ..elastic.body import Body
 
 __all__ = ["Facet", "RestingPose", "hull_facets", "stable_facets", "resting_pose", "rotation_between",
            "triangle_margin"]

@@ -5,8 +5,9 @@ The object is first placed rigidly on a stable support triangle △p_q p_r p_s
 with the table 𝒫 grows.  :func:`rest` follows the paper's iteration:
 
 1. P ← ∅ (no sliding node yet in this iteration).
-2.–3. Solve the deformation with every contact node held where it is
-   (eqs. 3–5, :class:`~fem_grasp.elastic.response.ContactResponse`).
+2. Solve the deformation with every contact node held where it is
+   (eqs. 3–5, :class:`~fem_grasp.elastic.response.ContactResponse`), and
+3. update the displacements and the contact forces.
 4. Stop if no node lies below 𝒫, every contact force is compressive and
    inside its friction cone.
 5. New contact (event A): the node furthest below 𝒫 joins the contact set.
@@ -19,7 +20,7 @@ with the table 𝒫 grows.  :func:`rest` follows the paper's iteration:
 6. Contacts whose force lies outside the friction cone form the sliding set P.
 7. Their slip distances d_k solve the quadratic system (6) (node k moves by
    −d_k t̂_k, t̂_k its tangential force direction at the start of the slip);
-   see :func:`fem_grasp.contact.friction.settle_plane_slip`.
+   see :func:`fem_grasp.contact.plane_slip.settle_plane_slip`.
 
 The state is kept as total contact displacements, so "holding" a contact
 means keeping its prescribed displacement; step 2 of a later iteration then
@@ -45,7 +46,7 @@ Frictionless table (μ = 0)
 --------------------------
 Every contact then slides freely and the cone is its axis: each iteration
 sets the tangential contact displacements so that every friction force
-vanishes (:func:`fem_grasp.contact.friction.frictionless_tangential_displacements`).
+vanishes (:func:`fem_grasp.contact.plane_slip.frictionless_tangential_displacements`).
 The horizontal rigid motion (two translations and the spin about the
 vertical) is then undetermined; it is fixed by holding the centre of mass's
 horizontal position and the body's mean spin about the vertical axis through
@@ -56,9 +57,9 @@ Tolerances
 * a node is below the plane when it is deeper than ``penetration_tol ×
   diameter`` (default 1e-9 × diameter);
 * a contact force is outside its cone when ``|f_t| − μ f·n̂ > cone_rtol ·
-  f·n̂`` (default 1e-9); a sliding contact must sit on the boundary to within
-  ``1e-8 f·n̂`` in :meth:`RestState.check`;
-* equilibrium of contact forces and gravity holds to 1e-10 relative.
+  f·n̂`` (default 1e-9);
+* :meth:`RestState.check` holds the result to the one contact-law table of
+  :mod:`fem_grasp.grasp.checks`, as every pickup snapshot.
 """
 
 from __future__ import annotations
@@ -70,13 +71,14 @@ from typing import Any
 
 import numpy as np
 
-from ..contact import friction
+from ..contact import friction, plane_slip
+from ..contact.obstacles import TABLE, TablePlane
 from ..elastic.body import Body
 from ..elastic.compliance import PREFETCH_NODES
-from ..contact.obstacles import TablePlane
+from ..elastic.response import CollinearContactError, ContactResponse, ContactSolution, check_contact_set
+from ..errors import RestCheckError, RestConvergenceError
+from .checks import contact_law_figures
 from .pose import RestingPose, resting_pose
-from ..elastic.response import (CollinearContactError, ContactResponse, ContactSolution, check_contact_set,
-                       equilibrium_residual)
 
 __all__ = ["RestState", "RestIteration", "RestConvergenceError", "RestCheckError", "rest"]
 
@@ -86,22 +88,6 @@ log = logging.getLogger(__name__)
 PENETRATION_TOL = 1e-9
 #: Force round-off tolerance, relative to the weight (see ``_Solver.force_tol``).
 FORCE_TOL = 1e-10
-#: Tolerances used by :meth:`RestState.check`.
-CHECK_TOLERANCES: dict[str, float] = {
-    "penetration": 1e-9,  # × diameter
-    "contact_gap": 1e-9,  # × diameter: contact nodes lie on the plane
-    "cone_stick": 1e-8,  # × f·n̂: sticking contacts inside the cone
-    "cone_slide": 1e-8,  # × f·n̂: sliding contacts on the cone boundary
-    "equilibrium": 1e-10,  # relative force (× mg) and torque (× mg·diameter) residuals
-}
-
-
-class RestConvergenceError(RuntimeError):
-    """The resting iteration did not settle within its iteration budget, or cannot go on."""
-
-
-class RestCheckError(AssertionError):
-    """A resting state fails one of its contact-law or equilibrium checks."""
 
 
 @dataclass(frozen=True)
@@ -205,70 +191,31 @@ class RestState:
         return len(self.contact_nodes)
 
     def check(self, raise_on_failure: bool = True, tolerances: dict[str, float] | None = None) -> dict[str, Any]:
-        """Verify the contact laws and equilibrium of the resting state.
+        """Verify the contact laws and equilibrium of the resting state (:mod:`fem_grasp.grasp.checks`).
 
         Returns
         -------
         dict
-            ``max_penetration`` (m, deepest node below the table),
-            ``max_contact_gap`` (m, distance of a contact node from the table),
-            ``min_normal_force`` (N), ``max_stick_cone_violation`` and
-            ``max_slide_cone_error`` (relative to f·n̂: (|f_t| − μ f·n̂)/f·n̂
-            for sticking contacts, its absolute value for sliding ones; None
-            when there is no such contact),
-            ``force_residual`` and ``torque_residual`` (relative to mg and
-            mg·diameter), ``n_contacts``, ``n_sliding``, ``ok`` and
-            ``failures`` (list of messages).
+            The figures of :func:`~fem_grasp.grasp.checks.contact_law_figures`: ``max_penetration`` (m,
+            deepest node below the table), ``max_contact_gap`` (m), ``min_normal_force`` (N),
+            ``max_stick_cone_violation`` and ``max_slide_cone_error`` ((|f_t| − μ f·n̂)/f·n̂ for sticking
+            contacts, its absolute value for sliding ones; None when there is no such contact),
+            ``force_residual`` and ``torque_residual`` (relative), ``n_contacts``, ``n_sliding``, ``ok``
+            and ``failures`` (list of messages).
 
         Raises
         ------
         RestCheckError
             If ``raise_on_failure`` and any figure exceeds its tolerance
-            (:data:`CHECK_TOLERANCES`).
+            (:data:`~fem_grasp.grasp.checks.CHECK_TOLERANCES`).
         """
-        tol = dict(CHECK_TOLERANCES)
-        tol.update(tolerances or {})
-        diam = self.body.mesh.diameter
-        table = self.table
-        up = table.up
-        depth = -table.signed_distance(self.positions)
-        gap = np.abs(table.signed_distance(self.positions[self.contact_nodes]))
-        fn = friction.normal_component(self.contact_forces, up)
-        ft = np.linalg.norm(friction.tangential_component(self.contact_forces, up), axis=1)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            rel = (ft - self.mu_table * fn) / fn
-        stick = ~self.sliding
-        f_res, t_res = equilibrium_residual(self.body, self.contact_nodes, self.contact_forces)
-        figures: dict[str, Any] = {
-            "max_penetration": float(max(depth.max(), 0.0)),
-            "max_contact_gap": float(gap.max()),
-            "min_normal_force": float(fn.min()),
-            "max_stick_cone_violation": float(rel[stick].max()) if stick.any() else None,
-            "max_slide_cone_error": float(np.abs(rel[self.sliding]).max()) if self.sliding.any() else None,
-            "force_residual": f_res,
-            "torque_residual": t_res,
-            "n_contacts": int(len(self.contact_nodes)),
-            "n_sliding": int(self.sliding.sum()),
-        }
-        failures = []
-        if figures["max_penetration"] > tol["penetration"] * diam:
-            failures.append(f"a node is {figures['max_penetration']:.3g} m below the table")
-        if figures["max_contact_gap"] > tol["contact_gap"] * diam:
-            failures.append(f"a contact node is {figures['max_contact_gap']:.3g} m off the table")
-        if not figures["min_normal_force"] > 0:
-            failures.append(f"a contact is not compressive (f·n = {figures['min_normal_force']:.3g} N)")
-        if stick.any() and not figures["max_stick_cone_violation"] <= tol["cone_stick"]:
-            failures.append(f"a sticking contact is outside its friction cone by "
-                            f"{figures['max_stick_cone_violation']:.3g} f·n")
-        if self.sliding.any() and not figures["max_slide_cone_error"] <= tol["cone_slide"]:
-            failures.append(f"a sliding contact is off its cone boundary by {figures['max_slide_cone_error']:.3g} f·n")
-        if f_res > tol["equilibrium"] or t_res > tol["equilibrium"]:
-            failures.append(f"equilibrium residuals {f_res:.3g} (force) and {t_res:.3g} (torque) exceed "
-                            f"{tol['equilibrium']:.0e}")
-        figures["ok"] = not failures
-        figures["failures"] = failures
-        if failures and raise_on_failure:
-            raise RestCheckError("resting state fails its checks: " + "; ".join(failures))
+        m = len(self.contact_nodes)
+        surface = self.body.mesh.surface_nodes
+        figures = contact_law_figures(self.body, (None, None, self.table), np.full(m, TABLE), self.contact_nodes,
+                                      self.positions[self.contact_nodes], self.contact_forces, self.sliding,
+                                      np.full(m, self.mu_table), surface, self.positions[surface], tolerances)
+        if figures["failures"] and raise_on_failure:
+            raise RestCheckError("resting state fails its checks: " + "; ".join(figures["failures"]))
         return figures
 
 
@@ -313,7 +260,7 @@ class _Solver:
     def response(self) -> ContactResponse:
         key = tuple(self.contacts)
         if key not in self._responses:
-            self._responses = {key: self.body.contact_response(np.array(key), backend=self.backend)}
+            self._responses = {key: ContactResponse(self.body, np.array(key), backend=self.backend)}
             self._gravity_field = None
         return self._responses[key]
 
@@ -377,7 +324,7 @@ class _Solver:
         nodes = np.array(self.contacts)
         dofs = (3 * nodes[:, None] + np.arange(3)).ravel()
         gauge = self.body.rigid_modes[dofs][:, [0, 1, 5]]  # t_x, t_y, r_z at the contacts
-        d = d + friction.frictionless_tangential_displacements(resp.reduced_stiffness, self._forces(resp, d),
+        d = d + plane_slip.frictionless_tangential_displacements(resp.reduced_stiffness, self._forces(resp, d),
                                                                self.table.up, gauge)
         # Hold the centre of mass horizontally and the mean spin about the vertical at zero.
         field = resp.solve(d).displacements
@@ -494,7 +441,7 @@ class _Solver:
             return state, 0, 0.0, 0
         resp = self.response()
         held = self.prescribed()
-        result = friction.settle_plane_slip(resp.reduced_stiffness, state.forces, self.table.up, self.mu,
+        result = plane_slip.settle_plane_slip(resp.reduced_stiffness, state.forces, self.table.up, self.mu,
                                             rtol=self.cone_rtol, min_normal_force=self._zero_force())
         if not len(result.slid):
             return state, 0, 0.0, result.rounds
@@ -555,7 +502,7 @@ def rest(body: Body, mu_table: float, *, down: np.ndarray | None = None, table_z
         If the iteration does not settle within ``max_iterations`` or loses
         its support (tensile contacts leaving fewer than three or collinear
         contacts).
-    fem_grasp.contact.friction.FrictionError
+    fem_grasp.errors.FrictionError
         If a slip system (6) has no admissible solution.
     """
     start = time.perf_counter()

@@ -25,10 +25,11 @@ from typing import Callable
 
 import numpy as np
 
-from .closure import surface_normals_at
+from ..contact.obstacles import FINGER1, FINGER2, TABLE
+from ..contact.tracking import ContactEvent, ContactState, Parameter, Tracker, run
+from ..errors import TrackingError
 from .lift_test import LiftTest
 from .rest import RestState
-from ..contact.tracking import FINGER1, FINGER2, TABLE, ContactEvent, ContactState, Tracker, TrackingError, run
 
 __all__ = ["SqueezeOutcome", "initial_state", "squeeze"]
 
@@ -39,7 +40,7 @@ def initial_state(tracker: Tracker, rest_state: RestState, finger_nodes: tuple[i
     """The resting configuration with both fingertips touching at p_i, p_j (ρ = 0)."""
     i, j = (int(k) for k in finger_nodes)
     positions = rest_state.positions
-    out = surface_normals_at(rest_state.body.mesh, positions)
+    out = rest_state.body.mesh.outward_normals(positions)
     for k in (i, j):
         if not np.linalg.norm(out[k]) > 0:
             raise ValueError(f"finger contact node {k} is not a surface node")
@@ -127,7 +128,7 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
         return after_step(st, events)
 
     try:
-        final, _, stopped = run(tracker, state, velocities, stop=max_squeeze, step=step, param="squeeze_depth",
+        final, _, stopped = run(tracker, state, velocities, stop=max_squeeze, step=step, param=Parameter.SQUEEZE_DEPTH,
                                 phase="squeeze", after_step=after, on_event=record)
     except TrackingError as exc:
         out.state = last[0]

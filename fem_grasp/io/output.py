@@ -34,17 +34,18 @@ import datetime
 import json
 import logging
 import math
-import os
-import tempfile
 from pathlib import Path
 from typing import Any, Callable, Sequence
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
+from .._files import atomic_write_bytes, atomic_write_mesh, atomic_write_text
+from ..errors import OutputError
+
 __all__ = ["SCHEMA", "SCHEMA_VERSION", "OutputError", "atomic_write_bytes", "atomic_write_text", "json_safe", "prepare_out_dir",
            "frames_of", "fingertip_surface", "write_series", "write_result_json", "write_run", "read_result", "hemisphere",
-           "contact_point_data", "write_rest", "MARKER"]
+           "contact_point_data", "write_rest", "MARKER", "add_to_marker"]
 
 log = logging.getLogger(__name__)
 
@@ -58,10 +59,6 @@ CONTACT_NONE, CONTACT_STICK, CONTACT_SLIP = 0, 1, 2
 BODY_CODES = {"finger1": 1, "finger2": 2, "table": 3}
 
 
-class OutputError(OSError):
-    """An output folder cannot be used (not ours and not empty, or not writable)."""
-
-
 def package_version() -> str:
     """The installed fem_grasp version ("unknown" when run from a source tree without metadata)."""
     try:
@@ -70,49 +67,6 @@ def package_version() -> str:
         return version("fem_grasp")
     except Exception:  # noqa: BLE001 - metadata missing
         return "unknown"
-
-
-# ------------------------------------------------------------ atomic writes
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
-
-
-_UMASK = _umask()
-
-
-def _atomic(path: Path, write: Callable[[Path], None]) -> Path:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix,
-                               dir=path.parent)
-    os.close(fd)
-    tmp_path = Path(tmp)
-    try:
-        write(tmp_path)
-        os.chmod(tmp_path, 0o666 & ~_UMASK)  # mkstemp makes 0600; give the file the usual permissions
-        os.replace(tmp_path, path)
-    except BaseException:
-        tmp_path.unlink(missing_ok=True)
-        raise
-    return path
-
-
-def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` through a temporary file in the same folder and :func:`os.replace`."""
-    return _atomic(Path(path), lambda p: p.write_bytes(data))
-
-
-def atomic_write_text(path: str | Path, text: str) -> Path:
-    return atomic_write_bytes(path, text.encode("utf-8"))
-
-
-def atomic_write_mesh(path: str | Path, mesh: Any, file_format: str = "vtu") -> Path:
-    """Write a ``meshio.Mesh`` atomically."""
-    import meshio
-
-    return _atomic(Path(path), lambda p: meshio.write(p, mesh, file_format=file_format))
 
 
 # ------------------------------------------------------------ the folder
@@ -158,7 +112,8 @@ def _write_marker(out: Path, files: Sequence[str]) -> None:
                                                 "files": sorted(set(files))}, indent=1))
 
 
-def _add_to_marker(out: Path, files: Sequence[str]) -> None:
+def add_to_marker(out: Path, files: Sequence[str]) -> None:
+    """Record ``files`` (relative to ``out``) in the folder's :data:`MARKER` as written by fem_grasp."""
     old: list[str] = []
     if (out / MARKER).exists():
         try:
@@ -277,7 +232,7 @@ def write_series(out: str | Path, result: Any, progress: Callable[[int, int], No
     planned = [f"series/object_{k:04d}.vtu" for k in range(len(frames))]
     planned += [f"series/{name}_{k:04d}.vtu" for k, fr in enumerate(frames) if fr["finger_centers"] is not None
                 for name in ("finger1", "finger2")]
-    _add_to_marker(out, planned + ["object.pvd", "finger1.pvd", "finger2.pvd", "table.vtu"])
+    add_to_marker(out, planned + ["object.pvd", "finger1.pvd", "finger2.pvd", "table.vtu"])
     files: list[str] = []
     entries: dict[str, list[tuple[float, str]]] = {"object": [], "finger1": [], "finger2": []}
     d1, d2 = (np.asarray(d, float) for d in result.directions)
@@ -452,5 +407,5 @@ def write_rest(out: str | Path, state: Any, scene: Any = None, force: bool = Fal
            "contact_forces": state.contact_forces, "sliding": state.sliding}
     doc.update(extra or {})
     atomic_write_text(out / "rest.json", json.dumps(json_safe(doc), indent=1, allow_nan=False))
-    _add_to_marker(out, ["rest.vtu", "rest.json"])
+    add_to_marker(out, ["rest.vtu", "rest.json"])
     return out

@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from .output import MARKER, _add_to_marker, atomic_write_text, read_result
+from .output import MARKER, add_to_marker, atomic_write_text, read_result
 
 __all__ = ["write_report", "render_frames", "plot_liftable", "plot_timeline", "PICTURES"]
 
@@ -194,7 +194,7 @@ def _figure(size: tuple[float, float]) -> tuple[Any, Any]:
 def _save(fig: Any, path: Path) -> Path:
     import io
 
-    from .output import atomic_write_bytes
+    from .._files import atomic_write_bytes
 
     buf = io.BytesIO()
     fig.savefig(buf, format="png", bbox_inches="tight")
@@ -349,7 +349,7 @@ def write_report(out: str | Path) -> Path:
     out = Path(out)
     doc = read_result(out)
     if not doc.get("series") or not doc["series"].get("frames"):
-        from .output import OutputError
+        from ..errors import OutputError
 
         raise OutputError(f"{out}/result.json has no time series to draw")
     render_frames(out, doc)
@@ -357,6 +357,6 @@ def write_report(out: str | Path) -> Path:
     plot_timeline(doc, out / "timeline.png")
     path = atomic_write_text(out / "report.html", _html(doc))
     if (out / MARKER).exists():
-        _add_to_marker(out, list(PICTURES) + ["report.html"])
+        add_to_marker(out, list(PICTURES) + ["report.html"])
     log.info("wrote %s", path)
     return path

@@ -56,29 +56,26 @@ import re
 import sys
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..elastic.fem import STANDARD_GRAVITY
+from ..errors import SceneError
 from ..grasp.placement import DEFAULT_PLACEMENT_RULE, PLACEMENT_RULES
-from ..validation import SceneError as _ValidationSceneError
 
-__all__ = ["SceneError", "Scene", "ObjectSpec", "load_scene", "parse_scene", "shipped_scenes", "resolve_scene",
-           "SCENE_DIR", "parse_quantity"]
+__all__ = ["SCENE_DIR", "ObjectSpec", "Scene", "SceneError", "check_quantity", "load_scene", "parse_quantity",
+           "parse_scene", "resolve_scene", "shipped_scenes", "with_overrides"]
+
+if TYPE_CHECKING:
+    from ..elastic.body import Body
+    from ..mesh.tetmesh import TetMesh
 
 log = logging.getLogger(__name__)
 
 #: Folder of the scenes shipped with the package (``fem-grasp run tomato`` looks here).
 SCENE_DIR = Path(__file__).resolve().parents[1] / "scenes"
 
-STANDARD_GRAVITY = 9.8
-
-
-class SceneError(_ValidationSceneError):
-    """A scene file is missing, unreadable, or has a bad key or value; the message names file and key.
-
-    A subclass of :class:`fem_grasp.validation.SceneError` (and so of ``ValueError``).
-    """
 
 
 # ------------------------------------------------------------------ units
@@ -201,9 +198,10 @@ class Scene:
     placement_rule: str = DEFAULT_PLACEMENT_RULE
 
     # ------------------------------------------------------------ building
-    def load_mesh(self, cache_dir: Path | None = None) -> "Any":
+    def load_mesh(self, cache_dir: Path | None = None) -> "TetMesh":
         """The object's :class:`~fem_grasp.mesh.TetMesh` (gmsh meshes are cached in ``cache_dir``)."""
         from ..mesh.tetmesh import TetMesh, box_mesh
+        from .cache import cached_mesh, digest
 
         spec = self.object
         if spec.kind == "box":
@@ -217,7 +215,7 @@ class Scene:
             from ..mesh.shapes import PAPER_SHAPES
 
             # the shape's spec is in the key: a changed stand-in shape must not be served from the cache
-            return _cached_mesh(cache_dir, ("paper", spec.paper, spec.vertices, PAPER_SHAPES[spec.paper]),
+            return cached_mesh(cache_dir, ("paper", spec.paper, spec.vertices, PAPER_SHAPES[spec.paper]),
                                 lambda: _paper_mesh(spec.paper, spec.vertices))
         path = spec.mesh
         from ..mesh.scan import SURFACE_SUFFIXES
@@ -226,11 +224,11 @@ class Scene:
             from ..mesh import scan
 
             data = path.read_bytes()
-            return _cached_mesh(cache_dir, ("surface", _digest(data), spec.vertices, spec.size),
+            return cached_mesh(cache_dir, ("surface", digest(data), spec.vertices, spec.size),
                                 lambda: scan.mesh_surface(path, target_vertices=spec.vertices, size=spec.size))
         return TetMesh.from_file(path)
 
-    def body(self, cache_dir: Path | None = None) -> "Any":
+    def body(self, cache_dir: Path | None = None) -> "Body":
         """The :class:`~fem_grasp.elastic.body.Body` of this scene."""
         from ..elastic.body import Body
 
@@ -253,51 +251,10 @@ class Scene:
         return d
 
 
-def _digest(data: bytes) -> str:
-    import hashlib
-
-    return hashlib.sha256(data).hexdigest()[:16]
-
-
-def _paper_mesh(name: str, vertices: int) -> Any:
+def _paper_mesh(name: str, vertices: int) -> "TetMesh":
     from ..mesh import shapes
 
     return shapes.paper_mesh(name, vertices)
-
-
-def _cached_mesh(cache_dir: Path | None, key: tuple, build: Any) -> Any:
-    """Build a mesh, or load it from ``cache_dir`` (an .npz keyed by ``key`` and the gmsh version)."""
-    from ..mesh.tetmesh import TetMesh
-
-    if cache_dir is None:
-        return build()
-    try:
-        import gmsh
-
-        version = getattr(gmsh, "__version__", "?")
-    except ImportError:
-        version = "none"
-    import hashlib
-
-    h = hashlib.sha256(repr((key, version)).encode()).hexdigest()[:20]
-    path = Path(cache_dir) / f"mesh-{h}.npz"
-    if path.exists():
-        try:
-            with np.load(path) as z:
-                mesh = TetMesh(z["points"], z["tets"])
-            log.info("mesh from cache %s", path)
-            return mesh
-        except Exception as exc:  # a damaged cache entry is rebuilt
-            log.warning("ignoring unreadable mesh cache %s: %s", path, exc)
-    mesh = build()
-    from .output import atomic_write_bytes
-    import io
-
-    buf = io.BytesIO()
-    np.savez(buf, points=mesh.points, tets=mesh.tets)
-    Path(cache_dir).mkdir(parents=True, exist_ok=True)
-    atomic_write_bytes(path, buf.getvalue())
-    return mesh
 
 
 # ------------------------------------------------------------------ parsing
@@ -437,7 +394,11 @@ class _Reader:
         raise AssertionError(kind)  # pragma: no cover
 
 
-def _positive(w: str, v: float | None, unit: str, allow_zero: bool = False) -> None:
+def check_quantity(w: str, v: float | None, unit: str, allow_zero: bool = False) -> None:
+    """Raise :class:`SceneError` naming ``w`` unless ``v`` (SI, ``unit``) is finite and > 0.
+
+    With ``allow_zero`` zero passes too; None (a key not given) always passes.
+    """
     if v is None:
         return
     ok = math.isfinite(v) and (v >= 0 if allow_zero else v > 0)
@@ -452,8 +413,8 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
     ``quick`` merges the ``[quick]`` table over the others.  Relative mesh
     paths are taken from ``base_dir``.
     """
-    from ..grasp import objects
     from ..contact.obstacles import DEFAULT_RADIUS
+    from ..grasp import objects
     from ..grasp.placement import PAPER_SQUEEZE_DIRECTIONS
 
     _check_keys(data, "", src)
@@ -489,7 +450,7 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
     box = o.get("box")
     if box is not None:
         for i, x in enumerate(box):
-            _positive(f"{o.where('box')}[{i}]", x, "m")
+            check_quantity(f"{o.where('box')}[{i}]", x, "m")
     divisions = o.get("divisions", (4, 4, 4))
     if min(divisions) < 1:
         raise SceneError(f"{o.where('divisions')} must be positive integers, got {list(divisions)}")
@@ -499,7 +460,7 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
     if vertices is not None and box is not None:
         raise SceneError(f"{o.where('vertices')}: a box is meshed by its divisions, not a vertex count")
     size = o.get("size")
-    _positive(o.where("size"), size, "m")
+    check_quantity(o.where("size"), size, "m")
     if size is not None and paper is not None:
         raise SceneError(f"{o.where('size')}: a paper object is remeshed by vertex count (object.vertices), not size")
     down = o.get("down")
@@ -526,18 +487,18 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
     if len(mass_keys) > 1:
         raise SceneError(f"{src}: [material] takes one of weight, density, mass; got {', '.join(mass_keys)}")
     gravity = m.get("gravity", STANDARD_GRAVITY)
-    _positive(m.where("gravity"), gravity, "m/s^2")
+    check_quantity(m.where("gravity"), gravity, "m/s^2")
     weight = density = None
     if m.has("weight"):
         weight = m.get("weight")
-        _positive(m.where("weight"), weight, "N")
+        check_quantity(m.where("weight"), weight, "N")
     elif m.has("mass"):
         mass = m.get("mass")
-        _positive(m.where("mass"), mass, "kg")
+        check_quantity(m.where("mass"), mass, "kg")
         weight = mass * gravity
     elif m.has("density"):
         density = m.get("density")
-        _positive(m.where("density"), density, "kg/m^3")
+        check_quantity(m.where("density"), density, "kg/m^3")
     elif row is not None:
         weight = row.weight
     else:
@@ -549,20 +510,20 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
     if mu_f is None:
         raise SceneError(f"{src}: friction.finger (μ between object and fingertips) is required")
     mu_t = f.get("table", row.friction if row else mu_f)
-    _positive(f.where("finger"), mu_f, "friction coefficient", allow_zero=True)
-    _positive(f.where("table"), mu_t, "friction coefficient", allow_zero=True)
+    check_quantity(f.where("finger"), mu_f, "friction coefficient", allow_zero=True)
+    check_quantity(f.where("table"), mu_t, "friction coefficient", allow_zero=True)
 
     # [fingers]
     g = tables["fingers"]
     radius = g.get("radius", DEFAULT_RADIUS)
-    _positive(g.where("radius"), radius, "m")
+    check_quantity(g.where("radius"), radius, "m")
     contacts = g.get("contacts")
     rule = DEFAULT_PLACEMENT_RULE
     if isinstance(contacts, str):
         rule, contacts = contacts, None
     directions = g.get("directions", tuple(tuple(float(x) for x in d) for d in PAPER_SQUEEZE_DIRECTIONS))
     ratio = g.get("ratio", 1.0)
-    _positive(g.where("ratio"), ratio, "dimensionless", allow_zero=True)
+    check_quantity(g.where("ratio"), ratio, "dimensionless", allow_zero=True)
 
     # [solver]
     s = tables["solver"]
@@ -570,7 +531,7 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
     if backend not in ("sparse", "spectral"):
         raise SceneError(f"{s.where('backend')} must be \"sparse\" or \"spectral\", got {backend!r}")
     for key, unit in (("max_squeeze", "m"), ("step", "m"), ("lift_test_step", "N"), ("max_lift", "m")):
-        _positive(s.where(key), s.get(key), unit)
+        check_quantity(s.where(key), s.get(key), unit)
     step, max_sq = s.get("step"), s.get("max_squeeze")
     if step is not None and max_sq is not None and step > max_sq:
         raise SceneError(f"{s.where('step')} ({step:g} m) exceeds solver.max_squeeze ({max_sq:g} m)")
@@ -597,8 +558,28 @@ def load_scene(path: str | Path, quick: bool = False) -> Scene:
         the message names the file and the key.
     """
     p = Path(path).expanduser()
-    data = _read_toml(p)
-    return parse_scene(data, str(p), p.parent, quick=quick, path=p.resolve())
+    try:
+        data = _read_toml(p)
+        return parse_scene(data, str(p), p.parent, quick=quick, path=p.resolve())
+    except SceneError as exc:
+        _locate(exc, str(p))
+        raise
+
+
+#: A dotted scene key (``material.young``, ``quick.object``) as a message names it after the file.
+_KEY = re.compile(r"^[A-Za-z_][\w]*(?:\.[A-Za-z_][\w]*)*$")
+
+
+def _locate(exc: SceneError, src: str) -> None:
+    """Fill in ``exc.file`` and ``exc.key`` from a message that starts "<file>: <key>: …"."""
+    if exc.file is None:
+        exc.file = src
+    text = str(exc)
+    if exc.key is None and text.startswith(src):
+        rest = text[len(src):].removeprefix(" [quick]").removeprefix(": ")
+        head = rest.split(": ", 1)[0]
+        if ": " in rest and _KEY.match(head):
+            exc.key = head
 
 
 def shipped_scenes() -> dict[str, Path]:
@@ -621,127 +602,3 @@ def resolve_scene(name_or_path: str | Path) -> Path:
 def with_overrides(scene: Scene, **changes: Any) -> Scene:
     """A copy of ``scene`` with some fields replaced (e.g. ``backend="spectral"``)."""
     return replace(scene, **{k: v for k, v in changes.items() if v is not None})
-
-
-# ------------------------------------------------------------ resting state cache
-#: Bump when the cached fields change.
-REST_CACHE_FORMAT = 1
-#: A cached state is used only if re-solving its contact set reproduces its forces to this (relative to mg + Σ|f|).
-REST_CACHE_RTOL = 1e-8
-
-
-def default_cache_dir() -> Path:
-    """``$XDG_CACHE_HOME/fem_grasp`` or ``~/.cache/fem_grasp``."""
-    import os
-
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "fem_grasp"
-
-
-def _rest_code_digest() -> str:
-    """Digest of the source of the modules that compute a resting state (a change invalidates the cache)."""
-    import hashlib
-
-    here = Path(__file__).resolve().parent
-    h = hashlib.sha256()
-    for name in ("rest.py", "pose.py", "friction.py", "homotopy.py", "fem.py", "geometry.py"):
-        f = here / name
-        h.update(f.read_bytes() if f.exists() else name.encode())
-    return h.hexdigest()[:16]
-
-
-def rest_key(body: Any, mu_table: float, table_z: float = 0.0, down: Any = None) -> str:
-    """Hash of everything a resting state depends on: mesh, E, ν, density, g, μ_𝒫, table, down, code."""
-    import hashlib
-
-    h = hashlib.sha256()
-    h.update(np.ascontiguousarray(body.mesh.points, dtype=np.float64).tobytes())
-    h.update(np.ascontiguousarray(body.mesh.tets, dtype=np.int64).tobytes())
-    h.update(repr((REST_CACHE_FORMAT, float(body.young), float(body.poisson), float(body.density),
-                   float(body.gravity), float(mu_table), float(table_z),
-                   None if down is None else [float(x) for x in down], _rest_code_digest())).encode())
-    return h.hexdigest()[:24]
-
-
-def save_rest(path: Path, state: Any) -> None:
-    """Write what :func:`load_rest` needs to rebuild a :class:`~fem_grasp.grasp.rest.RestState` (atomic .npz)."""
-    import io
-
-    from .output import atomic_write_bytes
-
-    buf = io.BytesIO()
-    np.savez(buf, format=np.array(REST_CACHE_FORMAT), table_z=np.array(state.table_z),
-             mu_table=np.array(state.mu_table), rotation=state.pose.rotation, translation=state.pose.translation,
-             triangle=state.pose.triangle, margin=np.array(state.pose.margin), positions=state.positions,
-             contact_nodes=state.contact_nodes, contact_forces=state.contact_forces,
-             contact_displacements=state.contact_displacements, sliding=state.sliding,
-             iterations=np.array(state.iterations), wall_time=np.array(state.wall_time))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_bytes(path, buf.getvalue())
-
-
-def load_rest(path: Path, body: Any, backend: str = "sparse") -> Any:
-    """Rebuild a resting state of ``body`` from :func:`save_rest`'s file, or None if it is not valid.
-
-    The posed body is rebuilt from the stored rigid motion; the contact
-    solution is recomputed from the stored contact displacements (one solve),
-    and the entry is rejected unless that reproduces the stored forces and
-    positions and :meth:`~fem_grasp.grasp.rest.RestState.check` passes.  The
-    iteration history is not stored (``history`` is empty).
-    """
-    from ..grasp.pose import RestingPose
-    from ..grasp.rest import RestState
-
-    try:
-        with np.load(path) as z:
-            d = {k: z[k] for k in z.files}
-        if int(d["format"]) != REST_CACHE_FORMAT:
-            return None
-        posed = body.transformed(d["rotation"], d["translation"])
-        nodes = d["contact_nodes"].astype(np.int64)
-        sol = posed.contact_response(nodes, backend=backend).solve(d["contact_displacements"])
-        scale = posed.weight + float(np.abs(d["contact_forces"]).sum())
-        if (np.abs(sol.forces - d["contact_forces"]).max() > REST_CACHE_RTOL * scale
-                or np.abs(sol.positions - d["positions"]).max() > 1e-9 * posed.mesh.diameter):
-            log.warning("cached resting state %s does not reproduce its forces; recomputing", path)
-            return None
-        pose = RestingPose(posed, d["triangle"].astype(np.int64), d["rotation"], d["translation"],
-                           float(d["margin"]), None)
-        state = RestState(posed, float(d["table_z"]), float(d["mu_table"]), sol.positions, sol.displacements, nodes,
-                          sol.forces, d["contact_displacements"], d["sliding"].astype(bool),
-                          d["triangle"].astype(np.int64), [], int(d["iterations"]), float(d["wall_time"]), pose, sol)
-        if not state.check(raise_on_failure=False)["ok"]:
-            log.warning("cached resting state %s fails its checks; recomputing", path)
-            return None
-        return state
-    except Exception as exc:  # any damaged or foreign file: recompute
-        log.warning("ignoring unreadable resting-state cache %s: %s", path, exc)
-        return None
-
-
-def cached_rest(body: Any, mu_table: float, *, backend: str = "sparse", down: Any = None,
-                cache_dir: Path | None = None) -> tuple[Any, bool]:
-    """The resting state of ``body`` (:func:`fem_grasp.grasp.rest.rest`), reused from ``cache_dir`` when valid.
-
-    Returns
-    -------
-    (RestState, bool)
-        The state and whether it came from the cache.
-    """
-    from ..grasp.rest import rest
-
-    path = None
-    if cache_dir is not None:
-        path = Path(cache_dir) / f"rest-{rest_key(body, mu_table, 0.0, down)}.npz"
-        if path.exists():
-            state = load_rest(path, body, backend)
-            if state is not None:
-                log.info("resting state from cache %s", path)
-                return state, True
-    state = rest(body, mu_table, backend=backend, down=None if down is None else np.asarray(down, float))
-    if path is not None:
-        try:
-            save_rest(path, state)
-        except OSError as exc:
-            log.warning("could not cache the resting state in %s: %s", path, exc)
-    return state, False

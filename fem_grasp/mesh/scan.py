@@ -30,6 +30,8 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import SurfaceError
+
 __all__ = ["SURFACE_SUFFIXES", "SurfaceError", "Surface", "read_surface", "check_surface", "self_intersections",
            "mesh_surface", "surface_report"]
 
@@ -43,10 +45,6 @@ MERGE_TOL = 1e-9
 DENSE_SCAN_VERTICES = 5000
 #: Feature angle for gmsh's surface classification when remeshing (degrees).
 CLASSIFY_ANGLE = 40.0
-
-
-class SurfaceError(ValueError):
-    """A surface cannot be meshed: not closed, non-manifold, self-intersecting, … (the message says where)."""
 
 
 @dataclass(frozen=True)
@@ -329,10 +327,10 @@ def self_intersections(points: np.ndarray, faces: np.ndarray, max_report: int | 
 # ------------------------------------------------------------------ meshing
 def _gmsh_fill(surface: Surface, mesh_size: float | None) -> tuple[np.ndarray, np.ndarray]:
     """Tetrahedralise the volume bounded by ``surface``; remesh the surface first when ``mesh_size`` is given."""
-    from .shapes import SURFACE_ALGORITHMS, _extract_tets, _generate, _gmsh_model
+    from .gmsh_session import SURFACE_ALGORITHMS, extract_tets, generate, gmsh_model
 
     size = mesh_size if mesh_size is not None else surface.diameter  # size only matters when remeshing
-    with _gmsh_model("scan", size, SURFACE_ALGORITHMS["frontal-delaunay"]) as gmsh:
+    with gmsh_model("scan", size, SURFACE_ALGORITHMS["frontal-delaunay"]) as gmsh:
         tag = gmsh.model.addDiscreteEntity(2)
         n = len(surface.points)
         gmsh.model.mesh.addNodes(2, tag, list(range(1, n + 1)), surface.points.reshape(-1).tolist())
@@ -347,8 +345,8 @@ def _gmsh_fill(surface: Surface, mesh_size: float | None) -> tuple[np.ndarray, n
         loop = gmsh.model.geo.addSurfaceLoop(surfaces)
         gmsh.model.geo.addVolume([loop])
         gmsh.model.geo.synchronize()
-        _generate(gmsh, size)
-        return _extract_tets(gmsh)
+        generate(gmsh, size)
+        return extract_tets(gmsh)
 
 
 def mesh_surface(source: str | Path | Surface, target_vertices: int | None = None, size: float | None = None,
@@ -376,8 +374,8 @@ def mesh_surface(source: str | Path | Surface, target_vertices: int | None = Non
     RuntimeError
         gmsh could not mesh it.
     """
+    from .gmsh_session import mesh_with_vertex_count
     from .tetmesh import TetMesh
-    from .shapes import mesh_with_vertex_count
 
     if target_vertices is not None and size is not None:
         raise SurfaceError("give target_vertices or size, not both")

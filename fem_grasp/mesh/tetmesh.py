@@ -16,15 +16,16 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import MeshError
+
 log = logging.getLogger(__name__)
 
 #: A tetrahedron whose volume is below this fraction of (mean edge length)^3
 #: is degenerate: its stiffness would be singular or meaningless.
 DEGENERATE_VOLUME_RATIO = 1e-10
 
-
-class MeshError(ValueError):
-    """A mesh that cannot be used for finite elements."""
+__all__ = ["DEGENERATE_VOLUME_RATIO", "MeshError", "TetMesh", "box_mesh", "check_rotation", "signed_volumes",
+           "vertex_normals"]
 
 
 def signed_volumes(points: np.ndarray, tets: np.ndarray) -> np.ndarray:
@@ -319,6 +320,10 @@ class TetMesh:
         """(n, 3) outward unit normal at each vertex (area-weighted; zero off the surface)."""
         return vertex_normals(self.points, self.surface_faces)
 
+    def outward_normals(self, positions: np.ndarray) -> np.ndarray:
+        """(n, 3) :attr:`surface_normals` of the surface deformed to ``positions`` (n, 3)."""
+        return vertex_normals(positions, self.surface_faces)
+
     @property
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """(lower, upper) corners of the axis-aligned bounding box."""
@@ -357,7 +362,7 @@ class TetMesh:
         blocks = [c.data for c in mesh.cells if c.type == "tetra"]
         if not blocks:
             types = sorted({c.type for c in mesh.cells})
-            raise MeshError(f"the mesh has no tetra cells (cell types: {types}); mesh a surface with TetMesh.from_surface")
+            raise MeshError(f"the mesh has no tetra cells (cell types: {types}); mesh a surface with fem_grasp.mesh.mesh_surface")
         tets = np.concatenate(blocks).astype(np.int64)
         used, tets_c = np.unique(tets, return_inverse=True)
         return cls(np.asarray(mesh.points, dtype=float)[used, :3], tets_c.reshape(-1, 4))
@@ -378,14 +383,6 @@ class TetMesh:
     def write(self, path: str | PathLike, point_data: dict | None = None) -> None:
         """Write in the format meshio infers from the file extension."""
         self.to_meshio(point_data).write(path)
-
-    @classmethod
-    def from_surface(cls, path: str | PathLike, target_vertices: int | None = None,
-                     size: float | None = None) -> "TetMesh":
-        """Mesh the solid inside a closed triangle surface (STL, OBJ, PLY) with gmsh; see :mod:`fem_grasp.mesh.scan`."""
-        from .scan import mesh_surface
-
-        return mesh_surface(path, target_vertices=target_vertices, size=size)
 
 
 def box_mesh(lower: tuple[float, float, float] = (0.0, 0.0, 0.0), upper: tuple[float, float, float] = (1.0, 1.0, 1.0),

@@ -24,18 +24,22 @@ import math
 import numpy as np
 
 from ..obstacles import tangent_bases
-from .jit import jit
+from .jit import as_kernel_data, jit
 
-__all__ = ["STICK", "SLIDE", "RELEASE", "contact_records", "motion", "slide_residual", "slide_projection",
-           "slide_projections", "slide", "outside_sphere", "sweep",
-           "RECORD", "OK", "FREE_TOO_FAR", "SLIDE_TOO_FAR"]
+__all__ = ["ENTRY_POINTS", "FREE_TOO_FAR", "OK", "RECORD", "REC_AMAX", "REC_CINV", "REC_CKK", "REC_E1", "REC_E2",
+           "REC_KMIN", "REC_N0", "REC_R0", "REC_RADIUS", "REC_SPHERE", "RELEASE", "SLIDE", "SLIDE_TOO_FAR", "STICK",
+           "SlideGeometry", "contact_records", "motion", "outside_sphere", "slide", "slide_projection",
+           "slide_projections", "slide_residual", "sweep"]
 
 STICK, SLIDE, RELEASE = 0, 1, 2
 
 # Layout of a contact record: e₁ (3), e₂ (3), n̂⁰ (3), r⁰ (3), radius, sphere flag, C_kk (9, row-major),
 # smallest eigenvalue of C_kk, max |e C_kk eᵀ|, C_kk⁻¹ (9).
-_E1, _E2, _N0, _R0, _RADIUS, _SPHERE, _CKK, _KMIN, _AMAX, _CINV = 0, 3, 6, 9, 12, 13, 14, 23, 24, 25
+REC_E1, REC_E2, REC_N0, REC_R0, REC_RADIUS, REC_SPHERE, REC_CKK, REC_KMIN, REC_AMAX, REC_CINV = 0, 3, 6, 9, 12, 13, 14, 23, 24, 25
 RECORD = 34
+
+#: The kernels called from Python (the others are compiled into them): what a warm-up must reach.
+ENTRY_POINTS = ("sweep", "motion", "slide_projections", "outside_sphere")
 
 # Outcome of a sweep.
 OK, FREE_TOO_FAR, SLIDE_TOO_FAR = 0, 1, 2
@@ -60,35 +64,35 @@ def contact_records(positions: np.ndarray, centers: list, up: np.ndarray, ckk: n
         r0 = np.asarray(positions, float)[sphere] - np.array([ctr for ctr in centers if ctr is not None], float)
         radius = np.linalg.norm(r0, axis=1)
         n0[sphere] = r0 / radius[:, None]
-        rec[sphere, _R0:_R0 + 3] = r0
-        rec[sphere, _RADIUS] = radius
-        rec[sphere, _SPHERE] = 1.0
+        rec[sphere, REC_R0:REC_R0 + 3] = r0
+        rec[sphere, REC_RADIUS] = radius
+        rec[sphere, REC_SPHERE] = 1.0
     basis = tangent_bases(n0)
-    rec[:, _E1:_E1 + 3], rec[:, _E2:_E2 + 3], rec[:, _N0:_N0 + 3] = basis[:, 0], basis[:, 1], n0
-    rec[:, _CKK:_CKK + 9] = ckk.reshape(m, 9)
-    rec[:, _KMIN] = np.linalg.eigvalsh(ckk)[:, 0] if m else 0.0
-    rec[:, _AMAX] = np.abs(basis @ ckk @ basis.transpose(0, 2, 1)).reshape(m, 4).max(axis=1, initial=0.0)
-    rec[:, _CINV:_CINV + 9] = np.linalg.inv(ckk).reshape(m, 9)
+    rec[:, REC_E1:REC_E1 + 3], rec[:, REC_E2:REC_E2 + 3], rec[:, REC_N0:REC_N0 + 3] = basis[:, 0], basis[:, 1], n0
+    rec[:, REC_CKK:REC_CKK + 9] = ckk.reshape(m, 9)
+    rec[:, REC_KMIN] = np.linalg.eigvalsh(ckk)[:, 0] if m else 0.0
+    rec[:, REC_AMAX] = np.abs(basis @ ckk @ basis.transpose(0, 2, 1)).reshape(m, 4).max(axis=1, initial=0.0)
+    rec[:, REC_CINV:REC_CINV + 9] = np.linalg.inv(ckk).reshape(m, 9)
     return rec
 
 
 @jit
 def motion(g, u0, u1):
     """(δ, n̂, ŝ) as 9 floats for a tangential motion (u0, u1): along the great circle on a sphere."""
-    t0, t1, t2 = u0 * g[0] + u1 * g[3], u0 * g[1] + u1 * g[4], u0 * g[2] + u1 * g[5]
+    t0, t1, t2 = u0 * g[REC_E1] + u1 * g[REC_E2], u0 * g[REC_E1 + 1] + u1 * g[REC_E2 + 1], u0 * g[REC_E1 + 2] + u1 * g[REC_E2 + 2]
     tl = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
     h0, h1, h2 = 0.0, 0.0, 0.0
     if tl > 0:
         h0, h1, h2 = t0 / tl, t1 / tl, t2 / tl
-    if g[_SPHERE] == 0.0:
-        return t0, t1, t2, g[6], g[7], g[8], h0, h1, h2
-    radius = g[_RADIUS]
+    if g[REC_SPHERE] == 0.0:
+        return t0, t1, t2, g[REC_N0], g[REC_N0 + 1], g[REC_N0 + 2], h0, h1, h2
+    radius = g[REC_RADIUS]
     th = tl / radius
     c, s = math.cos(th), math.sin(th)
     # q − q⁰ = (cos θ − 1) r⁰ + R sin θ t̂, written without cancellation for small θ
     cm1, rs = -2.0 * math.sin(0.5 * th) ** 2, radius * s
-    n0, n1, n2 = g[6], g[7], g[8]
-    return (cm1 * g[9] + rs * h0, cm1 * g[10] + rs * h1, cm1 * g[11] + rs * h2,
+    n0, n1, n2 = g[REC_N0], g[REC_N0 + 1], g[REC_N0 + 2]
+    return (cm1 * g[REC_R0] + rs * h0, cm1 * g[REC_R0 + 1] + rs * h1, cm1 * g[REC_R0 + 2] + rs * h2,
             c * n0 + s * h0, c * n1 + s * h1, c * n2 + s * h2,
             c * h0 - s * n0, c * h1 - s * n1, c * h2 - s * n2)
 
@@ -96,14 +100,14 @@ def motion(g, u0, u1):
 @jit
 def _force(g, fs0, fs1, fs2, d0, d1, d2):
     """fs + C_kk d as three floats."""
-    return (fs0 + g[14] * d0 + g[15] * d1 + g[16] * d2, fs1 + g[17] * d0 + g[18] * d1 + g[19] * d2,
-            fs2 + g[20] * d0 + g[21] * d1 + g[22] * d2)
+    return (fs0 + g[REC_CKK] * d0 + g[REC_CKK + 1] * d1 + g[REC_CKK + 2] * d2, fs1 + g[REC_CKK + 3] * d0 + g[REC_CKK + 4] * d1 + g[REC_CKK + 5] * d2,
+            fs2 + g[REC_CKK + 6] * d0 + g[REC_CKK + 7] * d1 + g[REC_CKK + 8] * d2)
 
 
 @jit
 def _tangent_frame(g, n0, n1, n2):
     """(ê, n̂ × ê): e₁ projected onto the tangent plane of n̂ and normalised, and its turn by 90°."""
-    a0, a1, a2 = g[0], g[1], g[2]
+    a0, a1, a2 = g[REC_E1], g[REC_E1 + 1], g[REC_E1 + 2]
     an = a0 * n0 + a1 * n1 + a2 * n2
     e0, e1, e2 = a0 - an * n0, a1 - an * n1, a2 - an * n2
     el = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
@@ -146,6 +150,23 @@ def slide_projections(rows, mu, us, out):
         o[0], o[1], o[2], o[3], o[4], o[5], o[6], o[7], o[8] = a0, a1, a2, b0, b1, b2, d0, d1, d2
 
 
+class SlideGeometry:
+    """The slide projections of :func:`slide_projection` for many sliding contacts at once (the Newton polish of
+    :mod:`fem_grasp.contact.relaxation`); ``records`` are their rows of :func:`contact_records`."""
+
+    def __init__(self, records: np.ndarray, mu: np.ndarray) -> None:
+        self.rows = as_kernel_data(np.asarray(records, float).reshape(-1, RECORD))
+        self.mu = as_kernel_data(mu)
+
+    def projections(self, us: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(p, 2, 3) maps f ↦ slide residual at the motions ``us`` (p, 2), and the slips δ (p, 3)."""
+        p = len(self.mu)
+        out = as_kernel_data(np.empty((p, 9)))
+        slide_projections(self.rows, self.mu, as_kernel_data(us), out)
+        out = np.asarray(out, float).reshape(p, 9)  # plain Python returns [] for p = 0, not (0, 9)
+        return out[:, :6].reshape(p, 2, 3), out[:, 6:]
+
+
 @jit
 def _cone_excess(g, fs0, fs1, fs2, mu, u0, u1):
     """|f_t| − μ f_n at motion (u0, u1) (≤ 0: inside the cone)."""
@@ -160,7 +181,7 @@ def _cone_excess(g, fs0, fs1, fs2, mu, u0, u1):
 def _newton2(g, fs0, fs1, fs2, mu, u0, u1, tol):
     """Newton's method (finite-difference 2×2 Jacobian, backtracking) on the slide residual: (ok, u0, u1)."""
     g0, g1, fn = slide_residual(g, fs0, fs1, fs2, mu, u0, u1)
-    hmin = 1e-9 * tol / max(g[_AMAX], 1e-300)
+    hmin = 1e-9 * tol / max(g[REC_AMAX], 1e-300)
     for _ in range(40):
         if max(abs(g0), abs(g1)) <= tol:
             break
@@ -240,18 +261,18 @@ def slide(g, fs0, fs1, fs2, mu, warm, w0, w1, tol, amax, memo):
     """
     if warm and (w0 != 0.0 or w1 != 0.0):
         return _newton2(g, fs0, fs1, fs2, mu, w0, w1, tol)
-    ft0 = g[0] * fs0 + g[1] * fs1 + g[2] * fs2
-    ft1 = g[3] * fs0 + g[4] * fs1 + g[5] * fs2
+    ft0 = g[REC_E1] * fs0 + g[REC_E1 + 1] * fs1 + g[REC_E1 + 2] * fs2
+    ft1 = g[REC_E2] * fs0 + g[REC_E2 + 1] * fs1 + g[REC_E2 + 2] * fs2
     ftn = math.sqrt(ft0 * ft0 + ft1 * ft1)
     if ftn == 0.0:
         return False, 0.0, 0.0
     # First guess: straight back against f_t, by the linearised cone equation.
     tt0, tt1 = ft0 / ftn, ft1 / ftn
-    fn0 = fs0 * g[6] + fs1 * g[7] + fs2 * g[8]
-    w_0, w_1, w_2 = tt0 * g[0] + tt1 * g[3], tt0 * g[1] + tt1 * g[4], tt0 * g[2] + tt1 * g[5]
+    fn0 = fs0 * g[REC_N0] + fs1 * g[REC_N0 + 1] + fs2 * g[REC_N0 + 2]
+    w_0, w_1, w_2 = tt0 * g[REC_E1] + tt1 * g[REC_E2], tt0 * g[REC_E1 + 1] + tt1 * g[REC_E2 + 1], tt0 * g[REC_E1 + 2] + tt1 * g[REC_E2 + 2]
     cw0, cw1, cw2 = _force(g, 0.0, 0.0, 0.0, w_0, w_1, w_2)
     stiff = w_0 * cw0 + w_1 * cw1 + w_2 * cw2
-    den = stiff - mu * (g[6] * cw0 + g[7] * cw1 + g[8] * cw2)
+    den = stiff - mu * (g[REC_N0] * cw0 + g[REC_N0 + 1] * cw1 + g[REC_N0 + 2] * cw2)
     step = (ftn - mu * fn0) / den if den > 0 else ftn / stiff
     ok, u0, u1 = _newton2(g, fs0, fs1, fs2, mu, -step * tt0, -step * tt1, tol)
     if ok:
@@ -269,8 +290,8 @@ def slide(g, fs0, fs1, fs2, mu, warm, w0, w1, tol, amax, memo):
         f0, f1, f2 = _force(g, fs0, fs1, fs2, d0, d1, d2)
         fn = f0 * n0 + f1 * n1 + f2 * n2
         p0, p1, p2 = f0 - fn * n0, f1 - fn * n1, f2 - fn * n2
-        ft0 = g[0] * p0 + g[1] * p1 + g[2] * p2
-        ft1 = g[3] * p0 + g[4] * p1 + g[5] * p2
+        ft0 = g[REC_E1] * p0 + g[REC_E1 + 1] * p1 + g[REC_E1 + 2] * p2
+        ft1 = g[REC_E2] * p0 + g[REC_E2 + 1] * p1 + g[REC_E2 + 2] * p2
         ftn = math.sqrt(ft0 * ft0 + ft1 * ft1)
         if ftn == 0.0:
             return False, 0.0, 0.0
@@ -287,10 +308,10 @@ def slide(g, fs0, fs1, fs2, mu, warm, w0, w1, tol, amax, memo):
 @jit
 def outside_sphere(g, x0, x1, x2):
     """A fingertip contact moved by δ = x lies outside its sphere, |r⁰ + δ| ≥ R (exact Signorini); False on the table."""
-    if g[_SPHERE] == 0.0:
+    if g[REC_SPHERE] == 0.0:
         return False
-    p0, p1, p2 = g[9] + x0, g[10] + x1, g[11] + x2
-    return p0 * p0 + p1 * p1 + p2 * p2 >= g[_RADIUS] * g[_RADIUS]
+    p0, p1, p2 = g[REC_R0] + x0, g[REC_R0 + 1] + x1, g[REC_R0 + 2] + x2
+    return p0 * p0 + p1 * p1 + p2 * p2 >= g[REC_RADIUS] * g[REC_RADIUS]
 
 
 @jit
@@ -321,16 +342,16 @@ def sweep(rec, c, f, d, u, has_u, status, mu, stick_tol, local_tol, max_slip, me
         # the force at k with contact k back at its start
         c0, c1, c2 = _force(g, 0.0, 0.0, 0.0, dk0, dk1, dk2)
         fs0, fs1, fs2 = f[k][0] - c0, f[k][1] - c1, f[k][2] - c2
-        n0, n1, n2 = g[6], g[7], g[8]
+        n0, n1, n2 = g[REC_N0], g[REC_N0 + 1], g[REC_N0 + 2]
         fn = fs0 * n0 + fs1 * n1 + fs2 * n2
         t0, t1, t2 = fs0 - fn * n0, fs1 - fn * n1, fs2 - fn * n2
         st = STICK
         x0, x1, x2 = 0.0, 0.0, 0.0
         # Within the sweep tolerance of its cone a contact sticks (its slip would be round-off).
         if not (fn >= 0.0 and math.sqrt(t0 * t0 + t1 * t1 + t2 * t2) <= mu[k] * fn + stick_tol):
-            x0 = -(g[25] * fs0 + g[26] * fs1 + g[27] * fs2)
-            x1 = -(g[28] * fs0 + g[29] * fs1 + g[30] * fs2)
-            x2 = -(g[31] * fs0 + g[32] * fs1 + g[33] * fs2)
+            x0 = -(g[REC_CINV] * fs0 + g[REC_CINV + 1] * fs1 + g[REC_CINV + 2] * fs2)
+            x1 = -(g[REC_CINV + 3] * fs0 + g[REC_CINV + 4] * fs1 + g[REC_CINV + 5] * fs2)
+            x2 = -(g[REC_CINV + 6] * fs0 + g[REC_CINV + 7] * fs1 + g[REC_CINV + 8] * fs2)
             if not math.sqrt(x0 * x0 + x1 * x1 + x2 * x2) <= max_slip:  # also catches NaN
                 return FREE_TOO_FAR, k, change, move, unsolved
             # Signorini's condition in the contact's own frame: it lifts off when δ·n̂⁰ ≥ 0.  On a sphere the
@@ -340,10 +361,10 @@ def sweep(rec, c, f, d, u, has_u, status, mu, stick_tol, local_tol, max_slip, me
             if x0 * n0 + x1 * n1 + x2 * n2 >= 0.0:
                 st = RELEASE
             else:
-                amax = max(abs(fs0), abs(fs1), abs(fs2)) * 1e3 / g[_KMIN]
+                amax = max(abs(fs0), abs(fs1), abs(fs2)) * 1e3 / g[REC_KMIN]
                 amax = min(max_slip, amax)
-                if g[_SPHERE] != 0.0:
-                    amax = min(amax, g[_RADIUS])
+                if g[REC_SPHERE] != 0.0:
+                    amax = min(amax, g[REC_RADIUS])
                 warm = has_u[k] != 0
                 ok, v0, v1 = slide(g, fs0, fs1, fs2, mu[k], warm, u[k][0], u[k][1], local_tol, amax, memo[k])
                 if not ok and warm:
@@ -359,8 +380,8 @@ def sweep(rec, c, f, d, u, has_u, status, mu, stick_tol, local_tol, max_slip, me
                     # lasts (the caller counts such sweeps).
                     unsolved = k
                     unsolved_force[0], unsolved_force[1], unsolved_force[2] = fs0, fs1, fs2
-                    e0 = g[0] * fs0 + g[1] * fs1 + g[2] * fs2
-                    e1 = g[3] * fs0 + g[4] * fs1 + g[5] * fs2
+                    e0 = g[REC_E1] * fs0 + g[REC_E1 + 1] * fs1 + g[REC_E1 + 2] * fs2
+                    e1 = g[REC_E2] * fs0 + g[REC_E2 + 1] * fs1 + g[REC_E2 + 2] * fs2
                     en = math.sqrt(e0 * e0 + e1 * e1)
                     if en > 0:  # the question slide asked: answered from the memo
                         ok, v0, v1 = _ray_root(g, fs0, fs1, fs2, mu[k], -e0 / en, -e1 / en, amax, memo[k])

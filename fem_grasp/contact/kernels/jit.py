@@ -14,6 +14,11 @@ kernels are compiled together.
 
 Set ``FEM_GRASP_NO_JIT=1`` before importing fem_grasp to run the plain
 Python versions even when numba is installed (the tests compare the two).
+
+Compilation ahead of the first pickup: each kernel module lists the kernels it
+exports to Python (``ENTRY_POINTS``), and the modules that call them register
+a sample call with :func:`warm_up_sample`; :func:`fem_grasp.contact.warm_up`
+runs the samples (``make setup`` does, once per installation).
 """
 
 from __future__ import annotations
@@ -27,7 +32,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-__all__ = ["ENABLED", "jit", "as_kernel_data", "backend_name", "warm_up"]
+__all__ = ["ENABLED", "as_kernel_data", "backend_name", "jit", "kernel_modules", "warm_up_sample", "warm_up_samples"]
 
 log = logging.getLogger(__name__)
 
@@ -35,6 +40,10 @@ log = logging.getLogger(__name__)
 ENABLED: bool = importlib.util.find_spec("numba") is not None and not os.environ.get("FEM_GRASP_NO_JIT")
 
 _kernels: list[tuple[dict, str, Callable]] = []  # (module namespace, name, Python function)
+#: Every module that defines a kernel (each lists the kernels it exports to Python as ``ENTRY_POINTS``).
+_kernel_modules: set[str] = set()
+#: Calls that compile the kernels with the argument types the package uses (:func:`warm_up_sample`).
+_samples: list[Callable[[], Any]] = []
 
 
 def _compile_all() -> None:
@@ -51,6 +60,7 @@ def _compile_all() -> None:
 
 def jit(fn: Callable) -> Callable:
     """``numba.njit(cache=True)`` when :data:`ENABLED` (numba imported at the first call), else ``fn``."""
+    _kernel_modules.add(fn.__module__)
     if not ENABLED:
         return fn
     namespace, name = fn.__globals__, fn.__name__
@@ -75,44 +85,18 @@ def backend_name() -> str:
     return f"numba {importlib.metadata.version('numba')}" if ENABLED else "python"
 
 
-def warm_up() -> float:
-    """Compile every kernel now, through each of its entry points from Python; seconds taken.
-
-    numba caches what it compiles, so this costs once per installation (``make setup`` calls it; about
-    18 s on a 2-core EPYC); without it the first pickup pays the compilation.
-    """
-    import time
-
-    from . import gauss_seidel as gs
-    from ..relaxation import _SlideGeometry, relax_contacts
-    from ..tracking import FINGER1, TABLE, MixedSlipSystem
-
-    if not ENABLED:
-        return 0.0
-    t0 = time.perf_counter()
-    up = np.array([0.0, 0.0, 1.0])
-    stiffness = 100.0 * np.eye(6)
-    forces = np.array([[0.8, 0.0, 1.0], [0.0, 0.8, 1.0]])
-    mu = np.array([0.5, 0.5])
-    centre = np.array([0.0, 0.0, 0.02])
-    positions = np.array([[0.0, 0.0, 0.0], centre - [0.0, 0.0, 0.01]])
-    # The return mapping: its sweep, and what its Newton polish and its end call per contact.
-    relax_contacts(stiffness, forces, positions, [None, centre], up, mu, 1.0)
-    records = gs.contact_records(positions, [None, centre], up, np.stack([np.eye(3), np.eye(3)]))
-    _SlideGeometry(records, mu).projections(np.zeros((2, 2)))
-    gs.outside_sphere(records[1], 0.0, 0.0, 0.0)
-    gs.motion(records[1], 0.0, 0.0)
-    # The slip systems of both forms: Newton, and the residual and Jacobian called on their own.
-    for free in (False, True):
-        system = MixedSlipSystem(stiffness, forces, np.zeros((2, 3)), np.array([0, 1]), np.array([TABLE, FINGER1]),
-                                 mu, np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), positions - [np.zeros(3), centre],
-                                 up, 0.01, free)
-        system._newton(system.x0 / system.xscale, 1e-12)  # root or not: only the compilation matters
-        system.residual(system.x0)
-        system.jacobian(system.x0)
-    return time.perf_counter() - t0
+def kernel_modules() -> tuple[str, ...]:
+    """The modules that define kernels (imported so far), sorted."""
+    return tuple(sorted(_kernel_modules))
 
 
-#: The kernels called from Python (the others are compiled into them): what :func:`warm_up` must reach.
-ENTRY_POINTS = {"fem_grasp.contact.kernels.gauss_seidel": ("sweep", "motion", "slide_projections", "outside_sphere"),
-                "fem_grasp.contact.kernels.slip_newton": ("residual", "jacobian", "newton")}
+def warm_up_sample(sample: Callable[[], Any]) -> Callable[[], Any]:
+    """Register ``sample`` (a decorator): a call of the package's own code that reaches kernels with the argument
+    types of a real pickup, so that :func:`fem_grasp.contact.warm_up` compiles what a pickup will call."""
+    _samples.append(sample)
+    return sample
+
+
+def warm_up_samples() -> tuple[Callable[[], Any], ...]:
+    """Every registered :func:`warm_up_sample`, in registration order."""
+    return tuple(_samples)

@@ -26,7 +26,10 @@ import numpy as np
 
 from .jit import jit
 
-__all__ = ["residual", "jacobian", "newton"]
+__all__ = ["ENTRY_POINTS", "residual", "jacobian", "newton"]
+
+#: The kernels called from Python (the others are compiled into them): what a warm-up must reach.
+ENTRY_POINTS = ("residual", "jacobian", "newton")
 
 
 @jit

@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 
 from fem_grasp import Body, box_mesh
+from fem_grasp.errors import SceneError
 from fem_grasp.grasp import objects
-from fem_grasp.io.scene import (SceneError, cached_rest, load_scene, parse_quantity, resolve_scene, rest_key,
-                             shipped_scenes)
+from fem_grasp.io.cache import cached_rest, rest_key
+from fem_grasp.io.scene import load_scene, parse_quantity, resolve_scene, shipped_scenes
 
 PAPER = ("tomato", "orange", "steam_bun", "football")
 
@@ -158,3 +159,17 @@ def test_resting_state_cache_is_reused_and_equal_and_keyed(tmp_path):
     f.write_bytes(b"garbage")
     state, cached = cached_rest(body, 0.5, cache_dir=tmp_path)
     assert not cached and state.n_contacts == first.n_contacts
+
+
+def test_the_rest_cache_key_covers_every_module_the_rest_depends_on():
+    """The key hashes every source file below io/ and the ground floor, not a hand-kept list (which missed the
+    contact response, the compliance, the body and the mesh), and the package version."""
+    from fem_grasp.io.cache import rest_code_digest, rest_code_files
+
+    names = {f"{f.parent.name}/{f.name}" for f in rest_code_files()}
+    for needed in ("elastic/response.py", "elastic/compliance.py", "elastic/body.py", "mesh/tetmesh.py",
+                   "grasp/rest.py", "grasp/pose.py", "contact/plane_slip.py", "contact/friction.py",
+                   "contact/homotopy.py", "elastic/fem.py", "contact/obstacles.py", "fem_grasp/errors.py"):
+        assert needed in names, needed
+    assert not any(f.parent.name == "io" for f in rest_code_files())  # its own floor: a cache, not physics
+    assert rest_code_digest() == rest_code_digest()

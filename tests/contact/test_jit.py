@@ -19,20 +19,20 @@ import pytest
 
 from fem_grasp.contact.kernels import jit
 from fem_grasp.contact.relaxation import RelaxationFailure, relax_contacts
+from tests.helpers import box_on_the_table_pushed_sideways, box_squeezed_3mm, squeezed_box_contacts
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 UP = np.array([0.0, 0.0, 1.0])
 
 
 def _problems():
-    from tests.test_relaxation import _box_on_the_table_pushed_sideways, _squeezed_box
 
     out = []
     for mu, depth in [(0.5, 2e-3), (0.3, 2e-3), (0.5, 4e-3), (0.2, 1e-3)]:
-        c, f0, q0, centers, mu_k, _ = _squeezed_box(mu, depth)
+        c, f0, q0, centers, mu_k, _ = squeezed_box_contacts(mu, depth)
         out.append(((c, f0, q0, centers, UP, mu_k, float(np.abs(f0).max())), {}))
     for tangential in (0.49, 0.6, 1.0):  # held; steady drift; a contact with no local state
-        c, f, q, centers, mu_k = _box_on_the_table_pushed_sideways(tangential)
+        c, f, q, centers, mu_k = box_on_the_table_pushed_sideways(tangential)
         out.append(((c, f, q, centers, UP, mu_k, 1.0), {"max_slip": 1.0}))
     return out
 
@@ -52,9 +52,8 @@ def solve_all():
 def slip_trials():
     """Trial states of the squeezed box (three or more nodes sliding) in both slip forms, over a range of
     increments up to a third of the fingertip radius: each trial's (disp, forces, slip amounts)."""
-    from tests.test_pickup import _box_squeezed_3mm
 
-    _, tracker, state, vel = _box_squeezed_3mm()
+    _, tracker, state, vel = box_squeezed_3mm()
     out = []
     for free in (False, True):
         tracker.forms = (free,)
@@ -65,11 +64,11 @@ def slip_trials():
 
 
 def in_plain_python(name: str, tmp_path: Path):
-    """tests.test_jit.<name>() run in a subprocess with FEM_GRASP_NO_JIT=1."""
+    """tests.contact.test_jit.<name>() run in a subprocess with FEM_GRASP_NO_JIT=1."""
     out = tmp_path / f"{name}.pkl"
     env = dict(os.environ, FEM_GRASP_NO_JIT="1")
     code = ("import pickle, sys; from fem_grasp.contact.kernels import jit; assert not jit.ENABLED; "
-            f"from tests.test_jit import {name}; pickle.dump({name}(), open(sys.argv[1], 'wb'))")
+            f"from tests.contact.test_jit import {name}; pickle.dump({name}(), open(sys.argv[1], 'wb'))")
     subprocess.run([sys.executable, "-c", code, str(out)], cwd=ROOT, env=env, check=True)
     return pickle.loads(out.read_bytes())
 
@@ -108,9 +107,8 @@ def test_compiled_and_plain_python_slip_systems_agree(tmp_path):
 def empty_projections():
     """The polish's slide projections when no contact slides (every non-sticking one released)."""
     from fem_grasp.contact.kernels import gauss_seidel as gs
-    from fem_grasp.contact.relaxation import _SlideGeometry
 
-    proj, delta = _SlideGeometry(np.zeros((0, gs.RECORD)), np.zeros(0)).projections(np.zeros((0, 2)))
+    proj, delta = gs.SlideGeometry(np.zeros((0, gs.RECORD)), np.zeros(0)).projections(np.zeros((0, 2)))
     return proj.shape, delta.shape
 
 
@@ -122,23 +120,26 @@ def test_a_polish_with_no_sliding_contact_has_empty_projections_in_both_kernel_m
 
 
 def test_warm_up_compiles_every_entry_point(tmp_path):
-    """``make setup`` compiles the kernels with jit.warm_up: in a fresh process (an empty numba cache),
-    every kernel called from Python must then have a compiled signature, and none is left for a pickup
-    to compile."""
+    """``make setup`` compiles the kernels with fem_grasp.contact.warm_up: in a fresh process (an empty numba
+    cache), every kernel called from Python must then have a compiled signature, and none is left for a pickup
+    to compile.  The kernel modules name their entry points; the callers register the samples."""
     import importlib
-
-    for module, names in jit.ENTRY_POINTS.items():
-        mod = importlib.import_module(module)
-        assert all(callable(getattr(mod, n)) for n in names)
-    if not jit.ENABLED:
-        assert jit.warm_up() == 0.0
-        return
-    code = ("import importlib, json, sys; from fem_grasp.contact.kernels import jit; jit.warm_up(); "
-            "print(json.dumps({m: {n: len(getattr(importlib.import_module(m), n).signatures) for n in names} "
-            "for m, names in jit.ENTRY_POINTS.items()}))")
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
-    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, check=True, capture_output=True, text=True)
     import json
 
+    from fem_grasp.contact.warm_up import entry_points, warm_up
+
+    points = entry_points()
+    assert set(points) == {"fem_grasp.contact.kernels.gauss_seidel", "fem_grasp.contact.kernels.slip_newton"}
+    for module, names in points.items():
+        mod = importlib.import_module(module)
+        assert names and all(callable(getattr(mod, n)) for n in names)
+    if not jit.ENABLED:
+        assert warm_up() == 0.0
+        return
+    code = ("import importlib, json; from fem_grasp.contact.warm_up import entry_points, warm_up; warm_up(); "
+            "print(json.dumps({m: {n: len(getattr(importlib.import_module(m), n).signatures) for n in names} "
+            "for m, names in entry_points().items()}))")
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, check=True, capture_output=True, text=True)
     counts = json.loads(out.stdout.strip().splitlines()[-1])
     assert all(n >= 1 for names in counts.values() for n in names.values()), counts

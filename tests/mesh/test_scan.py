@@ -4,11 +4,16 @@ import meshio
 import numpy as np
 import pytest
 
-from fem_grasp import TetMesh
-from fem_grasp.mesh.scan import (SurfaceError, Surface, check_surface, clean_surface, mesh_surface, read_surface,
-                            self_intersections)
-
-from _ux_helpers import icosphere, write_stl
+from fem_grasp.mesh.scan import (
+    Surface,
+    SurfaceError,
+    check_surface,
+    clean_surface,
+    mesh_surface,
+    read_surface,
+    self_intersections,
+)
+from tests.helpers import icosphere, write_stl
 
 gmsh = pytest.importorskip("gmsh")
 R = 0.03
@@ -84,7 +89,7 @@ def test_remesh_at_a_vertex_count_from_obj_and_ply(tmp_path, sphere, suffix):
     p, f = icosphere(R, 4)  # a "dense scan": 2562 vertices
     path = tmp_path / f"dense{suffix}"
     meshio.write(path, meshio.Mesh(p, [("triangle", f)]))
-    mesh = TetMesh.from_surface(path, target_vertices=300)
+    mesh = mesh_surface(path, target_vertices=300)
     assert abs(mesh.n_points - 300) <= 30
     assert mesh.volume == pytest.approx(4 / 3 * np.pi * R**3, rel=0.05)
 

@@ -1,7 +1,7 @@
 """Extreme but valid scenes, full pickups (issue #8): each completes with ``check()`` passing, or fails
 with a named reason.
 
-The scene is the box of tests/test_pickup.py: 3×4×3 cm on a 3×3×3 grid (64
+The scene is the box of tests/helpers.py (the pickup tests' box): 3×4×3 cm on a 3×3×3 grid (64
 nodes), fingertips of radius 2 cm, μ = 0.5, 0.3 N at E = 20 kPa, ν = 0.3.
 Its finger contacts are named by their reference positions (−0.5, ∓2, 2) cm
 × L, the nodes test_pickup's face-centre rule picks at L = 1: that rule ties
@@ -50,13 +50,13 @@ import numpy as np
 import pytest
 
 from fem_grasp import Body, TetMesh, box_mesh
+from fem_grasp.contact.tracking import TOL_LOCATE, Tracker, TrackingError
+from fem_grasp.contact.tracking import run as track
+from fem_grasp.errors import LockingWarning, PlacementError
 from fem_grasp.grasp.pickup import PickupResult, pickup
 from fem_grasp.grasp.placement import PAPER_SQUEEZE_DIRECTIONS
 from fem_grasp.grasp.rest import rest
 from fem_grasp.grasp.squeeze import initial_state
-from fem_grasp.contact.tracking import TOL_LOCATE, Tracker, TrackingError
-from fem_grasp.contact.tracking import run as track
-from fem_grasp.validation import LockingWarning, PlacementError
 
 LOWER, UPPER = np.array([-0.015, -0.02, 0.0]), np.array([0.015, 0.02, 0.03])
 RADIUS, WEIGHT, YOUNG = 0.02, 0.3, 2e4
@@ -70,12 +70,12 @@ def _node(points: np.ndarray, q: np.ndarray) -> int:
     return int(np.argmin(np.linalg.norm(points - q, axis=1)))
 
 
-def _box(young: float = YOUNG, poisson: float = 0.3, weight: float = WEIGHT, size: float = 1.0,
+def pickup_box(young: float = YOUNG, poisson: float = 0.3, weight: float = WEIGHT, size: float = 1.0,
          divisions: tuple[int, int, int] = (3, 3, 3)) -> Body:
     return Body(box_mesh(tuple(size * LOWER), tuple(size * UPPER), divisions), young, poisson, weight=weight)
 
 
-def _pickup(body: Body, size: float = 1.0, mu: float = 0.5, mu_table: float | None = None,
+def pick_up_box(body: Body, size: float = 1.0, mu: float = 0.5, mu_table: float | None = None,
             contacts: tuple[int, int] | None = None, **kw) -> PickupResult:
     rs = rest(body, mu if mu_table is None else mu_table)
     if contacts is None:
@@ -104,7 +104,7 @@ def _completes(res: PickupResult) -> list[dict]:
 @lru_cache(maxsize=None)
 def _scaled(young: float, size: float) -> PickupResult:
     """The box at modulus ``young`` and size × ``size`` with mg = 0.3 N × (E / 20 kPa) × L² (module notes)."""
-    res = _pickup(_box(young, weight=WEIGHT * young / YOUNG * size ** 2, size=size), size)
+    res = pick_up_box(pickup_box(young, weight=WEIGHT * young / YOUNG * size ** 2, size=size), size)
     _completes(res)
     return res
 
@@ -160,7 +160,7 @@ def test_a_30_micrometre_and_a_30_metre_box_give_the_same_pickup():
 
 def test_young_modulus_alone_stiff_limit_and_soft_refusal():
     """E alone (mg = 0.3 N): the rigid limit E → ∞ converges; E = 100 Pa sags beyond linear elasticity."""
-    a, b = (_pickup(_box(e), lift=False) for e in (1e10, 1e12))
+    a, b = (pick_up_box(pickup_box(e), lift=False) for e in (1e10, 1e12))
     for r in (a, b):
         r.check()
         assert r.reason.startswith("the lift test passed")
@@ -181,7 +181,7 @@ def test_young_modulus_alone_stiff_limit_and_soft_refusal():
     # not the similarity depth ρ/L of the 0.3 N / 20 kPa box.
     assert abs(b.squeeze_depth - _scaled(1e2, 1e3).squeeze_depth / 1e3) > 0.1 * b.squeeze_depth
     # At 100 Pa the 0.3 N box sags by 92 % of its height: its resting shape swallows the fingertip.
-    soft = _box(1e2)
+    soft = pickup_box(1e2)
     rs = rest(soft, 0.5)
     assert rs.max_sag > 0.9 * (UPPER - LOWER)[2]
     with pytest.raises(PlacementError, match="starts inside the object"):
@@ -208,12 +208,12 @@ def test_nearly_incompressible_box_is_picked_up_with_a_locking_warning():
     (docs/limits.md).
     """
     with pytest.warns(LockingWarning, match="lock"):
-        res = _pickup(_box(poisson=0.4999), mu=1.0, step=1.2e-4)
+        res = pick_up_box(pickup_box(poisson=0.4999), mu=1.0, step=1.2e-4)
     _completes(res)
     assert res.success, res.reason
     # Nearly incompressible: the weight on the table changes the volume 1e3 times less than at ν = 0.3
     # (bulk modulus E / 3(1 − 2ν) is 2000 times larger; locking makes P1 stiffer still).
-    ref = rest(_box(poisson=0.3), 1.0)
+    ref = rest(pickup_box(poisson=0.3), 1.0)
     dv = [abs(_linear_volume_change(r.body.mesh, r.displacements)) / r.body.mesh.volume for r in (res.rest, ref)]
     assert dv[0] < 1e-3 * dv[1] and dv[1] > 1e-5
 
@@ -223,13 +223,13 @@ def test_nearly_incompressible_box_is_picked_up_with_a_locking_warning():
 def test_frictionless_fingers_or_table_are_a_named_failure_not_a_traceback(mu, mu_table):
     """μ = 0 has no force closure (two frictionless points, or a frictionless support, cannot resist every
     wrench): a failed result at step 1, before the tracking (whose Tracker refuses μ = 0) is built."""
-    res = _pickup(_box(), mu=mu, mu_table=mu_table)
+    res = pick_up_box(pickup_box(), mu=mu, mu_table=mu_table)
     assert not res.success and "not force closure" in res.reason
     assert res.closure is not None and not res.closure.closed and res.snapshots == [] and res.events == []
     res.check()
     json.loads(res.to_json())  # and it serialises
     # Without given contacts the placement search finds no force-closure pair either, and says so.
-    body = _box()
+    body = pickup_box()
     auto = pickup(body, mu_finger=mu, mu_table=mu_table, rest_state=rest(body, mu_table), finger_radius=RADIUS)
     assert not auto.success and auto.reason.startswith("no initial finger placement") and "force closure" in auto.reason
     with pytest.raises(ValueError, match="positive friction"):
@@ -274,7 +274,7 @@ def test_friction_ten_completes_and_a_failed_hanging_relaxation_counts_as_not_he
             raise
 
     monkeypatch.setattr("fem_grasp.contact.tracking.relax_contacts", counting)
-    res = _pickup(_box(), mu=10.0, step=1.2e-4, lift=False)
+    res = pick_up_box(pickup_box(), mu=10.0, step=1.2e-4, lift=False)
     res.check()
     assert res.reason.startswith("the lift test passed") and res.liftable[-1][1] >= WEIGHT
     assert failures and any(w < WEIGHT for _, w in res.liftable[:-1])
@@ -318,7 +318,7 @@ def test_finger_at_a_vertex_shared_by_slivers_picks_up_like_the_regular_mesh():
     mesh = TetMesh(p, m.tets)
     at_i = (mesh.tets == i).any(axis=1)
     assert (mesh.quality[at_i] < 0.01).sum() >= 4
-    res = _pickup(Body(mesh, YOUNG, 0.3, weight=WEIGHT), contacts=(i, j))
+    res = pick_up_box(Body(mesh, YOUNG, 0.3, weight=WEIGHT), contacts=(i, j))
     _completes(res)
     assert res.success, res.reason
     # The slivers change the stiffness near one contact only: the grip needs about the same squeeze as on
@@ -333,7 +333,7 @@ def test_squeeze_nearly_tangent_to_the_faces_completes_or_fails_with_a_reason(an
     x (a twist about the vertical): they drag the faces much more than they press them."""
     t = np.radians(angle)
     d1 = np.array([np.sin(t), np.cos(t), 0.0])
-    res = _pickup(_box(), directions=(d1, -d1))
+    res = pick_up_box(pickup_box(), directions=(d1, -d1))
     _completes(res)
     # The tangential travel is tan(angle) ≥ 19 times the normal one, far beyond what μ = 0.5 can stick to:
     # the finger contacts slide on their cones (check() holds them to it), dragged along ±x.
@@ -347,7 +347,7 @@ def test_squeeze_nearly_tangent_to_the_faces_completes_or_fails_with_a_reason(an
 
 def test_squeeze_exactly_tangent_is_refused_by_name():
     with pytest.raises(PlacementError, match="points out of the object"):
-        _pickup(_box(), directions=([1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]))
+        pick_up_box(pickup_box(), directions=([1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]))
 
 
 # ======================================================= 1g: many simultaneous events
@@ -416,7 +416,7 @@ def test_symmetric_scene_records_every_one_of_simultaneous_events():
 @pytest.fixture(scope="module")
 def squeezed():
     """The box squeezed 3 mm by event tracking: (tracker, state, velocities)."""
-    body = _box()
+    body = pickup_box()
     rs = rest(body, 0.5)
     tracker = Tracker(rs.body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)
     vel = np.stack(PAPER_SQUEEZE_DIRECTIONS)

@@ -7,10 +7,17 @@ import meshio
 import numpy as np
 import pytest
 
-from fem_grasp.io.output import (MARKER, SCHEMA, SCHEMA_VERSION, OutputError, atomic_write_text, hemisphere,
-                              prepare_out_dir, read_result)
-
-from _ux_helpers import cli_run
+from fem_grasp.io.output import (
+    MARKER,
+    SCHEMA,
+    SCHEMA_VERSION,
+    OutputError,
+    atomic_write_text,
+    hemisphere,
+    prepare_out_dir,
+    read_result,
+)
+from tests.helpers import cli_run
 
 
 @pytest.fixture(scope="module")
@@ -217,8 +224,8 @@ def test_files_of_an_interrupted_run_are_cleared_by_the_next_run_even_if_it_writ
     import dataclasses
 
     from fem_grasp import Body, box_mesh
-    from fem_grasp.io import output
     from fem_grasp.grasp.pickup import pickup
+    from fem_grasp.io import output
 
     body = Body(box_mesh((-0.015, -0.02, 0.0), (0.015, 0.02, 0.03), (4, 4, 4)), 2e4, 0.3, weight=0.3)
     long = pickup(body, mu_finger=0.5, mu_table=0.5, finger_radius=0.01, lift=False)

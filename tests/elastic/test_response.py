@@ -2,10 +2,9 @@ import numpy as np
 import pytest
 import scipy.sparse.linalg as spla
 
-from fem_grasp import Body, CollinearContactError, TetMesh, box_mesh, solve_contact
+from fem_grasp import Body, CollinearContactError, ContactResponse, TetMesh, solve_contact
 from fem_grasp.elastic.response import contact_dofs
-
-from _meshes import perturbed_box
+from tests.helpers import perturbed_box
 
 
 def contact_set(body):
@@ -63,7 +62,7 @@ def test_equilibrium_to_round_off(body, rng, backend):
 
 def test_reduced_stiffness_properties(body):
     nodes = contact_set(body)
-    resp = body.contact_response(nodes)
+    resp = ContactResponse(body, nodes)
     c = resp.reduced_stiffness
     r = body.rigid_modes[contact_dofs(nodes)]
     assert np.abs(c - c.T).max() == 0.0
@@ -87,14 +86,14 @@ def test_reduced_stiffness_properties(body):
 
 def test_spectral_reduced_stiffness_matches_sparse(body):
     nodes = contact_set(body)
-    a = body.contact_response(nodes).reduced_stiffness
-    b = body.contact_response(nodes, backend="spectral").reduced_stiffness
+    a = ContactResponse(body, nodes).reduced_stiffness
+    b = ContactResponse(body, nodes, backend="spectral").reduced_stiffness
     assert rel(b, a) <= 1e-9
 
 
 def test_rigid_contact_motion_adds_rigid_field_and_no_force(body, rng):
     nodes = contact_set(body)
-    resp = body.contact_response(nodes)
+    resp = ContactResponse(body, nodes)
     base = resp.solve(np.zeros((len(nodes), 3)))
     rigid = body.rigid_modes @ (rng.standard_normal(6) * 1e-4)
     moved = resp.solve(rigid.reshape(-1, 3)[nodes])
@@ -119,7 +118,7 @@ def test_scaling_with_young_modulus(body, rng):
     disp = 1e-3 * rng.standard_normal((len(nodes), 3))
     for factor in (1e-3, 1e7):
         stiff = body.with_material(young=body.young * factor)
-        r0, r1 = body.contact_response(nodes), stiff.contact_response(nodes)
+        r0, r1 = ContactResponse(body, nodes), ContactResponse(stiff, nodes)
         assert rel(r1.reduced_stiffness, factor * r0.reduced_stiffness) <= 1e-9
         assert rel(r1.gravity_forces, r0.gravity_forces) <= 1e-9
         assert rel(r1.solve(np.zeros_like(disp)).displacements, r0.solve(np.zeros_like(disp)).displacements / factor) <= 1e-9
@@ -127,7 +126,7 @@ def test_scaling_with_young_modulus(body, rng):
 
 def test_contact_response_is_reused_for_many_solves(body, rng):
     nodes = contact_set(body)
-    resp = body.contact_response(nodes)
+    resp = ContactResponse(body, nodes)
     d1, d2 = rng.standard_normal((2, len(nodes), 3)) * 1e-3
     sol = resp.solve(d1 + d2)
     lin = resp.forces(d1) + resp.forces(d2) - resp.gravity_forces
@@ -148,11 +147,11 @@ def test_collinear_and_too_few_contacts_are_refused(body):
     with pytest.raises(ValueError, match="is not a node of the mesh"):
         solve_contact(body, np.array([0, 1, 10**6]), np.zeros((3, 3)))
     with pytest.raises(ValueError, match="unknown backend"):
-        body.contact_response(contact_set(body), backend="dense")
+        ContactResponse(body, contact_set(body), backend="dense")
     with pytest.raises(ValueError, match="shape"):
-        body.contact_response(contact_set(body)).solve(np.zeros((2, 3)))
+        ContactResponse(body, contact_set(body)).solve(np.zeros((2, 3)))
     with pytest.raises(ValueError, match="NaN"):
-        body.contact_response(contact_set(body)).solve(np.full((5, 3), np.nan))
+        ContactResponse(body, contact_set(body)).solve(np.full((5, 3), np.nan))
 
 
 def test_nearly_collinear_contacts_grow_the_condition_number():
@@ -164,10 +163,10 @@ def test_nearly_collinear_contacts_grow_the_condition_number():
         pts = mesh.points.copy()
         pts[4, 1] = off  # node 4 approaches the line through nodes 0 and 1
         b = Body(TetMesh(pts, mesh.tets), 1e5, 0.3, weight=1.0)
-        conds.append(b.contact_response(np.array([0, 1, 4])).condition_number())
+        conds.append(ContactResponse(b, np.array([0, 1, 4])).condition_number())
     assert conds[0] < conds[1] < conds[2]
     with pytest.raises(CollinearContactError):
-        body.contact_response(np.array([0, 1, 4]))  # exactly collinear
+        ContactResponse(body, np.array([0, 1, 4]))  # exactly collinear
 
 
 def test_numerically_collinear_contacts_are_refused_not_silently_wrong(caplog):
@@ -178,7 +177,7 @@ def test_numerically_collinear_contacts_are_refused_not_silently_wrong(caplog):
     def response(off):
         pts = mesh.points.copy()
         pts[4, 1] = off  # node 4 approaches the line through nodes 0 and 1
-        return Body(TetMesh(pts, mesh.tets), 1e5, 0.3, weight=1.0).contact_response(np.array([0, 1, 4]))
+        return ContactResponse(Body(TetMesh(pts, mesh.tets), 1e5, 0.3, weight=1.0), np.array([0, 1, 4]))
 
     conds = [response(off).condition_estimate for off in (1e-2, 1e-3, 1e-4)]
     np.testing.assert_allclose(np.diff(np.log10(conds)), 2.0, atol=0.1)
@@ -197,7 +196,7 @@ def test_the_surface_field_is_the_whole_fields_surface_rows(body, rng, backend):
     interior = np.setdiff1d(np.arange(body.n_nodes), surface)
     assert len(interior)
     nodes = np.concatenate([contact_set(body), interior[:1]])
-    resp = body.contact_response(nodes, backend=backend)
+    resp = ContactResponse(body, nodes, backend=backend)
     disp = 1e-3 * rng.standard_normal((len(nodes), 3))
     whole = resp.solve(disp).displacements
     part = resp.surface_displacements(disp)
@@ -240,5 +239,5 @@ def test_a_large_body_caches_surface_rows_and_solves_for_whole_fields(body, rng,
     assert np.array_equal(comp.kept_nodes, body.mesh.surface_nodes)
     assert comp.cache_bytes == comp.cached_nodes * (3 * len(comp.kept_nodes)) * 3 * 8  # no second copy
     assert rel(a.forces, b.forces) <= 1e-12 and rel(a.displacements, b.displacements) <= 1e-12
-    surface = lean.contact_response(nodes).surface_displacements(disp)
+    surface = ContactResponse(lean, nodes).surface_displacements(disp)
     assert rel(surface, a.displacements[body.mesh.surface_nodes]) <= 1e-12

@@ -4,10 +4,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from fem_grasp.grasp import objects
-from fem_grasp.grasp import placement
+from fem_grasp.grasp import objects, placement
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def test_table_one_is_verbatim():

@@ -12,7 +12,7 @@ import pytest
 
 from fem_grasp.mesh import shapes
 
-MESH_DIR = Path(__file__).resolve().parents[1] / "meshes"
+MESH_DIR = Path(__file__).resolve().parents[2] / "meshes"
 TABLE_I_VERTICES = {"tomato": 490, "orange": 600, "steam_bun": 658, "football": 875}
 
 

@@ -13,52 +13,22 @@ import numpy as np
 import pytest
 
 from fem_grasp import Body, box_mesh
-from fem_grasp.contact.obstacles import Fingertip
+from fem_grasp.contact.tracking import FINGER1, TABLE, MixedSlipSystem, SlipFailure, Tracker
+from fem_grasp.errors import ContactNodeError, DirectionError, PlacementError, SceneError
 from fem_grasp.grasp.lift_test import hang, hanging_state
 from fem_grasp.grasp.pickup import PickupResult, pickup
 from fem_grasp.grasp.rest import rest
-from fem_grasp.validation import ContactNodeError, DirectionError, PlacementError, SceneError
-from fem_grasp.contact.tracking import FINGER1, TABLE, MixedSlipSystem, SlipFailure, Tracker
-
-RADIUS = 0.02
-WEIGHT = 0.3
-
-
-def _box(young=2e4):
-    return Body(box_mesh((-0.015, -0.02, 0.0), (0.015, 0.02, 0.03), (3, 3, 3)), young, 0.3, weight=WEIGHT)
-
-
-#: Offset of the target from a face centre: the 3×3 grid has no node at the centre (x and z tie between two
-#: nodes each), and a tie would be broken by round-off in the centre of mass; this picks the nodes at
-#: x = −5 mm, z = 2 cm on both faces, whatever the CPU.
-FACE_NODE_OFFSET = np.array([-1e-3, 0.0, 1e-3])
-
-
-def _face_centres(rest_state):
-    p = rest_state.body.mesh.points
-    c = rest_state.body.center_of_mass
-
-    def node(q):
-        return int(np.argmin(np.linalg.norm(p - q, axis=1)))
-
-    return node(c + [0, -0.02, 0] + FACE_NODE_OFFSET), node(c + [0, 0.02, 0] + FACE_NODE_OFFSET)
-
-
-def _pickup(mu_finger, mu_table=None, backend="sparse", **kw) -> PickupResult:
-    body = _box()
-    rs = rest(body, mu_finger if mu_table is None else mu_table, backend=backend)
-    return pickup(body, mu_finger=mu_finger, mu_table=mu_table, contacts=_face_centres(rs), rest_state=rs,
-                  finger_radius=RADIUS, backend=backend, **kw)
+from tests.helpers import RADIUS, WEIGHT, face_centres, pick_up_box, pickup_box
 
 
 @pytest.fixture(scope="module")
 def lifted() -> PickupResult:
-    return _pickup(0.5)
+    return pick_up_box(0.5)
 
 
 @pytest.fixture(scope="module")
 def lifted_spectral() -> PickupResult:
-    return _pickup(0.5, backend="spectral")
+    return pick_up_box(0.5, backend="spectral")
 
 
 # ------------------------------------------------------------ the success
@@ -128,7 +98,7 @@ def test_result_to_json(lifted, tmp_path):
 
 
 def test_the_same_scene_gives_the_same_json_but_for_wall_times(lifted):
-    again = _pickup(0.5)
+    again = pick_up_box(0.5)
 
     def without_times(res):
         data = json.loads(res.to_json())
@@ -143,7 +113,7 @@ def test_snapshots_solve_the_whole_field_only_when_read_and_pickle_with_it():
     surface to what it holds, and a pickled snapshot carries the field instead of the tracker's closure."""
     import pickle
 
-    res = _pickup(0.5)
+    res = pick_up_box(0.5)
     assert res.check()
     fresh = [s for s in res.snapshots if "positions" not in s.__dict__]
     assert len(fresh) == len(res.snapshots)  # the pickup and its checks never needed a whole field
@@ -187,7 +157,7 @@ def test_implicit_increments_alone_pick_up_the_box_at_the_same_depth(lifted, mon
     original = Tracker.implicit_step
     monkeypatch.setattr(MixedSlipSystem, "solve", no_rate_solution)
     monkeypatch.setattr(Tracker, "implicit_step", lambda self, *a, **k: calls.append(1) or original(self, *a, **k))
-    res = _pickup(0.5)
+    res = pick_up_box(0.5)
     assert res.success, res.reason
     res.check()
     assert len(calls) > 20  # the squeeze really went through implicit increments
@@ -205,7 +175,7 @@ def test_large_contact_sets_go_by_implicit_increments_to_the_same_depth(lifted, 
     original = Tracker.implicit_step
     monkeypatch.setattr(tracking, "IMPLICIT_CONTACTS", 0)
     monkeypatch.setattr(Tracker, "implicit_step", lambda self, *a, **k: calls.append(1) or original(self, *a, **k))
-    res = _pickup(0.5)
+    res = pick_up_box(0.5)
     assert res.success, res.reason
     res.check()
     assert len(calls) >= lifted.squeeze_depth / lifted.step - 1  # every squeeze increment
@@ -222,11 +192,11 @@ def test_a_squeeze_that_starts_with_a_finger_off_the_object_re_establishes_conta
     from fem_grasp.grasp.placement import PAPER_SQUEEZE_DIRECTIONS
     from fem_grasp.grasp.squeeze import initial_state, squeeze
 
-    rs = rest(_box(), 0.5)
+    rs = rest(pickup_box(), 0.5)
     tracker = Tracker(rs.body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)
     hanging = Tracker(rs.body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=None)
     vel = np.stack(PAPER_SQUEEZE_DIRECTIONS)
-    placed = initial_state(tracker, rs, _face_centres(rs))
+    placed = initial_state(tracker, rs, face_centres(rs))
     keep = placed.owner != FINGER1  # finger 1's touch released
     released = tracker.make_state(phase="squeeze", squeeze_depth=0.0, lift_height=0.0, load=1.0,
                                   centers=placed.centers, nodes=placed.nodes[keep], owner=placed.owner[keep],
@@ -237,7 +207,7 @@ def test_a_squeeze_that_starts_with_a_finger_off_the_object_re_establishes_conta
                   step=lifted.step)
     assert out.passed, out.reason
     first = next(e for e in out.events if e.contact == "finger1")
-    assert first.kind == "A" and first.node == _face_centres(rs)[0] and first.squeeze_depth < 1e-9 * rs.body.mesh.diameter
+    assert first.kind == "A" and first.node == face_centres(rs)[0] and first.squeeze_depth < 1e-9 * rs.body.mesh.diameter
     assert abs(out.state.squeeze_depth - lifted.squeeze_depth) <= lifted.step
 
 
@@ -248,11 +218,11 @@ def test_the_squeeze_increment_comes_from_the_placement_not_from_what_the_first_
     from fem_grasp.grasp.placement import PAPER_SQUEEZE_DIRECTIONS
     from fem_grasp.grasp.squeeze import initial_state
 
-    rs = rest(_box(), 0.5)
+    rs = rest(pickup_box(), 0.5)
     tracker = Tracker(rs.body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)
     vel = np.stack(PAPER_SQUEEZE_DIRECTIONS)
     vel /= np.linalg.norm(vel, axis=1, keepdims=True)  # pickup() moves the fingers along unit directions
-    k0 = _initial_stiffness(tracker, initial_state(tracker, rs, _face_centres(rs)), vel)
+    k0 = _initial_stiffness(tracker, initial_state(tracker, rs, face_centres(rs)), vel)
     assert k0 > 0
     rho_star = WEIGHT / (0.5 * k0)
     expected = min(0.02 * lifted.max_squeeze, max(rho_star / 20.0, 1e-3 * lifted.max_squeeze))
@@ -268,15 +238,15 @@ def test_the_implicit_path_under_another_cpus_blas_kernels_picks_up_the_box(tmp_
     from pathlib import Path
 
     env = dict(os.environ, OPENBLAS_CORETYPE="Prescott", OPENBLAS_L2_SIZE=str(512 * 1024))
-    test = "tests/test_pickup.py::test_implicit_increments_alone_pick_up_the_box_at_the_same_depth"
+    test = "tests/grasp/test_pickup.py::test_implicit_increments_alone_pick_up_the_box_at_the_same_depth"
     out = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", test],
-                         cwd=Path(__file__).resolve().parents[1], env=env, capture_output=True, text=True)
+                         cwd=Path(__file__).resolve().parents[2], env=env, capture_output=True, text=True)
     assert out.returncode == 0, out.stdout[-3000:]
 
 
 # ------------------------------------------------------------- the failures
 def test_too_little_friction_fails_by_slip_on_a_finger():
-    res = _pickup(0.2)
+    res = pick_up_box(0.2)
     assert not res.success
     assert "slides" in res.reason
     res.check()
@@ -284,15 +254,15 @@ def test_too_little_friction_fails_by_slip_on_a_finger():
 
 
 def test_bad_placement_fails_by_force_closure():
-    res = _pickup(0.5, mu_table=0.0)  # a frictionless table cannot twist the box about the finger axis
+    res = pick_up_box(0.5, mu_table=0.0)  # a frictionless table cannot twist the box about the finger axis
     assert not res.success and "force closure" in res.reason
     assert res.closure is not None and not res.closure.closed
     assert res.snapshots == [] and res.events == []
     res.check()
     # Both fingers on the same face: not force closure either.
-    body = _box()
+    body = pickup_box()
     rs = rest(body, 0.5)
-    i, _ = _face_centres(rs)
+    i, _ = face_centres(rs)
     p = rs.body.mesh.points
     same = int(np.argmin(np.linalg.norm(p - (p[i] + [0.01, 0, 0]), axis=1)))
     # Both fingers on one face: finger 2's squeeze would pull it off the surface, refused before step 1.
@@ -301,7 +271,7 @@ def test_bad_placement_fails_by_force_closure():
 
 
 def test_pickup_refuses_a_bad_scene_with_a_named_error():
-    body = _box()
+    body = pickup_box()
     rs = rest(body, 0.5)
     interior = int(np.setdiff1d(np.arange(body.n_nodes), rs.body.mesh.surface_nodes)[0])
     with pytest.raises(DirectionError, match="upward"):
@@ -317,7 +287,7 @@ def test_pickup_refuses_a_bad_scene_with_a_named_error():
 
 
 def test_squeeze_depth_limit_is_a_failure():
-    res = _pickup(0.5, max_squeeze=0.002)
+    res = pick_up_box(0.5, max_squeeze=0.002)
     assert not res.success and "maximum squeeze depth" in res.reason
     assert res.squeeze_depth == pytest.approx(0.002)
     res.check()
@@ -338,7 +308,7 @@ def test_a_failed_lift_sends_the_squeeze_on_and_the_next_lift_starts_deeper(monk
         return out
 
     monkeypatch.setattr(pickup_module, "run_lift", first_lift_slips)
-    res = _pickup(0.5)
+    res = pick_up_box(0.5)
     assert res.success, res.reason
     assert [a.success for a in res.lift_attempts] == [False, True]
     first, second = res.lift_attempts
@@ -356,11 +326,11 @@ def test_a_failed_lift_sends_the_squeeze_on_and_the_next_lift_starts_deeper(monk
     assert json.loads(res.to_json())["lift_attempts"][0]["success"] is False
 
     calls.clear()
-    once = _pickup(0.5, max_lift_attempts=1)
+    once = pick_up_box(0.5, max_lift_attempts=1)
     assert not once.success and "simulated" in once.reason and len(once.lift_attempts) == 1
     once.check()
     with pytest.raises(ValueError, match="max_lift_attempts"):
-        _pickup(0.5, max_lift_attempts=0)
+        pick_up_box(0.5, max_lift_attempts=0)
 
 
 # --------------------------------------------------------- the lift test
@@ -390,204 +360,6 @@ def test_lift_test_holds_light_weights_and_not_heavy_ones(lifted):
 
 
 # ------------------------------------------------------- slip system units
-def _fd(fun, x, h=1e-7):
-    cols = []
-    for j in range(len(x)):
-        e = np.zeros_like(x)
-        e[j] = h
-        cols.append((fun(x + e) - fun(x - e)) / (2 * h))
-    return np.stack(cols, axis=1)
-
-
-@pytest.mark.parametrize("free", [False, True])
-def test_slip_system_jacobian_matches_finite_differences(rng, free):
-    m = 4
-    a = rng.normal(size=(3 * m, 3 * m))
-    c = 100.0 * (a @ a.T / (3 * m) + np.eye(3 * m))
-    fh = rng.normal(size=(m, 3)) + [0, 0, 3.0]
-    df = rng.normal(size=(m, 3))
-    radius = 0.01
-    tip = Fingertip(np.zeros(3), radius)
-    r = tip.project(rng.normal(size=(1, 3)))[0]
-    n = r / radius
-    ft = fh[1] - (fh[1] @ n) * n
-    t_hat = np.array([[1.0, 0.0, 0.0], ft / np.linalg.norm(ft)])
-    system = MixedSlipSystem(c, fh, df, np.array([0, 1]), np.array([TABLE, FINGER1]), np.array([0.4, 0.3]),
-                             t_hat, np.stack([np.zeros(3), r]), np.array([0.0, 0.0, 1.0]), radius, free)
-    x = system.x0 + 1e-3 * rng.normal(size=system.n)
-    np.testing.assert_allclose(system.jacobian(x), _fd(system.residual, x, 1e-8), rtol=1e-5, atol=1e-6)
-    # The rate of the residual at fixed x: the held forces move at ``df``.
-    shifted = MixedSlipSystem(c, fh + 1e-6 * df, df, np.array([0, 1]), np.array([TABLE, FINGER1]),
-                              np.array([0.4, 0.3]), t_hat, np.stack([np.zeros(3), r]), np.array([0.0, 0.0, 1.0]),
-                              radius, free)
-    np.testing.assert_allclose((shifted.residual(x) - system.residual(x)) / 1e-6, system.residual_rate(x),
-                               rtol=1e-5, atol=1e-6)
-
-
-def test_fingertip_slip_lands_on_the_cone_and_the_sphere(rng):
-    m = 3
-    a = rng.normal(size=(3 * m, 3 * m))
-    c = 100.0 * (a @ a.T / (3 * m) + np.eye(3 * m))
-    radius = 0.01
-    r = np.array([0.0, -radius, 0.0])  # node on the sphere, inward normal −y... pointing from O to the node
-    n = r / radius
-    fh = np.zeros((m, 3))
-    fh[0] = 1.0 * n + 0.6 * np.array([0.0, 0.0, 1.0])  # outside a μ = 0.3 cone
-    fh[1:] = [0, 0, 1.0]
-    df = np.zeros((m, 3))
-    t = np.array([0.0, 0.0, 1.0])
-    system = MixedSlipSystem(c, fh, df, np.array([0]), np.array([FINGER1]), np.array([0.3]), t[None, :],
-                             r[None, :], np.array([0.0, 0.0, 1.0]), radius)
-    x = system.solve()
-    q_rel = r + system.slips(x)[0]
-    assert np.linalg.norm(q_rel) == pytest.approx(radius, rel=1e-12)  # eq. (8): on the sphere
-    f = system.forces(x)[0]
-    nq = q_rel / radius
-    fn = f @ nq
-    assert np.linalg.norm(f - fn * nq) == pytest.approx(0.3 * fn, rel=1e-9)  # eq. (7): on the cone
-    assert system.amounts(x)[0] > 0  # it slid against its friction (θ < 0)
-    assert (q_rel - r) @ t < 0  # opposite to the tangential force
-
-
-def test_paper_tables_format():
-    from fem_grasp import paper
-
-    ok = {"name": "tomato", "young": 1e4, "success": True, "reason": "", "contacts": 11, "squeeze_depth": 0.0175,
-          "time": 3.2, "normal_force": 2.5, "rigid_force": 2.9}
-    bad = dict(ok, success=False, reason="every contact of finger 1 slides", normal_force=float("nan"))
-    text = paper.format_tables([{"name": "tomato", "table_one": bad, "effective": ok}])
-    assert "| tomato | (11, 18, 1.86) | fails (every contact of finger 1 slides) | (11, 17.5, 3.2) | 1e+04 |" in text
-    assert "| tomato | 2.68 | 2.96 | 2.5 | 2.9 |" in text
-
-
-def _box_squeezed_3mm():
-    """The box on the table squeezed 3 mm by the paper's directions, with at least three nodes sliding:
-    (rest state, its tracker, the state, the finger velocities)."""
-    from fem_grasp.grasp.placement import PAPER_SQUEEZE_DIRECTIONS
-    from fem_grasp.grasp.squeeze import initial_state
-    from fem_grasp.contact.tracking import run
-
-    rs = rest(_box(), 0.5)
-    tracker = Tracker(rs.body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)
-    vel = np.stack(PAPER_SQUEEZE_DIRECTIONS)
-    state, _ = tracker.settle(initial_state(tracker, rs, _face_centres(rs)), vel, phase="squeeze")
-    state, _, _ = run(tracker, state, vel, stop=0.003, step=1e-4)
-    assert state.sliding.sum() >= 3
-    return rs, tracker, state, vel
-
-
-def test_a_new_contact_brings_the_columns_of_the_surface_nodes_nearest_an_obstacle():
-    """A new contact's compliance columns are solved together with those of the likely next contacts
-    (compliance.PREFETCH_NODES in all): the uncached surface nodes nearest a fingertip or the table."""
-    from fem_grasp.elastic.compliance import PREFETCH_NODES
-
-    rs = rest(_box(), 0.5)
-    posed = Body(rs.body.mesh, 2e4, 0.3, weight=WEIGHT)  # the rest cached columns of the resting body's
-    tracker = Tracker(posed, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)
-    comp = posed.compliance
-    surf = posed.mesh.surface_nodes
-    pos = posed.mesh.points[surf]
-    i, j = _face_centres(rs)
-    centers = posed.mesh.points[[i, j]] + np.array([[0, -RADIUS, 0], [0, RADIUS, 0]])
-    before = {int(k) for k in surf if comp.is_cached(k)}
-    assert i not in before and len(surf) - len(before) > PREFETCH_NODES
-    gap = tracker.obstacle_gaps(pos, centers).min(axis=1)
-    expected = [int(k) for k in surf[np.argsort(gap, kind="stable")] if k not in before and k != i]
-    tracker.prefetch_columns([i], pos, centers)
-    now = {int(k) for k in surf if comp.is_cached(k)}
-    assert now - before == {i, *expected[:PREFETCH_NODES - 1]}
-    assert j in now  # the other fingertip's node touches it too
-    tracker.prefetch_columns([i, j], pos, centers)  # cached already: nothing more
-    assert {int(k) for k in surf if comp.is_cached(k)} == now
-
-
-def test_the_tracker_keeps_its_latest_contact_responses_within_a_byte_budget(monkeypatch):
-    from fem_grasp.contact import tracking
-
-    rs = rest(_box(), 0.5)
-    tracker = Tracker(rs.body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)
-    others = np.setdiff1d(rs.body.mesh.surface_nodes, rs.contact_nodes)
-    sets = [np.concatenate([rs.contact_nodes, others[:i]]) for i in range(6)]
-    size = [tracker.response(k).nbytes for k in sets]  # under the default budget: all kept
-    assert len(tracker._responses) == 6 and size[5] > size[0] > 0
-    budget = size[4] + size[5] + size[0] // 2
-    monkeypatch.setattr(tracking, "RESPONSE_CACHE_BYTES", budget)
-    latest = tracker.response(others[:7])  # a seventh set: the oldest go until the rest fit
-    assert sum(r.nbytes for r in tracker._responses.values()) <= budget
-    assert list(tracker._responses)[-1] == tuple(others[:7]) and tracker.response(others[:7]) is latest
-    assert tuple(sets[0]) not in tracker._responses
-    monkeypatch.setattr(tracking, "RESPONSE_CACHE_BYTES", 1)  # smaller than any: the latest alone is kept
-    again = tracker.response(sets[0])
-    assert list(tracker._responses) == [tuple(sets[0])] and tracker.response(sets[0]) is again
-    np.testing.assert_array_equal(again.reduced_stiffness, Tracker(rs.body, radius=RADIUS, mu_finger=0.5,
-                                  mu_table=0.5, table=rs.table).response(sets[0]).reduced_stiffness)
-
-
-@pytest.mark.parametrize("free", [False, True])
-def test_slip_rates_of_event_d_match_finite_differences(free):
-    # Event D watches d(slip)/dρ from the implicit-function theorem; compare with the slips themselves.
-    _, tracker, state, vel = _box_squeezed_3mm()
-    tracker.forms = (free,)
-    t0 = tracker.trial(state, 0.0, vel)
-    t1 = tracker.trial(state, 1e-8, vel)
-    sl = state.sliding
-    np.testing.assert_allclose((t1.amounts - t0.amounts)[sl] / 1e-8, t0.rates[sl], rtol=0,
-                               atol=1e-4 * np.abs(t0.rates[sl]).max())
-
-
-@pytest.mark.parametrize("free", [False, True])
-def test_warm_started_slip_roots_are_the_homotopy_roots(free, monkeypatch):
-    """Newton from the root at a nearby parameter (continuation in t) finds the root the paper's homotopy finds."""
-    rs, _, state, vel = _box_squeezed_3mm()
-
-    def tracker():
-        t = Tracker(rs.body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)
-        t.forms = (free,)
-        return t
-
-    big = 3.4e-3  # a third of the fingertip radius in one increment, ten nodes sliding
-    by_homotopy = tracker().trial(state, big, vel, methods=("homotopy",))
-    warm = tracker()
-    seen = []
-    orig = MixedSlipSystem.solve
-
-    def solve(self, *a, start=None, **k):
-        seen.append(start is not None)
-        return orig(self, *a, start=start, **k)
-
-    monkeypatch.setattr(MixedSlipSystem, "solve", solve)
-    for k in range(1, 9):
-        stepped = warm.trial(state, big * k / 8, vel, methods=("newton",))
-    assert seen[0] is False and all(seen[1:])  # every later trial had the previous root to start from
-    scale = np.abs(by_homotopy.state.forces).max()
-    np.testing.assert_allclose(stepped.state.forces, by_homotopy.state.forces, rtol=0, atol=1e-10 * scale)
-    np.testing.assert_allclose(stepped.state.disp, by_homotopy.state.disp, rtol=0, atol=1e-12)
-
-
-def test_a_lightly_loaded_fingertip_contact_on_a_stiff_body_slides_onto_its_cone():
-    # Figures of the tomato at Table I's E = 1 GPa just after ρ = 0: a contact of 5 µN, 25 % outside its
-    # cone, with an own stiffness of 5e6 N/m and R = 1 cm.  Carried as c_k (≈ 1), the fingertip unknowns
-    # put C·r_k ≈ 5e4 N into every force and buried this one in round-off (Newton failed).
-    c = np.array([[123569.8, -31895.7, -220655.4], [-31895.7, 5290413.3, 1039374.6],
-                  [-220655.4, 1039374.6, 2255505.1]])
-    n = np.array([0.05818, -0.96774, 0.24512])
-    n /= np.linalg.norm(n)
-    radius = 0.01
-    fh = np.array([[3.2622e-09, -5.33995e-06, -6.75193e-07]])
-    fn = fh[0] @ n
-    ft = fh[0] - fn * n
-    assert np.linalg.norm(ft) > 1.2 * 0.32 * fn  # starts well outside
-    system = MixedSlipSystem(c, fh, np.zeros((1, 3)), np.array([0]), np.array([FINGER1]), np.array([0.32]),
-                             (ft / np.linalg.norm(ft))[None, :], (radius * n)[None, :],
-                             np.array([0.0, 0.0, 1.0]), radius)
-    x = system.solve()
-    f = system.forces(x)[0]
-    nq = system.normals(x)[0]
-    fn_new = f @ nq
-    assert np.linalg.norm(f - fn_new * nq) == pytest.approx(0.32 * fn_new, rel=1e-9)
-    assert np.linalg.norm(system.normals(x)[0]) == pytest.approx(1.0, abs=1e-15)  # still on the sphere
-    assert 0 < system.amounts(x)[0] < 1e-12  # a slip of a few 1e-14 m
-
 
 
 # ------------------------------------------------------------ a paper object
@@ -614,16 +386,15 @@ def test_centre_of_mass_rule_skips_heights_where_no_rigid_grasp_exists():
     could; if no height clearing the table allows it, the first valid pair is kept."""
     pytest.importorskip("gmsh", reason="gmsh's Python module is not installed (Debian package python3-gmsh)")
     from fem_grasp.grasp import placement
-    from fem_grasp.mesh import shapes
-    from fem_grasp.grasp.closure import surface_normals_at
-    from fem_grasp.mesh.tetmesh import TetMesh
     from fem_grasp.grasp.pickup import default_finger_contacts
     from fem_grasp.grasp.rigid import rigid_grasp
+    from fem_grasp.mesh import shapes
+    from fem_grasp.mesh.tetmesh import TetMesh
 
     body = Body(TetMesh(*shapes.dome(0.05, 0.035, 0.008)), 1e4, 0.2, weight=0.467)
     rs = rest(body, 0.4)
     mesh, pos = rs.body.mesh, rs.positions
-    out = surface_normals_at(mesh, pos)
+    out = mesh.outward_normals(pos)
     com = (mesh.volumes @ pos[mesh.tets].mean(axis=1)) / mesh.volume
     d1, d2 = (np.asarray(d) / np.linalg.norm(d) for d in placement.PAPER_SQUEEZE_DIRECTIONS)
 
@@ -646,7 +417,6 @@ def test_default_placement_on_a_box_takes_the_middle_of_the_faces_not_an_edge(ru
     """A flat face across the squeeze direction ties every node on it; the fingers go to the middle of the
     face at the chosen height (an edge node's normal leans 45°, and no placement there was force closure)."""
     from fem_grasp.grasp import placement
-    from fem_grasp.grasp.closure import surface_normals_at
     from fem_grasp.grasp.pickup import default_finger_contacts
 
     body = Body(box_mesh((-0.015, -0.02, 0.0), (0.015, 0.02, 0.03), (6, 8, 6)), 2e4, 0.3, weight=WEIGHT)
@@ -657,43 +427,7 @@ def test_default_placement_on_a_box_takes_the_middle_of_the_faces_not_an_edge(ru
     p = rs.positions[list(ij)]
     np.testing.assert_allclose(p[:, 1], [-0.02, 0.02], atol=1e-4)  # on the two faces across the squeeze
     np.testing.assert_allclose(p[:, 0], 0.0, atol=1e-4)  # in the middle of each face, not at its edges
-    out = surface_normals_at(rs.body.mesh, rs.positions)[list(ij)]
+    out = rs.body.mesh.outward_normals(rs.positions)[list(ij)]
     np.testing.assert_allclose(out, [[0, -1, 0], [0, 1, 0]], atol=1e-2)  # facing each other
 
 
-def test_the_event_predicted_to_fire_first_leads_the_location():
-    """Regula falsi follows the event function whose linear interpolation crosses zero first; functions that
-    do not fire, or are not defined (−inf), are ignored; without a no-event side there is no prediction."""
-    lo = np.array([-1.0, -0.1, -np.inf, -2.0, -0.5])
-    hi = np.array([1.0, 0.01, 5.0, -1.0, 2.0])
-    # crossing fractions: 0.5, 0.909, -, -, 0.2 -> index 4 first
-    assert Tracker._first_to_fire(lo, hi) == 4
-    assert Tracker._first_to_fire(lo, np.array([-1.0, 0.01, 5.0, -1.0, -0.1])) == 1
-    assert Tracker._first_to_fire(lo, np.full(5, -1.0)) is None
-    assert Tracker._first_to_fire(None, hi) is None and Tracker._first_to_fire(lo, None) is None
-
-
-def test_a_slip_form_whose_newton_failed_at_a_smaller_step_is_tried_last(monkeypatch):
-    """After the great-circle Newton finds no root at dt, later trials of the same motion at dt' ≥ dt start
-    with the free-direction form; a trial at a smaller step still tries the great circle first."""
-    from fem_grasp.contact.tracking import SlipFailure
-
-    _, t, state, vel = _box_squeezed_3mm()
-    order = []
-    orig = MixedSlipSystem.solve
-
-    def solve(self, *a, methods=("newton", "homotopy"), **k):
-        order.append(self.free)
-        if not self.free and methods == ("newton",):
-            raise SlipFailure("great circle made to fail")
-        return orig(self, *a, methods=methods, **k)
-
-    monkeypatch.setattr(MixedSlipSystem, "solve", solve)
-    t.trial(state, 2e-4, vel, methods=("newton",))
-    assert order == [False, True]
-    order.clear()
-    t.trial(state, 3e-4, vel, methods=("newton",))
-    assert order == [True]  # the free form found a root at once
-    order.clear()
-    t.trial(state, 1e-4, vel, methods=("newton",))  # smaller than the failing step: great circle first
-    assert order == [False, True]

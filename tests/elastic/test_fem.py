@@ -3,8 +3,7 @@ import pytest
 
 from fem_grasp import Body, box_mesh
 from fem_grasp.elastic import fem
-
-from _meshes import perturbed_box
+from tests.helpers import perturbed_box
 
 
 def strain_energy_eq2(mesh, u, young, poisson):

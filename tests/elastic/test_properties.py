@@ -7,7 +7,7 @@ random rigid motion; a random material (E over seven decades, ν in
 nodes with random prescribed displacements.  Contact sets with cond(M) > 1e6
 (near-collinear, Theorem 3; cond(M) of these scenes is 84 at the median and
 1.4e4 at worst over 200 draws) are discarded: collinear sets are refused or
-warned about by design and tested in tests/test_response.py.
+warned about by design and tested in tests/elastic/test_response.py.
 
 Tolerances are relative to the magnitudes being compared (forces against
 mg + max |f|, fields against their largest entry, K against its largest
@@ -27,7 +27,7 @@ import pytest
 from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
-from fem_grasp import Body, MeshError, TetMesh, box_mesh
+from fem_grasp import Body, ContactResponse, MeshError, TetMesh, box_mesh
 
 SETTINGS = settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 MAX_COND = 1e6
@@ -69,7 +69,7 @@ def scenes(draw):
     k = draw(st.integers(3, 6))
     nodes = rng.choice(mesh.surface_nodes, size=k, replace=False)
     disp = 0.01 * mesh.diameter * rng.uniform(-1, 1, (k, 3))
-    resp = body.contact_response(nodes)
+    resp = ContactResponse(body, nodes)
     assume(resp.condition_number() < MAX_COND)
     return body, nodes, disp, rng
 
@@ -88,7 +88,7 @@ def close(a, b, scale, rtol):
 @given(scenes())
 def test_contact_forces_balance_gravity(scene):
     body, nodes, disp, _ = scene
-    sol = body.contact_response(nodes).solve(disp)
+    sol = ContactResponse(body, nodes).solve(disp)
     f_res, t_res = sol.equilibrium_residual()  # relative to mg + Σ|f| (and × diameter for torques)
     assert f_res <= 1e-10 and t_res <= 1e-10, (f_res, t_res)
     np.testing.assert_array_equal(sol.displacements[nodes], disp)  # the contacts are where they were sent
@@ -108,7 +108,7 @@ def test_rigid_modes_span_the_null_space_and_energy_is_non_negative(scene):
     assert lam[0] >= -1e-12 * lam[-1]
     assert np.all(np.abs(lam[:6]) <= 1e-12 * lam[-1]) and lam[6] > 1e-9 * lam[-1]
     # Eq. (2) energies: of the contact solution and of random fields.
-    sol = body.contact_response(nodes).solve(disp)
+    sol = ContactResponse(body, nodes).solve(disp)
     for u in [sol.displacements] + [rng.normal(size=(body.n_nodes, 3)) for _ in range(3)]:
         energy = body.strain_energy(u)
         assert energy >= -1e-13 * kmax * float(np.sum(u**2)), energy
@@ -119,8 +119,8 @@ def test_rigid_modes_span_the_null_space_and_energy_is_non_negative(scene):
 @given(scenes())
 def test_spectral_and_sparse_backends_agree(scene):
     body, nodes, disp, _ = scene
-    a = body.contact_response(nodes, backend="sparse").solve(disp)
-    b = body.contact_response(nodes, backend="spectral").solve(disp)
+    a = ContactResponse(body, nodes, backend="sparse").solve(disp)
+    b = ContactResponse(body, nodes, backend="spectral").solve(disp)
     close(a.forces, b.forces, force_scale(body, a.forces, b.forces), 1e-9)
     close(a.displacements, b.displacements, float(np.abs(a.displacements).max()), 1e-9)
     assert b.strain_energy == pytest.approx(a.strain_energy, rel=1e-8, abs=1e-12 * body.weight * body.mesh.diameter)
@@ -130,19 +130,19 @@ def test_spectral_and_sparse_backends_agree(scene):
 @given(scenes(), st.floats(-np.pi, np.pi), st.lists(st.floats(-1.0, 1.0), min_size=4, max_size=4))
 def test_forces_co_rotate_with_the_scene(scene, angle, quaternion):
     body, nodes, disp, _ = scene
-    base = body.contact_response(nodes)
+    base = ContactResponse(body, nodes)
     f = base.forces(disp)
     # Rotation about the vertical: gravity is unchanged relative to the object, so all forces co-rotate.
     rz = about_z(angle)
     moved = body.transformed(rz, [0.3, -0.2, 0.1])
-    g = moved.contact_response(nodes).forces(disp @ rz.T)
+    g = ContactResponse(moved, nodes).forces(disp @ rz.T)
     close(g, f @ rz.T, force_scale(body, f, g), 1e-9)
     # Any rotation: the gravity-free part of eq. (5), C Δ̄, co-rotates (C' = Q C Qᵀ blockwise).
     q = np.asarray(quaternion)
     assume(np.linalg.norm(q) > 0.1)
     rq = rotation(q)
     c0 = base.reduced_stiffness @ disp.reshape(-1)
-    c1 = body.transformed(rq).contact_response(nodes).reduced_stiffness @ (disp @ rq.T).reshape(-1)
+    c1 = ContactResponse(body.transformed(rq), nodes).reduced_stiffness @ (disp @ rq.T).reshape(-1)
     close(c1.reshape(-1, 3), c0.reshape(-1, 3) @ rq.T, float(np.abs(c0).max()), 1e-9)
 
 
@@ -151,8 +151,8 @@ def test_forces_co_rotate_with_the_scene(scene, angle, quaternion):
 def test_forces_scale_linearly_with_young_modulus(scene, log_factor):
     body, nodes, disp, _ = scene
     factor = 10.0**log_factor
-    a = body.contact_response(nodes)
-    b = body.with_material(young=body.young * factor).contact_response(nodes)
+    a = ContactResponse(body, nodes)
+    b = ContactResponse(body.with_material(young=body.young * factor), nodes)
     # F̄ = C Δ̄ + F̄₀: C ∝ E, and F̄₀ (gravity with the contacts held) does not depend on E.
     close(b.gravity_forces, a.gravity_forces, body.weight, 1e-9)
     close(b.reduced_stiffness / factor, a.reduced_stiffness, float(np.abs(a.reduced_stiffness).max()), 1e-9)
@@ -167,7 +167,7 @@ def test_exact_scaling_with_object_size(scene, log_factor):
     body, nodes, disp, _ = scene
     size = 10.0**log_factor
     big = Body(TetMesh(size * body.mesh.points, body.mesh.tets), body.young, body.poisson, weight=body.weight)
-    a, b = body.contact_response(nodes), big.contact_response(nodes)
+    a, b = ContactResponse(body, nodes), ContactResponse(big, nodes)
     close(b.reduced_stiffness / size, a.reduced_stiffness, float(np.abs(a.reduced_stiffness).max()), 1e-9)
     close(b.gravity_forces, a.gravity_forces, body.weight, 1e-9)
     # Same strains (contacts displaced × L): the elastic part of the forces grows as the area, L².

@@ -5,8 +5,7 @@ import pytest
 
 from fem_grasp.cli import main
 from fem_grasp.io.report import PICTURES
-
-from _ux_helpers import cli_run
+from tests.helpers import cli_run
 
 pytest.importorskip("pyvista")
 pytest.importorskip("matplotlib")

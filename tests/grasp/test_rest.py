@@ -8,8 +8,15 @@ import pytest
 
 from fem_grasp import Body, TetMesh, box_mesh
 from fem_grasp.grasp import objects
-from fem_grasp.grasp.pose import (_polygon_margin, _triangle_margins, hull_facets, resting_pose, rotation_between,
-                            stable_facets, triangle_margin)
+from fem_grasp.grasp.pose import (
+    _polygon_margin,
+    _triangle_margins,
+    hull_facets,
+    resting_pose,
+    rotation_between,
+    stable_facets,
+    triangle_margin,
+)
 from fem_grasp.grasp.rest import RestCheckError, RestConvergenceError, rest
 
 #: A soft modulus that makes the sag visible (millimetres); Table I's 1e9–6e9 Pa give micrometres.
@@ -219,8 +226,13 @@ def test_check_flags_violations(box):
     with pytest.raises(RestCheckError, match="equilibrium"):
         broken.check()
     sunk = dataclasses.replace(state, positions=state.positions - [0, 0, 1e-6])
-    with pytest.raises(RestCheckError, match="below the table"):
+    with pytest.raises(RestCheckError, match="1e-06 m off the table"):  # the contact nodes sank with the rest
         sunk.check()
+    low = state.positions.copy()
+    free = np.setdiff1d(box.mesh.surface_nodes, state.contact_nodes)
+    low[free[np.argmin(low[free, 2])], 2] -= 1e-6 + low[free, 2].min()  # the lowest free node 1 µm into the table
+    with pytest.raises(RestCheckError, match="1e-06 m below the table"):
+        dataclasses.replace(state, positions=low).check()
 
 
 def test_iteration_budget_and_arguments(box):
@@ -335,7 +347,7 @@ def test_rest_table_script_reports_the_tomato():
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).resolve().parent.parent / "scripts" / "rest_table.py"
+    path = Path(__file__).resolve().parents[2] / "scripts" / "rest_table.py"
     spec = importlib.util.spec_from_file_location("rest_table", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from fem_grasp import Body, solve_contact
+from fem_grasp import Body, ContactResponse, solve_contact
 from fem_grasp.elastic import compliance as cp
+from tests.helpers import perturbed_box
 
-from _meshes import perturbed_box
 
 def _available():
     out = ["superlu"]
@@ -235,12 +235,12 @@ def test_a_rigidly_moved_body_shares_the_factorisation_and_solves_the_same(monke
     nodes, disp = np.array([0, 17, 33, 47]), 1e-3 * rng.standard_normal((4, 3))
     for turned, total in ((moved, rot), (twice, np.eye(3))):
         fresh = Body(turned.mesh, body.young, body.poisson, weight=1.5)
-        got, want = turned.contact_response(nodes).solve(disp), fresh.contact_response(nodes).solve(disp)
+        got, want = ContactResponse(turned, nodes).solve(disp), ContactResponse(fresh, nodes).solve(disp)
         assert calls == [1] * (1 + (turned is twice))  # only the fresh bodies were factorised
         np.testing.assert_allclose(got.forces, want.forces, rtol=0, atol=1e-12 * np.abs(want.forces).max())
         np.testing.assert_allclose(got.displacements, want.displacements, rtol=0,
                                    atol=1e-12 * np.abs(want.displacements).max())
-        np.testing.assert_allclose(turned.contact_response(nodes).surface_displacements(disp),
+        np.testing.assert_allclose(ContactResponse(turned, nodes).surface_displacements(disp),
                                    got.displacements[turned.mesh.surface_nodes], rtol=0,
                                    atol=1e-12 * np.abs(want.displacements).max())
         load = rng.standard_normal(3 * body.n_nodes)

@@ -10,8 +10,9 @@ a :class:`RelaxationFailure` that names it, never a loop.
 import numpy as np
 import pytest
 
-from fem_grasp import Body, box_mesh
+from fem_grasp import Body, ContactResponse, box_mesh
 from fem_grasp.contact.relaxation import RELEASE, SLIDE, STICK, RelaxationFailure, relax_contacts
+from tests.helpers import box_on_the_table_pushed_sideways, squeezed_box_contacts
 
 UP = np.array([0.0, 0.0, 1.0])
 
@@ -36,27 +37,8 @@ def test_one_table_contact_by_hand(force, status):
         assert res.displacements[0, 2] > 0  # it lifts off the table
 
 
-def _squeezed_box(mu=0.5, depth=2e-3):
-    body = Body(box_mesh((-0.015, -0.02, 0.0), (0.015, 0.02, 0.03), (3, 3, 3)), 2e4, 0.3, weight=0.3)
-    p = body.mesh.points
-    table = np.flatnonzero(np.isclose(p[:, 2], 0.0))
-    side = [int(np.argmin(np.linalg.norm(p - q, axis=1))) for q in ([0, -0.02, 0.02], [0, 0.02, 0.02])]
-    nodes = np.concatenate([table, side])
-    resp = body.contact_response(nodes)
-    radius = 0.01
-    # The fingers push the side nodes inward and downward (paper §IV's squeeze directions).
-    d = np.array([[0.0, 0.974, -0.227], [0.0, -0.974, -0.227]])
-    disp = np.zeros((len(nodes), 3))
-    disp[-2:] = depth * d
-    forces = (resp.reduced_stiffness @ disp.reshape(-1)).reshape(-1, 3) + resp.gravity_forces
-    q0 = p[nodes] + disp
-    centers = [None] * len(table) + [q0[-2] + radius * np.array([0, -1.0, 0]), q0[-1] + radius * np.array([0, 1.0, 0])]
-    mu_k = np.full(len(nodes), mu)
-    return resp.reduced_stiffness, forces, q0, centers, mu_k, radius
-
-
 def test_a_squeezed_box_reaches_a_state_that_obeys_coulombs_law_everywhere():
-    c, f0, q0, centers, mu, radius = _squeezed_box()
+    c, f0, q0, centers, mu, radius = squeezed_box_contacts()
     fs = float(np.abs(f0).max())
     res = relax_contacts(c, f0, q0, centers, UP, mu, fs)
     assert set(res.status) >= {STICK, SLIDE}  # a real mix: some table nodes slide outward, some stick
@@ -87,7 +69,7 @@ def test_a_sideways_load_no_friction_can_hold_is_refused():
     body = Body(box_mesh((-0.015, -0.02, 0.0), (0.015, 0.02, 0.03), (3, 3, 3)), 2e4, 0.3, weight=0.3)
     p = body.mesh.points
     table = np.flatnonzero(np.isclose(p[:, 2], 0.0))
-    c = body.contact_response(table).reduced_stiffness
+    c = ContactResponse(body, table).reduced_stiffness
     # Only the table holds, and the load's tangential total is twice what μ times its normal total allows.
     # C annihilates rigid translations, so the force sum is the same whatever the contacts do: no static
     # state exists, and the contacts slide on until the slip bound.
@@ -106,22 +88,10 @@ def test_a_release_beyond_the_slip_bound_is_refused_not_returned():
 
 
 # ------------------------------------------------------------ every iteration bound ends in a named failure
-def _box_on_the_table_pushed_sideways(tangential):
-    """The box's 16 table contacts, each loaded by (tangential, 0, 1) N: held by μ = 0.5 only below 0.5.
-
-    C annihilates rigid translations, so the total load is the same whatever the contacts do; above
-    μ × the normal total no static state exists and the contacts slide on (gross slip).
-    """
-    body = Body(box_mesh((-0.015, -0.02, 0.0), (0.015, 0.02, 0.03), (3, 3, 3)), 2e4, 0.3, weight=0.3)
-    p = body.mesh.points
-    table = np.flatnonzero(np.isclose(p[:, 2], 0.0))
-    c = body.contact_response(table).reduced_stiffness
-    f = np.tile([tangential, 0.0, 1.0], (len(table), 1))
-    return c, f, p[table], [None] * len(table), np.full(len(table), 0.5)
 
 
 def test_a_load_friction_can_hold_sticks_at_once():
-    c, f, q, centers, mu = _box_on_the_table_pushed_sideways(0.49)
+    c, f, q, centers, mu = box_on_the_table_pushed_sideways(0.49)
     res = relax_contacts(c, f, q, centers, UP, mu, 1.0, max_slip=1.0)
     assert res.sweeps == 1 and np.all(res.status == STICK) and np.all(res.displacements == 0)
 
@@ -140,7 +110,7 @@ def test_gross_slip_ends_at_the_drift_or_stall_bound(monkeypatch, bound, value, 
     import fem_grasp.contact.relaxation as relaxation
 
     monkeypatch.setattr(relaxation, bound, value)
-    c, f, q, centers, mu = _box_on_the_table_pushed_sideways(0.6)
+    c, f, q, centers, mu = box_on_the_table_pushed_sideways(0.6)
     with pytest.raises(RelaxationFailure, match=match) as failure:
         relax_contacts(c, f, q, centers, UP, mu, 1.0, max_slip=1.0)
     sweeps = int(re.search(match, str(failure.value)).group(1))
@@ -148,11 +118,11 @@ def test_gross_slip_ends_at_the_drift_or_stall_bound(monkeypatch, bound, value, 
 
 
 def test_max_sweeps_ends_a_slow_slide():
-    c, f, q, centers, mu = _box_on_the_table_pushed_sideways(0.6)
+    c, f, q, centers, mu = box_on_the_table_pushed_sideways(0.6)
     with pytest.raises(RelaxationFailure, match=r"did not settle in 100 Gauss–Seidel sweeps"):
         relax_contacts(c, f, q, centers, UP, mu, 1.0, max_slip=1.0, max_sweeps=100)
     # A solvable problem that needs two sweeps (the squeezed box) fails on one and passes on two.
-    c, f0, q0, centers, mu, _ = _squeezed_box()
+    c, f0, q0, centers, mu, _ = squeezed_box_contacts()
     fs = float(np.abs(f0).max())
     with pytest.raises(RelaxationFailure, match=r"did not settle in 1 Gauss–Seidel sweeps"):
         relax_contacts(c, f0, q0, centers, UP, mu, fs, max_sweeps=1)
@@ -168,7 +138,7 @@ def test_a_contact_with_no_local_state_ends_at_the_stuck_bound(monkeypatch):
 
     import fem_grasp.contact.relaxation as relaxation
 
-    c, f, q, centers, mu = _box_on_the_table_pushed_sideways(1.0)
+    c, f, q, centers, mu = box_on_the_table_pushed_sideways(1.0)
     ends = []
     for stuck in (2, 5, relaxation.STUCK_SWEEPS):
         monkeypatch.setattr(relaxation, "STUCK_SWEEPS", stuck)
@@ -184,10 +154,9 @@ def test_a_contact_with_no_local_state_ends_at_the_stuck_bound(monkeypatch):
 
 def test_the_polish_projection_is_the_slide_residual_of_the_sweeps(rng):
     """The polish maps each sliding contact's force to its slide residual (slide_projection, all contacts
-    at once in _SlideGeometry); the sweeps evaluate the residual of one contact (slide_residual).  The two
+    at once in gauss_seidel.SlideGeometry); the sweeps evaluate the residual of one contact (slide_residual).  The two
     must agree, on a table and on a fingertip, with and without motion."""
     from fem_grasp.contact.kernels import gauss_seidel as gs
-    from fem_grasp.contact.relaxation import _SlideGeometry
 
     up = np.array([0.0, 0.0, 1.0])
     m = 6
@@ -200,7 +169,7 @@ def test_the_polish_projection_is_the_slide_residual_of_the_sweeps(rng):
     mu = rng.uniform(0.2, 0.8, size=m)
     us = 3e-3 * rng.normal(size=(m, 2))
     us[1] = 0.0  # no motion at all
-    proj, delta = _SlideGeometry(rec, mu).projections(us)
+    proj, delta = gs.SlideGeometry(rec, mu).projections(us)
     for k in range(m):
         d0, d1, d2, n0, n1, n2, *_ = gs.motion(rec[k], *us[k])
         # all contacts at once against one contact's kernel call: equal to round-off
@@ -242,7 +211,7 @@ def test_the_polish_jacobian_matches_finite_differences(rng):
     from fem_grasp.contact.kernels import gauss_seidel as gs
     from fem_grasp.contact.relaxation import _polish_system
 
-    c, f0, q0, centers, mu, radius = _squeezed_box()
+    c, f0, q0, centers, mu, radius = squeezed_box_contacts()
     m = len(f0)
     ckk = np.array([c[3 * k:3 * k + 3, 3 * k:3 * k + 3] for k in range(m)])
     rec = gs.contact_records(q0, centers, UP, ckk)
