@@ -11,7 +11,7 @@ APT_PACKAGES := python3-dolfinx python3-gmsh python3-venv python3-pip python3-de
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 PYTEST_ARGS ?=
 
-.PHONY: setup test demo verify verify-quick meshes spectral-vs-sparse rest-table clean-venv paper-scenes
+.PHONY: setup test docs lint demo verify verify-quick meshes spectral-vs-sparse rest-table clean-venv paper-scenes
 
 setup: $(STAMPS)/venv
 
@@ -28,7 +28,7 @@ $(STAMPS)/venv: $(STAMPS)/apt pyproject.toml
 	$(SYSPY) -m venv --system-site-packages $(VENV)
 	$(SYSPY) -c "import numpy; print('numpy==' + numpy.__version__)" > $(STAMPS)/constraints.txt
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -c $(STAMPS)/constraints.txt -e ".[dev,report,fast]"
+	$(PY) -m pip install -q -c $(STAMPS)/constraints.txt -e ".[dev,report,fast,docs]"
 	@# Optional CHOLMOD backend: scikit-sparse compiled against Debian's SuiteSparse and the pinned numpy
 	@# (no build isolation, so Cython comes first). If it fails to build, SuperLU is used instead.
 	$(PY) -m pip install -q -c $(STAMPS)/constraints.txt "cython>=0.29" setuptools wheel && \
@@ -36,11 +36,21 @@ $(STAMPS)/venv: $(STAMPS)/apt pyproject.toml
 	  || echo "WARNING: scikit-sparse (CHOLMOD) did not build; fem_grasp falls back to SciPy SuperLU"
 	$(PY) -c "import dolfinx, gmsh, numpy; print('venv ok: dolfinx', dolfinx.__version__, 'numpy', numpy.__version__)"
 	@# Compile the numba kernels once here (cached), not in the first pickup.
-	$(PY) -c "from fem_grasp.contact.kernels import jit; t = jit.warm_up(); print('inner loops:', jit.backend_name(), f'(compiled in {t:.1f} s)')"
+	$(PY) -c "from fem_grasp.contact import warm_up; from fem_grasp.contact.kernels import jit; t = warm_up(); print('inner loops:', jit.backend_name(), f'(compiled in {t:.1f} s)')"
 	@touch $@
 
 test: setup
 	$(PY) -m pytest $(PYTEST_ARGS)
+
+# The API reference from the docstrings and docs/*.md: docs/_build/html/index.html. A docstring that
+# does not render (bad reStructuredText) fails the build.
+docs: setup
+	$(PY) -m sphinx -W --keep-going -q -b html docs docs/_build/html
+	@echo "Look at:  docs/_build/html/index.html"
+
+# Unused or undefined names and import order (ruff); the floors of the package are checked by the tests.
+lint: setup
+	$(PY) -m ruff check fem_grasp tests verification bench scripts examples
 
 # The tomato scene end to end: result.json, a ParaView time series and report.html in out/tomato.
 DEMO_SCENE ?= tomato
