@@ -27,7 +27,7 @@ import traceback
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -150,11 +150,17 @@ def _run_seed(seed: int) -> dict[str, Any]:
     return run_scene(RandomScene.draw(np.random.default_rng(seed)))
 
 
-def sweep(n: int, seed: int = 0, workers: int = 2) -> dict[str, Any]:
-    """Draw ``n`` scenes (seeds seed … seed + n − 1) and run them on ``workers`` processes."""
+def sweep(n: int, seed: int = 0, workers: int = 2, progress: Callable[[int, dict], None] | None = None
+          ) -> dict[str, Any]:
+    """Draw ``n`` scenes (seeds seed … seed + n − 1) and run them on ``workers`` processes;
+    ``progress(done, row)`` after each."""
     seeds = list(range(seed, seed + n))
+    rows = []
     with ProcessPoolExecutor(max_workers=workers) as pool:
-        rows = list(pool.map(_run_seed, seeds))
+        for row in pool.map(_run_seed, seeds):
+            rows.append(row)
+            if progress is not None:
+                progress(len(rows), row)
     for s, row in zip(seeds, rows):
         row["seed"] = s
     counts: dict[str, int] = {}
@@ -173,7 +179,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--json", type=Path)
     args = ap.parse_args(argv)
-    result = sweep(args.scenes, args.seed, args.workers)
+    def progress(done: int, row: dict) -> None:
+        flag = "" if not problems(row) else "  <-- " + "; ".join(problems(row))
+        print(f"  {done}/{args.scenes} {row['outcome']} ({row['seconds']:.1f} s){flag}", flush=True)
+
+    result = sweep(args.scenes, args.seed, args.workers, progress)
     print(f"{args.scenes} random scenes: " + ", ".join(f"{k} {v}" for k, v in sorted(result["outcomes"].items()))
           + f"; median {result['median_seconds']:.1f} s, longest {result['max_seconds']:.1f} s")
     for p in result["problems"]:
