@@ -20,11 +20,12 @@ comparison of Table III, :mod:`~fem_grasp.grasp.objects` the four objects of Tab
 """
 
 from .closure import ClosureResult, force_closure
+from .forces import FingerForce
 from .lift_test import LiftTest
 from .pickup import OUTCOMES, LiftAttempt, PickupResult, Snapshot, pickup
 from .pose import RestingPose, resting_pose
 from .rest import RestState, rest
 from .rigid import RigidGrasp, rigid_grasp
 
-__all__ = ["OUTCOMES", "ClosureResult", "LiftAttempt", "LiftTest", "PickupResult", "RestState", "RestingPose",
+__all__ = ["OUTCOMES", "ClosureResult", "FingerForce", "LiftAttempt", "LiftTest", "PickupResult", "RestState", "RestingPose",
            "RigidGrasp", "Snapshot", "force_closure", "pickup", "rest", "resting_pose", "rigid_grasp"]

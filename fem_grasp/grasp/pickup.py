@@ -83,6 +83,7 @@ from ..validation import check_friction, check_positive
 from . import placement
 from .checks import contact_law_figures
 from .closure import ClosureResult, placement_closure
+from .forces import TABLE_III_MEASURE, FingerForce, finger_forces
 from .lift import lift as run_lift
 from .lift_test import LiftTest
 from .placement import (
@@ -207,6 +208,14 @@ class Snapshot:
         out["table"] = np.broadcast_to(table.up, (len(self.contact_nodes["table"]), 3)).copy()
         return out
 
+    def finger_forces(self, directions: Sequence[np.ndarray]) -> tuple[FingerForce, FingerForce]:
+        """Each finger's force on the object: resultant, grip along its squeeze direction (d̂₁, d̂₂), vertical
+        part and normal sum (:mod:`fem_grasp.grasp.forces`)."""
+        names = ("finger1", "finger2")
+        return finger_forces([self.node_positions(self.contact_nodes[n]) for n in names],
+                             [self.contact_forces[n] for n in names], self.finger_centers, self.finger_radius,
+                             directions)
+
     def finger_normal_force(self, table: TablePlane) -> float:
         """Σ f·n̂ over both fingers' contacts, newtons."""
         nrm = self.normals(table)
@@ -285,7 +294,8 @@ class PickupResult:
     events : every event (squeeze and lift), in order
     snapshots : initial state, every event, lift start, final
     final : the last snapshot (lift-off on success)
-    finger_normal_force : total finger normal force Σ f·n̂ in the final snapshot, newtons
+    finger_normal_force : total finger normal force Σ f·n̂ in the final snapshot, newtons (Table III's measure)
+    finger_forces : each finger's resultant, grip, vertical part and normal sum (property)
     rigid : the rigid comparison (Table III) for the same shape and contacts
     timings : wall time per phase, seconds
     lift_attempts : every simulated lift, in order (more than one when a lift failed and the squeeze
@@ -325,6 +335,12 @@ class PickupResult:
         """Contact nodes in the final configuration (Table II's first figure)."""
         return 0 if self.final is None else len(self.final.all_nodes)
 
+    @property
+    def finger_forces(self) -> tuple[FingerForce, FingerForce] | None:
+        """Each finger's force on the object in the final snapshot (at lift-off on success); None before any
+        (:mod:`fem_grasp.grasp.forces`)."""
+        return None if self.final is None else self.final.finger_forces(self.directions)
+
     def event_counts(self) -> dict[str, int]:
         counts = {k: 0 for k in "ABCD"}
         for e in self.events:
@@ -362,6 +378,8 @@ class PickupResult:
             "events": [e.to_dict() for e in self.events],
             "event_counts": self.event_counts(),
             "finger_normal_force": self.finger_normal_force, "n_final_contacts": self.n_final_contacts,
+            "finger_forces": None if self.finger_forces is None else [f.to_dict() for f in self.finger_forces],
+            "table_iii_measure": TABLE_III_MEASURE,
             "rigid": rigid, "timings": self.timings,
             "lift_attempts": [a.to_dict() for a in self.lift_attempts],
             "reference_points": self.body.mesh.points.tolist(),

@@ -431,3 +431,21 @@ def test_default_placement_on_a_box_takes_the_middle_of_the_faces_not_an_edge(ru
     np.testing.assert_allclose(out, [[0, -1, 0], [0, 1, 0]], atol=1e-2)  # facing each other
 
 
+
+
+# ------------------------------------------------------ the finger force, four ways
+def test_each_fingers_force_is_reported_four_ways_and_the_two_carry_the_weight_at_lift_off(lifted):
+    f1, f2 = lifted.finger_forces
+    final = lifted.final
+    for f, name in ((f1, "finger1"), (f2, "finger2")):
+        np.testing.assert_allclose(f.resultant, final.contact_forces[name].sum(axis=0), rtol=0, atol=1e-15 * WEIGHT)
+        assert f.magnitude == pytest.approx(np.linalg.norm(f.resultant), rel=1e-15)
+        assert f.contacts == len(final.contact_nodes[name]) >= 1
+        assert 0 < f.grip <= f.magnitude and f.normal_sum > 0
+    # at lift-off the fingers alone hold the object: their vertical parts add up to its weight
+    assert f1.vertical + f2.vertical == pytest.approx(WEIGHT, rel=1e-9)
+    # … and their horizontal parts cancel (the box hangs in equilibrium); Σ f·n̂ is Table III's measure
+    np.testing.assert_allclose(f1.resultant[:2] + f2.resultant[:2], 0.0, rtol=0, atol=1e-9 * WEIGHT)
+    assert f1.normal_sum + f2.normal_sum == pytest.approx(lifted.finger_normal_force, rel=1e-12)
+    doc = lifted.to_dict()
+    assert doc["finger_forces"][0]["grip"] == pytest.approx(f1.grip) and "normal sum" in doc["table_iii_measure"]
