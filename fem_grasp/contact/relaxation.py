@@ -56,7 +56,7 @@ from ..errors import RelaxationFailure
 from ..threads import blas_threads_for
 from .kernels import gauss_seidel as gs
 from .kernels.gauss_seidel import RELEASE, SLIDE, STICK
-from .kernels.jit import as_kernel_data, warm_up_sample
+from .kernels.jit import as_kernel_data, sample_contacts, warm_up_sample
 
 __all__ = ["RelaxationFailure", "Relaxation", "relax_contacts", "STICK", "SLIDE", "RELEASE"]
 
@@ -358,12 +358,9 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
 def _compile_the_return_mapping() -> None:
     """A return mapping of one table and one fingertip contact: its sweep, and what its Newton polish and its
     end call per contact (the kernels of :mod:`~fem_grasp.contact.kernels.gauss_seidel`)."""
-    up = np.array([0.0, 0.0, 1.0])
-    centre = np.array([0.0, 0.0, 0.02])
-    positions = np.array([[0.0, 0.0, 0.0], centre - [0.0, 0.0, 0.01]])
-    mu = np.array([0.5, 0.5])
-    relax_contacts(100.0 * np.eye(6), np.array([[0.8, 0.0, 1.0], [0.0, 0.8, 1.0]]), positions, [None, centre], up,
-                   mu, 1.0)
+    s = sample_contacts()
+    up, centre, positions, mu = s["up"], s["centre"], s["positions"], s["mu"]
+    relax_contacts(100.0 * np.eye(6), s["forces"], positions, [None, centre], up, mu, 1.0)
     records = gs.contact_records(positions, [None, centre], up, np.stack([np.eye(3), np.eye(3)]))
     gs.SlideGeometry(records, mu).projections(np.zeros((2, 2)))
     gs.outside_sphere(records[1], 0.0, 0.0, 0.0)

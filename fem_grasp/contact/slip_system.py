@@ -24,8 +24,8 @@ import scipy.linalg as la
 
 from . import homotopy
 from .kernels import slip_newton
-from .kernels.jit import warm_up_sample
-from .obstacles import TABLE, cross_rows, great_circle_axes, tangent_bases
+from .kernels.jit import sample_contacts, warm_up_sample
+from .obstacles import FINGER1, TABLE, cross_rows, great_circle_axes, tangent_bases
 
 __all__ = ["HOMOTOPY_TOL", "MixedSlipSystem", "REVERSED_FRICTION", "SINGULAR_PIVOT", "SLIP_HOMOTOPY_MIN_STEP",
            "SLIP_HOMOTOPY_STEPS", "SlipFailure"]
@@ -367,17 +367,11 @@ class MixedSlipSystem:
 def _compile_the_slip_systems() -> None:
     """The slip systems of both forms, one table and one fingertip node: Newton, and the residual and Jacobian
     called on their own (the kernels of :mod:`~fem_grasp.contact.kernels.slip_newton`)."""
-    from .obstacles import FINGER1
-
-    up = np.array([0.0, 0.0, 1.0])
-    centre = np.array([0.0, 0.0, 0.02])
-    positions = np.array([[0.0, 0.0, 0.0], centre - [0.0, 0.0, 0.01]])
-    forces = np.array([[0.8, 0.0, 1.0], [0.0, 0.8, 1.0]])
+    s = sample_contacts()
     for free in (False, True):
-        system = MixedSlipSystem(100.0 * np.eye(6), forces, np.zeros((2, 3)), np.array([0, 1]),
-                                 np.array([TABLE, FINGER1]), np.array([0.5, 0.5]),
-                                 np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]), positions - [np.zeros(3), centre], up,
-                                 0.01, free)
+        system = MixedSlipSystem(100.0 * np.eye(6), s["forces"], np.zeros((2, 3)), np.array([0, 1]),
+                                 np.array([TABLE, FINGER1]), s["mu"], np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]),
+                                 s["positions"] - [np.zeros(3), s["centre"]], s["up"], 0.01, free)
         system._newton(system.x0 / system.xscale, 1e-12)  # root or not: only the compilation matters
         system.residual(system.x0)
         system.jacobian(system.x0)

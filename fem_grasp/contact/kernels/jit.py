@@ -32,7 +32,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-__all__ = ["ENABLED", "as_kernel_data", "backend_name", "jit", "kernel_modules", "warm_up_sample", "warm_up_samples"]
+__all__ = ["ENABLED", "as_kernel_data", "backend_name", "jit", "kernel_modules", "sample_contacts", "warm_up_sample",
+           "warm_up_samples"]
 
 log = logging.getLogger(__name__)
 
@@ -95,6 +96,15 @@ def warm_up_sample(sample: Callable[[], Any]) -> Callable[[], Any]:
     types of a real pickup, so that :func:`fem_grasp.contact.warm_up` compiles what a pickup will call."""
     _samples.append(sample)
     return sample
+
+
+def sample_contacts() -> dict[str, np.ndarray]:
+    """The two contacts every warm-up sample uses: one on the table (z = 0), one on a fingertip of radius 1 cm
+    centred 2 cm up, loaded out of their cones (``up``, ``centre``, ``positions``, ``forces``, ``mu``)."""
+    centre = np.array([0.0, 0.0, 0.02])
+    return {"up": np.array([0.0, 0.0, 1.0]), "centre": centre,
+            "positions": np.array([[0.0, 0.0, 0.0], centre - [0.0, 0.0, 0.01]]),
+            "forces": np.array([[0.8, 0.0, 1.0], [0.0, 0.8, 1.0]]), "mu": np.array([0.5, 0.5])}
 
 
 def warm_up_samples() -> tuple[Callable[[], Any], ...]:
