@@ -43,8 +43,9 @@ optional)::
 
 Unknown keys, wrong types, units of the wrong kind and values out of range
 raise :class:`SceneError`, whose message names the file and the key.
-Lengths accept m, cm, mm; pressures Pa, kPa, MPa, GPa; forces N, mN; masses
-kg, g; densities kg/m^3, g/cm^3.  A bare number is in SI units.
+Units are spelled exactly as in SI (case matters: ``mPa`` is not ``MPa``): lengths
+m, cm, mm, µm; pressures Pa, kPa, MPa, GPa; forces N, mN, kN; masses kg, g, mg;
+densities kg/m^3, g/cm^3.  A bare number is in SI units.
 """
 
 from __future__ import annotations
@@ -79,20 +80,35 @@ SCENE_DIR = Path(__file__).resolve().parents[1] / "scenes"
 
 
 # ------------------------------------------------------------------ units
+#: Units by kind, spelled exactly as SI writes them (case matters: m is milli, M is mega).
 _UNITS: dict[str, dict[str, float]] = {
-    "length": {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6, "µm": 1e-6},
-    "pressure": {"pa": 1.0, "kpa": 1e3, "mpa": 1e6, "gpa": 1e9},
-    "force": {"n": 1.0, "mn": 1e-3, "kn": 1e3},
-    "mass": {"kg": 1.0, "g": 1e-3},
-    "density": {"kg/m^3": 1.0, "kg/m3": 1.0, "g/cm^3": 1e3, "g/cm3": 1e3},
-    "acceleration": {"m/s^2": 1.0, "m/s2": 1.0},
+    "length": {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "μm": 1e-6},
+    "pressure": {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6, "GPa": 1e9},
+    "force": {"N": 1.0, "mN": 1e-3, "kN": 1e3},
+    "mass": {"kg": 1.0, "g": 1e-3, "mg": 1e-6},
+    "density": {"kg/m^3": 1.0, "kg/m3": 1.0, "kg/m³": 1.0, "g/cm^3": 1e3, "g/cm3": 1e3, "g/cm³": 1e3},
+    "acceleration": {"m/s^2": 1.0, "m/s2": 1.0, "m/s²": 1.0},
 }
+#: What each unit is called, for messages that suggest the intended one.
+_UNIT_NAMES = {"m": "metre", "cm": "centimetre", "mm": "millimetre", "um": "micrometre", "µm": "micrometre",
+               "μm": "micrometre", "Pa": "pascal", "kPa": "kilopascal", "MPa": "megapascal", "GPa": "gigapascal",
+               "N": "newton", "mN": "millinewton", "kN": "kilonewton", "kg": "kilogram", "g": "gram",
+               "mg": "milligram"}
 _SI = {"length": "m", "pressure": "Pa", "force": "N", "mass": "kg", "density": "kg/m^3", "acceleration": "m/s^2"}
 _QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([^\s\d].*?)?\s*$")
 
 
+def _named(unit: str) -> str:
+    return f"'{unit}' ({_UNIT_NAMES[unit]})" if unit in _UNIT_NAMES else f"'{unit}'"
+
+
 def parse_quantity(value: Any, kind: str, where: str = "value") -> float:
     """A number (SI) or a string ``"<number> <unit>"`` of the given kind → float in SI units.
+
+    Units are the exact SI spellings of :data:`_UNITS` (``"kPa"``, ``"mm"``, ``"mN"``): case matters, since
+    ``m`` is milli and ``M`` mega.  A unit that matches one only when case is ignored (``"10 mPa"``,
+    ``"1 CM"``) is refused with a message that suggests the intended unit; a unit of another kind
+    (``"3 mm"`` for a pressure) is refused naming both kinds.
 
     Raises
     ------
@@ -105,7 +121,7 @@ def parse_quantity(value: Any, kind: str, where: str = "value") -> float:
         return float(value)
     if not isinstance(value, str):
         raise SceneError(f"{where}: expected a {kind} (a number in {_SI[kind]} or a string like "
-                         f"\"2 {list(_UNITS[kind])[1] if len(_UNITS[kind]) > 1 else _SI[kind]}\"), got {value!r}")
+                         f"\"{_example(kind)}\"), got {value!r}")
     m = _QUANTITY.match(value)
     if not m:
         raise SceneError(f"{where}: cannot read {value!r} as a {kind} (write a number and a unit, e.g. "
@@ -114,19 +130,28 @@ def parse_quantity(value: Any, kind: str, where: str = "value") -> float:
     if not unit:
         return number
     table = _UNITS[kind]
-    key = unit.lower() if kind != "length" else unit
-    if key in table:
-        return number * table[key]
+    if unit in table:
+        return number * table[unit]
+    takes = f"a {kind} takes {', '.join(_display_units(kind))}"
     for other, units in _UNITS.items():
-        if unit.lower() in {u.lower() for u in units}:
-            raise SceneError(f"{where}: {value!r} is a {other}, but a {kind} is expected (units: "
-                             f"{', '.join(_display_units(kind))})")
-    raise SceneError(f"{where}: unknown unit {unit!r} in {value!r}; a {kind} takes {', '.join(_display_units(kind))}")
+        if other != kind and unit in units:
+            raise SceneError(f"{where}: {value!r} is a {other}, but a {kind} is expected ({takes})")
+    same_kind = [u for u in table if u.lower() == unit.lower()]
+    if same_kind:
+        milli = " (m is milli, M is mega)" if any(u[0] != unit[0] and u[0] in "mM" for u in same_kind) else ""
+        raise SceneError(f"{where}: unknown unit {unit!r} in {value!r}: units are case-sensitive{milli}; did you "
+                         f"mean {' or '.join(_named(u) for u in same_kind)}? ({takes})")
+    other_kind = [(u, o) for o, units in _UNITS.items() for u in units if u.lower() == unit.lower()]
+    if other_kind:
+        u, o = other_kind[0]
+        raise SceneError(f"{where}: unknown unit {unit!r} in {value!r}; {takes} (units are case-sensitive: "
+                         f"{_named(u)} would be a {o})")
+    raise SceneError(f"{where}: unknown unit {unit!r} in {value!r}; {takes}")
 
 
 def _display_units(kind: str) -> list[str]:
-    return {"length": ["m", "cm", "mm"], "pressure": ["Pa", "kPa", "MPa", "GPa"], "force": ["N", "mN", "kN"],
-            "mass": ["kg", "g"], "density": ["kg/m^3", "g/cm^3"], "acceleration": ["m/s^2"]}[kind]
+    return {"length": ["m", "cm", "mm", "µm"], "pressure": ["Pa", "kPa", "MPa", "GPa"], "force": ["N", "mN", "kN"],
+            "mass": ["kg", "g", "mg"], "density": ["kg/m^3", "g/cm^3"], "acceleration": ["m/s^2"]}[kind]
 
 
 def _example(kind: str) -> str:

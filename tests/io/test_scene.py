@@ -173,3 +173,29 @@ def test_the_rest_cache_key_covers_every_module_the_rest_depends_on():
         assert needed in names, needed
     assert not any(f.parent.name == "io" for f in rest_code_files())  # its own floor: a cache, not physics
     assert rest_code_digest() == rest_code_digest()
+
+
+# ------------------------------------------------ units: exact SI spellings (issue 25, item 6)
+@pytest.mark.parametrize("text, kind, si", [("10 MPa", "pressure", 1e7), ("3 µm", "length", 3e-6),
+                                           ("3 μm", "length", 3e-6), ("5 mN", "force", 5e-3),
+                                           ("2 kN", "force", 2e3), ("250 mg", "mass", 2.5e-4),
+                                           ("1 kg/m³", "density", 1.0)])
+def test_exact_si_spellings_are_read(text, kind, si):
+    assert parse_quantity(text, kind) == pytest.approx(si)
+
+
+@pytest.mark.parametrize("text, kind, words", [
+    ("10 mPa", "pressure", ["case-sensitive", "m is milli, M is mega", "did you mean 'MPa' (megapascal)"]),
+    ("1 CM", "length", ["case-sensitive", "did you mean 'cm' (centimetre)"]),
+    ("10 kpa", "pressure", ["case-sensitive", "did you mean 'kPa' (kilopascal)"]),
+    ("5 MN", "force", ["did you mean 'mN' (millinewton)"]),
+    ("2 PA", "length", ["a length takes m, cm, mm", "'Pa' (pascal) would be a pressure"]),
+    ("3 mm", "pressure", ["'3 mm' is a length, but a pressure is expected"]),
+])
+def test_a_unit_in_the_wrong_case_is_refused_with_the_intended_one(text, kind, words):
+    with pytest.raises(SceneError) as exc:
+        parse_quantity(text, kind, "material.young")
+    msg = str(exc.value)
+    for w in words:
+        assert w in msg, msg
+    assert "is a length, but a length" not in msg and f"is a {kind}, but a {kind}" not in msg  # no self-contradiction
