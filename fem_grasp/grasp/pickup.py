@@ -644,7 +644,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
         if not sq.passed:
             result.outcome = "squeeze failed" if sq.failed else "not liftable"
             result.reason = sq.reason + "".join(
-                f"; lift attempt at ρ = {a.squeeze_depth:.4g} m failed: {a.reason}" for a in result.lift_attempts)
+                f"; lift attempt at ρ = {1e3 * a.squeeze_depth:.4g} mm failed: {a.reason}" for a in result.lift_attempts)
             result.final = Snapshot.from_state(sq.state, finger_radius, "final", surface_nodes=surface)
             result.finger_normal_force = result.final.finger_normal_force(table)
             timings["total"] = time.perf_counter() - t_start
@@ -681,7 +681,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
     result.success = lf.success
     result.outcome = "picked up" if lf.success else "lift failed"
     result.reason = lf.reason if attempt == 1 or lf.success else (
-        f"{lf.reason} (after {attempt} lift attempts from ρ = {result.lift_attempts[0].squeeze_depth:.4g} m)")
+        f"{lf.reason} (after {attempt} lift attempts from ρ = {1e3 * result.lift_attempts[0].squeeze_depth:.4g} mm)")
     result.final = Snapshot.from_state(lf.state, finger_radius, "lift-off" if lf.success else "final",
                                        surface_nodes=surface)
     result.snapshots.append(result.final)

@@ -62,7 +62,7 @@ LOWER, UPPER = np.array([-0.015, -0.02, 0.0]), np.array([0.015, 0.02, 0.03])
 RADIUS, WEIGHT, YOUNG = 0.02, 0.3, 2e4
 CONTACTS = np.array([[-0.005, -0.02, 0.02], [-0.005, 0.02, 0.02]])
 #: Reasons a pickup of these scenes may fail with (PickupResult.reason), each naming its cause.
-FAILURES = ("force closure", "maximum squeeze depth", "squeeze failed at", "lift failed at", "slides",
+FAILURES = ("force closure", "maximum squeeze depth", "squeeze failed", "lift failed", "slides",
             "still on the table", "no initial finger placement", "the fingers cannot be placed")
 
 
