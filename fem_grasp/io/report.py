@@ -495,8 +495,7 @@ def _html(doc: dict[str, Any]) -> str:
         _row("liftable weight", f"up to {g(s['max_liftable_weight'])} N against weight {g(s['weight'])} N"),
         _row("final contacts", s["n_final_contacts"]),
         _row("Table III", f"Σ f·n̂ over both fingers {g(s['finger_normal_force'])} N (deformable); rigid object, "
-                          f"same contacts: {g(s['rigid_total_normal_force'])} N. Table III compares "
-                          + (s.get("table_iii_measure") or "the normal sums")),
+                          f"same contacts: {g(s['rigid_total_normal_force'])} N (the measure Table III compares)"),
         _row("events", ", ".join(f"{k}: {v}" for k, v in s["event_counts"].items())),
         _row("resting state", "—" if not doc.get("rest") else
              f"{doc['rest']['n_contacts']} table contacts ({doc['rest']['n_sliding']} sliding), max sag "
