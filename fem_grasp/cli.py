@@ -102,7 +102,6 @@ def _verdict(result: Any) -> str:
 
 def _force_lines(result: Any) -> list[str]:
     """Each finger's force on the object, four ways, and which one Table III compares (grasp.forces)."""
-    from .grasp.forces import TABLE_III_MEASURE
 
     forces = result.finger_forces
     if forces is None:
@@ -316,7 +315,7 @@ def _info_result(args: argparse.Namespace, path: Path) -> int:
     doc = read_result(path.parent) if path.name == "result.json" else None
     if doc is None:
         raise _BadInput(f"{path}: info reads a run's result.json (or its folder); this file is not one")
-    s, res, scene = doc["summary"], doc["result"], doc.get("scene") or {}
+    s, scene = doc["summary"], doc.get("scene") or {}
     verdict = ("picked up" if s["success"] else "lift test passed, lift not simulated"
                if s.get("outcome") == "lift not run" else f"not picked up: {s['reason']}")
     _out(args, f"{path}: {doc['schema']} v{doc['schema_version']}, fem_grasp {doc.get('fem_grasp_version')}, "

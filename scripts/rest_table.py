@@ -21,9 +21,8 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from typing import Sequence
-
 from pathlib import Path
+from typing import Sequence
 
 from fem_grasp.grasp import objects
 from fem_grasp.grasp.rest import rest
