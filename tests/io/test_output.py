@@ -33,8 +33,14 @@ def _pvd_files(path):
 def test_result_json_has_schema_summary_and_no_stray_files(run):
     out, doc = run
     assert doc["schema"] == SCHEMA and doc["schema_version"] == SCHEMA_VERSION
-    for key in ("success", "reason", "squeeze_depth", "n_final_contacts", "finger_normal_force", "event_counts"):
+    for key in ("success", "reason", "squeeze_depth", "n_final_contacts", "finger_normal_force", "event_counts",
+                "outcome", "finger_forces", "table_iii_measure"):
         assert key in doc["summary"]
+    forces = doc["summary"]["finger_forces"]  # each finger four ways (grasp.forces), and what Table III compares
+    assert set(forces) == {"finger1", "finger2"} and "normal sum" in doc["summary"]["table_iii_measure"]
+    assert forces["finger1"]["normal_sum"] + forces["finger2"]["normal_sum"] == pytest.approx(
+        doc["summary"]["finger_normal_force"], rel=1e-12)
+    assert {"resultant", "magnitude", "grip", "vertical", "normal_sum", "contacts"} <= set(forces["finger1"])
     assert doc["summary"]["n_events"] == len(doc["result"]["events"]) == sum(doc["summary"]["event_counts"].values())
     json.loads((out / "result.json").read_text(), parse_constant=lambda c: pytest.fail(f"non-strict JSON {c}"))
     assert not list(out.rglob("*.tmp*")) and not list(out.rglob(".*.vtu"))  # atomic writes leave nothing behind
