@@ -2,16 +2,17 @@
 
 Subcommands::
 
-    fem-grasp run SCENE [--quick] [--out DIR] [--report]    squeeze and lift (Algorithm 1)
+    fem-grasp run SCENE [--quick] [--out DIR] [--report] [--young E] [--no-lift]   squeeze and lift (Algorithm 1)
     fem-grasp rest SCENE [--quick] [--out DIR]              the resting state only (§III-A)
-    fem-grasp mesh INPUT -o OUTPUT [--vertices N | --size H] closed surface scan → tetrahedral mesh
-    fem-grasp info PATH                                     figures of a mesh, a surface or a scene
-    fem-grasp report DIR                                    report.html + pictures from a run's output
+    fem-grasp mesh INPUT -o OUTPUT [--vertices N | --size H] [--units mm]   closed surface scan → tetrahedra
+    fem-grasp info PATH                                     a mesh, a surface, a scene, a result.json or a .pvd
+    fem-grasp report DIR [--colour von_mises]               report.html + pictures from a run's output
     fem-grasp scenes                                        the scenes shipped with fem_grasp
 
-SCENE is a TOML file (:mod:`fem_grasp.io.scene`) or the name of a shipped
-scene (``tomato``, ``orange``, ``steam_bun``, ``football``, ``foam_block``,
-``slippery_soap``).  Exit status: 0 success, 1 the grasp failed (a valid
+Every command takes -v/-vv (the library's log on stderr), --log-file FILE and -q; a progress bar is
+drawn on a terminal only (:mod:`fem_grasp.progress`).  SCENE is a TOML file (:mod:`fem_grasp.io.scene`)
+or the name of a shipped scene (``tomato``, ``orange``, ``steam_bun``, ``football``, ``foam_block``,
+``slippery_ball``); ``run`` takes the same path as :func:`fem_grasp.run_scene`.  Exit status: 0 success, 1 the grasp failed (a valid
 answer: the object cannot be picked up so), 2 bad input (the message names
 it), 3 an internal error (a bug: please report it).
 
