@@ -504,10 +504,8 @@ def _logging(args: argparse.Namespace) -> Iterator[None]:
         else:
             old_show(message, category, filename, lineno, file, line)
 
-    warnings.showwarning = show
     try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("default")
+        with warnings.catch_warnings():  # the caller's filters stay (pytest's errors, -W); only the display changes
             warnings.showwarning = show
             yield
     finally:
