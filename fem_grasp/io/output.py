@@ -111,12 +111,24 @@ def check_out_path(path: str | Path) -> Path:
     return out
 
 
+_H5PY: list[bool] = []
+
+
 def _has_h5py() -> bool:
-    try:
-        import h5py  # noqa: F401
-    except ImportError:
-        return False
-    return True
+    """Whether h5py can be used in this process (checked once).  h5py's own HDF5 cannot load into a process
+    that has loaded another HDF5 library first (dolfinx's, through PETSc): then no XDMF copy is written."""
+    if not _H5PY:
+        try:
+            import h5py  # noqa: F401
+            _H5PY.append(True)
+        except ImportError:
+            _H5PY.append(False)
+        except Exception as exc:  # noqa: BLE001 - installed but cannot load here
+            log.warning("h5py cannot be loaded in this process (%s: %s; another HDF5 library was loaded first, "
+                        "e.g. by dolfinx): no object.xdmf, the .pvd series holds the same data",
+                        type(exc).__name__, exc)
+            _H5PY.append(False)
+    return _H5PY[0]
 
 
 def prepare_out_dir(path: str | Path, force: bool = False) -> Path:

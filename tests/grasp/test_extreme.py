@@ -444,7 +444,7 @@ def test_a_cascade_of_events_at_one_depth_is_bounded_by_max_cascade(squeezed):
     rounds = next(k for k in range(1, 50) if _settles(tracker, jumped, vel, k))
     assert rounds >= 4
     for k in range(1, rounds):
-        with pytest.raises(TrackingError, match=rf"keep cascading at squeeze_depth = 0.004 \({k} rounds\)"):
+        with pytest.raises(TrackingError, match=rf"keep cascading at ρ = 4 mm \({k} rounds\)"):
             tracker.settle(jumped, vel, phase="squeeze", max_cascade=k)
 
 

@@ -144,32 +144,45 @@ def test_the_time_value_is_the_finger_path_and_every_frame_says_where_it_is(run)
     assert fd.GetArray("squeeze_depth").GetTuple1(0) == pytest.approx(frames[-1]["squeeze_depth"])
 
 
-def test_the_xdmf_series_holds_the_same_frames_at_the_same_times(run):
+def test_the_xdmf_series_holds_the_same_frames_at_the_same_times(tmp_path):
     """object.xdmf + object.h5 (h5py): one grid per frame with its deformed geometry, the same point, cell and
-    field data, the same time values; VTK's XDMF reader reads it."""
-    h5py = pytest.importorskip("h5py")
-    out, doc = run
+    field data, the same time values; read back with VTK's XDMF reader.  The run is a fresh process: h5py cannot
+    load into one that has loaded dolfinx's HDF5 (as the verification tests do), and then writes no XDMF."""
+    import subprocess
+    import sys
+
+    pytest.importorskip("h5py")
+    vtk = pytest.importorskip("vtk")
+    from vtk.util.numpy_support import vtk_to_numpy
+
+    from tests.helpers import ROOT, cache_dir
+
+    out = tmp_path / "o"
+    r = subprocess.run([sys.executable, "-m", "fem_grasp", "run", "foam_block", "--quick", "--no-lift", "--quiet",
+                        "--out", str(out), "--cache", str(cache_dir())], cwd=ROOT, capture_output=True, text=True,
+                       timeout=600)
+    assert r.returncode == 1, r.stderr[-2000:]
+    doc = read_result(out)
     frames = doc["series"]["frames"]
     assert doc["series"]["xdmf"] == "object.xdmf" and (out / "object.h5").exists()
     root = ET.parse(out / "object.xdmf").getroot()
     grids = root.find("Domain/Grid").findall("Grid")
     assert [float(g.find("Time").get("Value")) for g in grids] == [fr["time"] for fr in frames]
-    with h5py.File(out / "object.h5", "r") as f:
-        for k in (0, len(frames) - 1):
-            m = meshio.read(out / frames[k]["file"])
-            np.testing.assert_array_equal(f[f"frames/{k:04d}/geometry"][()], m.points)
-            np.testing.assert_array_equal(f[f"frames/{k:04d}/von_mises"][()], m.cell_data["von_mises"][0])
-        np.testing.assert_array_equal(f["topology"][()], m.cells[0].data)
-    vtk = pytest.importorskip("vtk")
     reader = vtk.vtkXdmfReader()
     reader.SetFileName(str(out / "object.xdmf"))
     reader.UpdateInformation()
     steps = reader.GetOutputInformation(0).Get(vtk.vtkStreamingDemandDrivenPipeline.TIME_STEPS())
-    assert len(steps) == len(frames)
-    reader.UpdateTimeStep(steps[-1])
-    grid = reader.GetOutputDataObject(0)
-    assert grid.GetNumberOfPoints() == len(m.points) and grid.GetCellData().GetArray("von_mises") is not None
-    assert grid.GetFieldData().GetArray("lift_height").GetTuple1(0) == pytest.approx(frames[-1]["lift_height"])
+    assert list(steps) == [fr["time"] for fr in frames]
+    for k in (0, len(frames) - 1):
+        reader.UpdateTimeStep(steps[k])
+        grid = reader.GetOutputDataObject(0)
+        m = meshio.read(out / frames[k]["file"])
+        np.testing.assert_array_equal(vtk_to_numpy(grid.GetPoints().GetData()), m.points)
+        np.testing.assert_array_equal(vtk_to_numpy(grid.GetCellData().GetArray("von_mises")), m.cell_data["von_mises"][0])
+        np.testing.assert_array_equal(vtk_to_numpy(grid.GetPointData().GetArray("contact_state")),
+                                      m.point_data["contact_state"])
+        assert grid.GetFieldData().GetArray("lift_height").GetTuple1(0) == frames[k]["lift_height"]
+        assert grid.GetFieldData().GetArray("phase").GetTuple1(0) == m.field_data["phase"][0]
 
 
 def test_an_out_folder_named_like_a_file_is_refused(tmp_path, capsys):
