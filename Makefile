@@ -28,7 +28,7 @@ $(STAMPS)/venv: $(STAMPS)/apt pyproject.toml
 	$(SYSPY) -m venv --system-site-packages $(VENV)
 	$(SYSPY) -c "import numpy; print('numpy==' + numpy.__version__)" > $(STAMPS)/constraints.txt
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -c $(STAMPS)/constraints.txt -e ".[dev,report,fast,docs]"
+	$(PY) -m pip install -q -c $(STAMPS)/constraints.txt -e ".[dev,report,fast,docs,xdmf,examples]"
 	@# Optional CHOLMOD backend: scikit-sparse compiled against Debian's SuiteSparse and the pinned numpy
 	@# (no build isolation, so Cython comes first). If it fails to build, SuperLU is used instead.
 	$(PY) -m pip install -q -c $(STAMPS)/constraints.txt "cython>=0.29" setuptools wheel && \
@@ -75,8 +75,9 @@ meshes: setup
 spectral-vs-sparse: setup
 	$(PY) scripts/spectral_vs_sparse.py
 
+# The README's rest table: printed, and written between its markers in README.md.
 rest-table: setup
-	$(PY) scripts/rest_table.py
+	$(PY) scripts/rest_table.py --readme README.md
 
 .PHONY: bench
 # Issue #7 benchmarks: contact solve against dolfinx, cost against vertex count (1k-100k), per-object pickups,

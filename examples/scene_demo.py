@@ -9,21 +9,20 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from fem_grasp.grasp.pickup import pickup
+from fem_grasp import Scene
 from fem_grasp.io.output import write_run
-from fem_grasp.io.scene import load_scene, resolve_scene
 
 
 def run(scene_name: str = "tomato", quick: bool = True, out: Path | None = None, report: bool = True,
         lift: bool = True):
-    scene = load_scene(resolve_scene(scene_name), quick=quick)  # a shipped scene or your own .toml
-    body = scene.body()  # TetMesh + E, ν, weight → Body
-    kwargs = scene.pickup_kwargs() | ({} if lift else {"lift": False})
-    result = pickup(body, **kwargs)  # Algorithm 1: rest, squeeze + lift test, lift
+    scene = Scene.load(scene_name, quick=quick).with_(lift=lift)  # a shipped scene or your own .toml
+    result = scene.run()  # Algorithm 1 as `fem-grasp run` does it: rest, squeeze + lift test, lift
     result.check()  # equilibrium, non-penetration, Coulomb on every snapshot (raises if violated)
     print(f"{scene.name}: {'picked up' if result.success else 'not picked up: ' + result.reason}; "
           f"rho = {result.squeeze_depth * 1e3:.2f} mm, {len(result.events)} events, "
-          f"finger normal force {result.finger_normal_force:.3f} N")
+          f"finger normal force (Table III's Σ f·n̂) {result.finger_normal_force:.3f} N")
+    for k, f in enumerate(result.finger_forces or (), start=1):
+        print(f"  finger {k}: |resultant| {f.magnitude:.3f} N, grip {f.grip:.3f} N, carries {f.vertical:.3f} N")
     if out is not None:
         write_run(out, result, scene)  # result.json + object.pvd, finger1/2.pvd, table.vtu
         if report:

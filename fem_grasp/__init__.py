@@ -5,6 +5,11 @@ body by two rigid hemispherical fingertips).  The subpackages follow the paper a
 ``mesh`` < ``elastic`` < ``contact`` < ``grasp`` < ``io``: meshes, the linear elasticity of §II, the
 frictional contact of §III-A/C, Algorithm 1 of §III, and files.  The core imports with numpy and scipy
 alone; ``fem_grasp.objects``, ``fem_grasp.shapes`` and the other modules below load on first use.
+
+A scene in one line, the same answer as ``fem-grasp run tomato --young "15 kPa"``::
+
+    import fem_grasp
+    result = fem_grasp.run_scene("tomato", young="15 kPa")      # or Scene.load("tomato").with_(...).run()
 """
 
 from __future__ import annotations
@@ -42,6 +47,7 @@ from .grasp import (
     resting_pose,
     rigid_grasp,
 )
+from .io import Scene, run_scene
 from .mesh import TetMesh, box_mesh
 
 __version__ = "0.1.0"
@@ -54,9 +60,9 @@ _LAZY = {"objects": "fem_grasp.grasp.objects", "placement": "fem_grasp.grasp.pla
 __all__ = ["Body", "ClosureResult", "CollinearContactError", "ContactEvent", "ContactNodeError", "ContactResponse",
            "ContactSolution", "ContactState", "DirectionError", "Fingertip", "FrictionError", "LockingWarning",
            "MaterialError", "MeshError", "PickupResult", "PlacementError", "RestCheckError", "RestConvergenceError",
-           "RestState", "RestingPose", "RigidGrasp", "SceneError", "Snapshot", "TablePlane", "TetMesh",
+           "RestState", "RestingPose", "RigidGrasp", "Scene", "SceneError", "Snapshot", "TablePlane", "TetMesh",
            "TrackingError", "box_mesh", "contact", "elastic", "errors", "force_closure", "grasp", "io", "mesh",
-           "pickup", "rest", "resting_pose", "rigid_grasp", "solve_contact", *_LAZY]
+           "pickup", "rest", "resting_pose", "rigid_grasp", "run_scene", "solve_contact", *_LAZY]
 
 
 def __getattr__(name: str) -> Any:

@@ -11,7 +11,7 @@ import tempfile
 from pathlib import Path
 from typing import Any, Callable
 
-__all__ = ["atomic_write_bytes", "atomic_write_mesh", "atomic_write_text"]
+__all__ = ["atomic_write", "atomic_write_bytes", "atomic_write_mesh", "atomic_write_text"]
 
 
 def _umask() -> int:
@@ -55,3 +55,8 @@ def atomic_write_mesh(path: str | Path, mesh: Any, file_format: str = "vtu") -> 
     import meshio
 
     return _atomic(Path(path), lambda p: meshio.write(p, mesh, file_format=file_format))
+
+
+def atomic_write(path: str | Path, write: Callable[[Path], None]) -> Path:
+    """Call ``write(tmp)`` on a temporary path beside ``path`` (same suffix), then move it to ``path``."""
+    return _atomic(Path(path), write)

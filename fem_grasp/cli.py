@@ -2,16 +2,17 @@
 
 Subcommands::
 
-    fem-grasp run SCENE [--quick] [--out DIR] [--report]    squeeze and lift (Algorithm 1)
+    fem-grasp run SCENE [--quick] [--out DIR] [--report] [--young E] [--no-lift]   squeeze and lift (Algorithm 1)
     fem-grasp rest SCENE [--quick] [--out DIR]              the resting state only (§III-A)
-    fem-grasp mesh INPUT -o OUTPUT [--vertices N | --size H] closed surface scan → tetrahedral mesh
-    fem-grasp info PATH                                     figures of a mesh, a surface or a scene
-    fem-grasp report DIR                                    report.html + pictures from a run's output
+    fem-grasp mesh INPUT -o OUTPUT [--vertices N | --size H] [--units mm]   closed surface scan → tetrahedra
+    fem-grasp info PATH                                     a mesh, a surface, a scene, a result.json or a .pvd
+    fem-grasp report DIR [--colour von_mises]               report.html + pictures from a run's output
     fem-grasp scenes                                        the scenes shipped with fem_grasp
 
-SCENE is a TOML file (:mod:`fem_grasp.io.scene`) or the name of a shipped
-scene (``tomato``, ``orange``, ``steam_bun``, ``football``, ``foam_block``,
-``slippery_soap``).  Exit status: 0 success, 1 the grasp failed (a valid
+Every command takes -v/-vv (the library's log on stderr), --log-file FILE and -q; a progress bar is
+drawn on a terminal only (:mod:`fem_grasp.progress`).  SCENE is a TOML file (:mod:`fem_grasp.io.scene`)
+or the name of a shipped scene (``tomato``, ``orange``, ``steam_bun``, ``football``, ``foam_block``,
+``slippery_ball``); ``run`` takes the same path as :func:`fem_grasp.run_scene`.  Exit status: 0 success, 1 the grasp failed (a valid
 answer: the object cannot be picked up so), 2 bad input (the message names
 it), 3 an internal error (a bug: please report it).
 
@@ -31,6 +32,8 @@ from typing import Any, Iterator, Sequence
 
 import numpy as np
 
+from .progress import PhaseBar, progress_enabled
+
 __all__ = ["main", "EXIT_OK", "EXIT_FAILED", "EXIT_BAD_INPUT", "EXIT_INTERNAL"]
 
 log = logging.getLogger(__name__)
@@ -43,39 +46,12 @@ class _BadInput(Exception):
 
 
 # ------------------------------------------------------------------ progress
-class Progress:
-    """A phase-by-phase progress bar (tqdm) on a terminal; silent otherwise or when quiet.
-
-    ``pickup()`` reports no progress from inside, so the bar advances by
-    phase (mesh, rest, pickup, write, report) and shows the elapsed time.
-    """
-
-    def __init__(self, phases: Sequence[str], enabled: bool) -> None:
-        self.bar = None
-        if enabled:
-            try:
-                from tqdm import tqdm
-            except ImportError:
-                tqdm = None
-            if tqdm is not None:
-                self.bar = tqdm(total=len(phases), unit="phase", file=sys.stderr, leave=False, mininterval=0,
-                                bar_format="{desc:<28} {bar:20} {n_fmt}/{total_fmt} [{elapsed}]")
-
-    @contextlib.contextmanager
-    def phase(self, name: str) -> Iterator[None]:
-        if self.bar is not None:
-            self.bar.set_description_str(name, refresh=True)
-        yield
-        if self.bar is not None:
-            self.bar.update(1)
-
-    def close(self) -> None:
-        if self.bar is not None:
-            self.bar.close()
+#: The phase bar of a command (tqdm on a terminal, silent in CI or a pipe: :mod:`fem_grasp.progress`).
+Progress = PhaseBar
 
 
 def _progress_enabled(args: argparse.Namespace) -> bool:
-    return not args.quiet and sys.stderr.isatty()
+    return progress_enabled(quiet=args.quiet)
 
 
 # ------------------------------------------------------------------ helpers
@@ -106,73 +82,88 @@ def _load_scene(args: argparse.Namespace) -> Any:
                           lift=False if getattr(args, "no_lift", False) else None)
 
 
-def _check_contacts(scene: Any, mesh: Any) -> None:
-    if scene.contacts is None:
-        return
-    src = scene.path or "<scene>"
-    surface = set(mesh.surface_nodes.tolist())
-    for k in scene.contacts:
-        if k >= mesh.n_points:
-            raise _BadInput(f"{src}: fingers.contacts: node {k} does not exist (the mesh has {mesh.n_points} nodes, "
-                            f"0 … {mesh.n_points - 1}); with --quick the mesh differs, use contacts = \"auto\"")
-        if k not in surface:
-            raise _BadInput(f"{src}: fingers.contacts: node {k} is not on the surface of the mesh")
-
-
 def _fmt(x: float | None, unit: str = "", scale: float = 1.0, digits: int = 4) -> str:
     if x is None or not np.isfinite(x):
         return "—"
     return f"{x * scale:.{digits}g}{(' ' + unit) if unit else ''}"
 
 
+def _mm(x: float | None) -> str:
+    return _fmt(x, "mm", 1e3)
+
+
+def _verdict(result: Any) -> str:
+    if result.success:
+        return f"PICKED UP at rho = {_mm(result.squeeze_depth)}"
+    if result.outcome == "lift not run":
+        return (f"lift test passed at rho = {_mm(result.squeeze_depth)}; lift not simulated (--no-lift: is it "
+                "liftable? yes)")
+    return f"NOT PICKED UP: {result.reason}"
+
+
+def _force_lines(result: Any) -> list[str]:
+    """Each finger's force on the object, four ways, and which one Table III compares (grasp.forces)."""
+
+    forces = result.finger_forces
+    if forces is None:
+        return []
+    when = ("at lift-off" if result.success else "when the lift test passed" if result.outcome == "lift not run"
+            else "at the end")
+    lines = [f"fingers    force on the object {when} (N): resultant (x, y, z), |resultant|, grip (along the finger's "
+             "squeeze direction), vertical (weight carried), normal sum Σ f·n̂"]
+    for k, f in enumerate(forces, start=1):
+        r = ", ".join(f"{x:.4g}" for x in f.resultant)
+        lines.append(f"  finger {k} ({r}), |{f.magnitude:.4g}|, grip {f.grip:.4g}, vertical {f.vertical:.4g}, "
+                     f"normal sum {f.normal_sum:.4g} ({f.contacts} contact{'s' if f.contacts != 1 else ''})")
+    rigid = result.rigid
+    rigid_n = _fmt(rigid.total_normal_force if rigid is not None and rigid.feasible else None, "N")
+    lines.append(f"table III  compares Σ f·n̂ over both fingers: {result.finger_normal_force:.4g} N here, {rigid_n} "
+                 "for a rigid object at the same contacts")
+    return lines
+
+
 def _summary_lines(scene: Any, result: Any, rest_cached: bool) -> list[str]:
     counts = result.event_counts()
-    rigid = result.rigid
     wmax = max((w for _, w in result.liftable), default=0.0)
+    times = dict(result.timings)
+    rest_time = times.pop("rest", None)
+    time_parts = ([f"rest {rest_time:.2f} s ({'checked from the cache' if rest_cached else 'solved'})"]
+                  if rest_time is not None else []) + [f"{k} {v:.2f} s" for k, v in times.items()]
     lines = [
         f"scene      {scene.name}{' (quick)' if scene.quick else ''}: {result.body.n_nodes} nodes, "
         f"{result.body.mesh.n_tets} tets, weight {result.body.weight:.4g} N, E {scene.young:.4g} Pa, "
         f"nu {scene.poisson:g}, mu finger {scene.mu_finger:g}, mu table {scene.mu_table:g}",
         f"rest       {result.rest.n_contacts} table contacts ({int(result.rest.sliding.sum())} sliding), "
-        f"max sag {_fmt(result.rest.max_sag, 'mm', 1e3)}{' [cached]' if rest_cached else ''}",
-        f"result     {'PICKED UP' if result.success else 'NOT PICKED UP'}"
-        + ("" if result.success else f": {result.reason}"),
-        f"squeeze    rho = {_fmt(result.squeeze_depth, 'mm', 1e3)} (max {_fmt(result.max_squeeze, 'mm', 1e3)}), "
-        f"liftable weight up to {wmax:.4g} N",
-        f"contacts   {result.n_final_contacts} in the final configuration; finger normal force "
-        f"{result.finger_normal_force:.4g} N (rigid object: "
-        f"{_fmt(rigid.total_normal_force if rigid is not None and rigid.feasible else None, 'N')})",
+        f"max sag {_mm(result.rest.max_sag)}{' [cached]' if rest_cached else ''}",
+        f"result     {_verdict(result)}",
+        f"squeeze    rho = {_mm(result.squeeze_depth)} (max {_mm(result.max_squeeze)}), "
+        f"liftable weight up to {wmax:.4g} N (weight {result.body.weight:.4g} N)",
+        f"contacts   {result.n_final_contacts} in the final configuration",
+        *_force_lines(result),
         f"events     {len(result.events)}: " + ", ".join(f"{k} {v}" for k, v in counts.items())
         + "  (A contact, B break, C stick→slip, D slip→stick)",
-        "time       " + ", ".join(f"{k} {v:.2f} s" for k, v in result.timings.items()),
+        "time       " + ", ".join(time_parts),
     ]
     return lines
 
 
 # ------------------------------------------------------------------ commands
 def cmd_run(args: argparse.Namespace) -> int:
-    from .grasp.pickup import pickup
-    from .io.cache import cached_rest
-    from .io.output import prepare_out_dir, write_run
+    from .io.output import check_out_path, prepare_out_dir, write_run
+    from .io.scene import pickup_scene
 
     scene = _load_scene(args)
     out = Path(args.out) if args.out else None
     if args.report and out is None:
         raise _BadInput("--report needs --out DIR (the report is written there)")
     if out is not None:
+        check_out_path(out)
         prepare_out_dir(out, args.force)
     cache = _cache_dir(args)
     phases = ["mesh", "rest", "pickup"] + (["write"] if out else []) + (["report"] if args.report else [])
     bar = Progress(phases, _progress_enabled(args))
     try:
-        with bar.phase("meshing the object"):
-            body = scene.body(cache)
-            _check_contacts(scene, body.mesh)
-        with bar.phase("resting on the table"):
-            rs, cached = cached_rest(body, scene.mu_table, backend=scene.backend, down=scene.object.down,
-                                     cache_dir=cache)
-        with bar.phase("squeeze, lift test, lift"):
-            result = pickup(body, rest_state=rs, **scene.pickup_kwargs())
+        result, cached = pickup_scene(scene, cache, phase=bar.phase)
         code = EXIT_OK if result.success else EXIT_FAILED
         if out is not None:
             with bar.phase("writing results"):
@@ -192,7 +183,7 @@ def cmd_run(args: argparse.Namespace) -> int:
                     "succeeded" if result.success else "failed")
     if out is not None:
         _out(args, f"output     {out}/result.json, {out}/object.pvd (ParaView: open object.pvd, finger1.pvd, "
-                   f"finger2.pvd, table.vtu)")
+                   f"finger2.pvd, table.vtu; time = the finger path in metres)")
         if args.report:
             _out(args, f"report     {out}/report.html")
     return code
@@ -224,14 +215,22 @@ def cmd_rest(args: argparse.Namespace) -> int:
 
 def cmd_mesh(args: argparse.Namespace) -> int:
     from ._files import atomic_write_mesh
-    from .mesh.scan import DENSE_SCAN_VERTICES, SURFACE_SUFFIXES, check_surface, mesh_surface, read_surface
+    from .mesh.scan import DENSE_SCAN_VERTICES, SURFACE_SUFFIXES, Surface, check_surface, mesh_surface, read_surface
+    from .mesh.units import LENGTH_UNITS, size_warning
 
     src, dst = Path(args.input), Path(args.output)
     if src.suffix.lower() not in SURFACE_SUFFIXES:
         raise _BadInput(f"{src}: expected a surface file ({', '.join(SURFACE_SUFFIXES)}), got {src.suffix or 'no suffix'}")
     if dst.exists() and not args.force:
         raise _BadInput(f"{dst} exists; pass --force to overwrite it")
-    surf = check_surface(read_surface(src))
+    surf = read_surface(src)
+    scale = LENGTH_UNITS[args.units]
+    if scale != 1.0:
+        surf = Surface(surf.points * scale, surf.faces, surf.source)
+    warning = size_warning(surf.diameter, args.units, str(src), hint="--units")
+    if warning:
+        log.warning("%s", warning)
+    surf = check_surface(surf)
     if args.vertices is None and args.size is None and len(surf.points) > DENSE_SCAN_VERTICES:
         log.warning("%s has %d surface vertices; the mesh keeps them all. Pass --vertices N to simplify",
                     src, len(surf.points))
@@ -239,10 +238,11 @@ def cmd_mesh(args: argparse.Namespace) -> int:
     mesh = mesh_surface(surf, target_vertices=args.vertices, size=args.size, check=False)
     atomic_write_mesh(dst, mesh.to_meshio(), file_format=_meshio_format(dst))
     q = mesh.quality
-    _out(args, f"{src}: {len(surf.points)} surface vertices, {len(surf.faces)} triangles, closed and manifold")
+    unit = "" if args.units == "m" else f", read in {args.units} and written in metres"
+    _out(args, f"{src}: {len(surf.points)} surface vertices, {len(surf.faces)} triangles, closed and manifold{unit}")
     _out(args, f"{dst}: {mesh.n_points} vertices, {mesh.n_tets} tets, volume {mesh.volume * 1e6:.4g} cm^3 "
-               f"(surface encloses {surf.volume * 1e6:.4g}), min quality {q.min():.3g}, "
-               f"{time.perf_counter() - t0:.2f} s")
+               f"(surface encloses {surf.volume * 1e6:.4g}), diameter {mesh.diameter * 1e3:.4g} mm, min quality "
+               f"{q.min():.3g}, {time.perf_counter() - t0:.2f} s")
     return EXIT_OK
 
 
@@ -257,9 +257,14 @@ def _meshio_format(path: Path) -> str:
 
 
 def cmd_info(args: argparse.Namespace) -> int:
+    from .errors import MeshError
     from .mesh.scan import SURFACE_SUFFIXES, surface_report
 
     p = Path(args.path)
+    if p.suffix.lower() == ".json" or (p.is_dir() and (p / "result.json").exists()):
+        return _info_result(args, p / "result.json" if p.is_dir() else p)
+    if p.suffix.lower() == ".pvd":
+        return _info_pvd(args, p)
     if p.suffix == ".toml" or (not p.exists() and p.suffix == ""):
         from .io.scene import load_scene, resolve_scene
 
@@ -270,9 +275,14 @@ def cmd_info(args: argparse.Namespace) -> int:
     if not p.exists():
         raise _BadInput(f"{p} does not exist")
     if p.suffix.lower() in SURFACE_SUFFIXES:
+        from .mesh.units import size_warning
+
         r = surface_report(p)
         _out(args, f"{p}: surface, {r['vertices']} vertices, {r['triangles']} triangles, diameter "
-                   f"{r['diameter']:.4g} m, area {r['area']:.4g} m^2")
+                   f"{r['diameter']:.4g} m, area {r['area']:.4g} m^2 (read as metres)")
+        warning = size_warning(r["diameter"], "m", str(p), hint="--units")
+        if warning:
+            log.warning("%s (fem-grasp mesh takes --units)", warning)
         if r["ok"]:
             _out(args, f"closed, manifold, not self-intersecting; encloses {r['volume']:.4g} m^3")
             return EXIT_OK
@@ -280,7 +290,14 @@ def cmd_info(args: argparse.Namespace) -> int:
         return EXIT_BAD_INPUT
     from .mesh.tetmesh import TetMesh
 
-    m = TetMesh.from_file(p)
+    try:
+        m = TetMesh.from_file(p)
+    except MeshError:
+        raise
+    except Exception as exc:  # meshio raises many types for what it cannot read
+        raise _BadInput(f"{p}: cannot read it as a volume mesh ({type(exc).__name__}: {exc}); info reads volume "
+                        f"meshes (.vtu, .msh, .xdmf, …), surfaces ({', '.join(SURFACE_SUFFIXES)}), scenes (.toml), "
+                        "result.json and .pvd time series") from None
     lo, hi = m.bounds
     q = m.quality
     _out(args, f"{p}: {m.n_points} vertices ({len(m.surface_nodes)} on the surface), {m.n_tets} tets, "
@@ -292,10 +309,63 @@ def cmd_info(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _info_result(args: argparse.Namespace, path: Path) -> int:
+    """``fem-grasp info result.json``: what the run found, from the file alone."""
+    from .io.output import read_result
+
+    doc = read_result(path.parent) if path.name == "result.json" else None
+    if doc is None:
+        raise _BadInput(f"{path}: info reads a run's result.json (or its folder); this file is not one")
+    s, scene = doc["summary"], doc.get("scene") or {}
+    verdict = ("picked up" if s["success"] else "lift test passed, lift not simulated"
+               if s.get("outcome") == "lift not run" else f"not picked up: {s['reason']}")
+    _out(args, f"{path}: {doc['schema']} v{doc['schema_version']}, fem_grasp {doc.get('fem_grasp_version')}, "
+               f"{doc.get('created')}")
+    _out(args, f"scene      {scene.get('name', '?')}{' (quick)' if scene.get('quick') else ''}: {s['n_nodes']} nodes, "
+               f"{s['n_tets']} tets, weight {s['weight']:.4g} N, E {scene.get('young', float('nan')):.4g} Pa")
+    _out(args, f"result     {verdict}")
+    _out(args, f"squeeze    rho = {_mm(s['squeeze_depth'])}, liftable weight up to {s['max_liftable_weight']:.4g} N; "
+               f"{s['n_final_contacts']} contacts in the final configuration")
+    for name, f in (s.get("finger_forces") or {}).items():
+        _out(args, f"  {name.replace('finger', 'finger ')} resultant ({', '.join(f'{x:.4g}' for x in f['resultant'])}) N, "
+                   f"|{f['magnitude']:.4g}|, grip {f['grip']:.4g}, vertical {f['vertical']:.4g}, normal sum "
+                   f"{f['normal_sum']:.4g}")
+    _out(args, f"table III  Σ f·n̂ {s['finger_normal_force']:.4g} N; rigid object "
+               f"{_fmt(s.get('rigid_total_normal_force'), 'N')}")
+    _out(args, f"events     {s['n_events']}: " + ", ".join(f"{k} {v}" for k, v in s["event_counts"].items()))
+    series = doc.get("series") or {}
+    frames = series.get("frames") or []
+    if frames:
+        _out(args, f"series     {len(frames)} frames in {series.get('object', 'object.pvd')}"
+                   + (f" and {series['xdmf']}" if series.get("xdmf") else "")
+                   + f"; time = finger path, 0 … {_mm(frames[-1].get('time', frames[-1].get('finger_path')))}")
+    return EXIT_OK
+
+
+def _info_pvd(args: argparse.Namespace, path: Path) -> int:
+    """``fem-grasp info object.pvd``: the frames of a time series and their time values."""
+    import meshio
+
+    from .io.output import read_pvd
+
+    if not path.exists():
+        raise _BadInput(f"{path} does not exist")
+    entries = read_pvd(path)
+    _out(args, f"{path}: ParaView time series, {len(entries)} frames, time {entries[0][0]:.6g} … {entries[-1][0]:.6g}"
+         if entries else f"{path}: ParaView time series with no frames")
+    for t, f in entries[:1] + entries[-1:] if len(entries) > 1 else entries:
+        m = meshio.read(path.parent / f)
+        fd = {k: np.asarray(v).ravel()[0] for k, v in m.field_data.items()}
+        extra = ", ".join(f"{k} {v:.6g}" for k, v in fd.items())
+        _out(args, f"  t = {t:.6g}: {f}, {len(m.points)} points; point data {', '.join(m.point_data)}; "
+                   f"cell data {', '.join(m.cell_data) or '—'}" + (f"; field data {extra}" if extra else ""))
+    return EXIT_OK
+
+
 def cmd_report(args: argparse.Namespace) -> int:
     from .io.report import write_report
 
-    path = write_report(Path(args.dir))
+    path = write_report(Path(args.dir), colour=args.colour)
     _out(args, f"report     {path}")
     return EXIT_OK
 
@@ -316,7 +386,10 @@ def cmd_scenes(args: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     common = argparse.ArgumentParser(add_help=False)
     common.add_argument("-q", "--quiet", action="store_true", help="print nothing but errors; no progress bar")
-    common.add_argument("-v", "--verbose", action="count", default=0, help="log progress (-vv: debug)")
+    common.add_argument("-v", "--verbose", action="count", default=0,
+                        help="log what the library does (-v: info, -vv: debug) to stderr")
+    common.add_argument("--log-file", metavar="FILE",
+                        help="also write the library's log (info, or debug with -vv) to FILE, with times")
 
     scene_opts = argparse.ArgumentParser(add_help=False)
     scene_opts.add_argument("scene", help="scene file (TOML) or the name of a shipped scene (see `fem-grasp scenes`)")
@@ -358,18 +431,21 @@ def build_parser() -> argparse.ArgumentParser:
                                    "self-intersecting) and fill it with tetrahedra (gmsh). Without --vertices or "
                                    "--size the scan's triangles are kept; with them the surface is remeshed "
                                    "(simplifying a dense scan).")
-    p.add_argument("input", help="surface file: .stl, .obj, .ply or .off, in metres")
+    p.add_argument("input", help="surface file: .stl, .obj, .ply or .off (coordinates in metres unless --units)")
+    p.add_argument("--units", choices=["m", "cm", "mm"], default="m",
+                   help="the unit of the file's coordinates (scanners often write mm); the mesh is written in metres")
     p.add_argument("-o", "--output", required=True, help="volume mesh to write (.vtu, .msh, .xdmf, …)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--vertices", type=int, help="remesh to about this many vertices (±10 %%)")
-    g.add_argument("--size", type=float, help="remesh at this target edge length, metres")
+    g.add_argument("--size", type=float, help="remesh at this target edge length, metres (after --units)")
     p.add_argument("--force", action="store_true", help="overwrite OUTPUT if it exists")
     p.set_defaults(func=cmd_mesh)
 
-    p = sub.add_parser("info", parents=[common], help="figures of a volume mesh, a surface, or a scene",
+    p = sub.add_parser("info", parents=[common], help="figures of a mesh, a surface, a scene, a result or a series",
                        description="Volume mesh: counts, volume (m^3), bounds (m), quality. Surface: counts and "
-                                   "whether it can be meshed. Scene: its parsed values in SI units.")
-    p.add_argument("path", help="mesh file, surface file, scene file or shipped scene name")
+                                   "whether it can be meshed. Scene: its parsed values in SI units. result.json (or "
+                                   "its folder): the run's answer and forces. A .pvd series: its frames and times.")
+    p.add_argument("path", help="mesh file, surface file, scene file or shipped scene name, result.json, or a .pvd")
     p.add_argument("--quick", action="store_true", help="for a scene: apply its [quick] overrides")
     p.set_defaults(func=cmd_info)
 
@@ -377,6 +453,9 @@ def build_parser() -> argparse.ArgumentParser:
                        description="Render the pictures (pyvista, off-screen) and report.html from DIR/result.json "
                                    "and the time series written by `fem-grasp run --out DIR`.")
     p.add_argument("dir", help="output folder of `fem-grasp run`")
+    p.add_argument("--colour", choices=["von_mises", "energy", "elastic", "displacement"], default="von_mises",
+                   help="colour the 3D views by the von Mises stress (default, kPa), the strain energy density "
+                        "(J/m^3), the displacement less its rigid motion or the whole displacement (mm)")
     p.set_defaults(func=cmd_report)
 
     p = sub.add_parser("scenes", parents=[common], help="list the scenes shipped with fem_grasp")
@@ -386,22 +465,54 @@ def build_parser() -> argparse.ArgumentParser:
 
 @contextlib.contextmanager
 def _logging(args: argparse.Namespace) -> Iterator[None]:
-    """Route fem_grasp's log records to stderr at the chosen level for one command; restore afterwards.
+    """Route fem_grasp's log records to stderr at the chosen level for one command (and, with ``--log-file``,
+    every record from INFO up — DEBUG with -vv — to that file); show fem_grasp's warnings (units, locking) as
+    one line each; restore everything afterwards.
 
     ``main`` runs in-process (tests, notebooks), so the level and handler it sets must not outlive it.
     """
+    import warnings
+
     level = logging.ERROR if args.quiet else [logging.WARNING, logging.INFO, logging.DEBUG][min(args.verbose, 2)]
     root = logging.getLogger("fem_grasp")
     old_level, old_propagate = root.level, root.propagate
-    handler = logging.StreamHandler(sys.stderr)
-    handler.setFormatter(logging.Formatter("%(levelname)s: %(message)s"))
-    root.setLevel(level)
-    root.addHandler(handler)
+    handlers: list[logging.Handler] = []
+    console = logging.StreamHandler(sys.stderr)
+    console.setFormatter(logging.Formatter("%(levelname)s: %(message)s"))
+    console.setLevel(level)
+    handlers.append(console)
+    file_level = level
+    if getattr(args, "log_file", None):
+        try:
+            fh = logging.FileHandler(args.log_file, encoding="utf-8")
+        except OSError as exc:
+            print(f"fem-grasp: error: --log-file {args.log_file}: {exc}", file=sys.stderr)
+            raise SystemExit(EXIT_BAD_INPUT) from None
+        file_level = logging.DEBUG if args.verbose >= 2 else logging.INFO
+        fh.setLevel(file_level)
+        fh.setFormatter(logging.Formatter("%(asctime)s %(name)s %(levelname)s: %(message)s"))
+        handlers.append(fh)
+    root.setLevel(min(level, file_level))
+    for h in handlers:
+        root.addHandler(h)
     root.propagate = False
+    old_show = warnings.showwarning
+
+    def show(message: Any, category: type, filename: str, lineno: int, file: Any = None, line: Any = None) -> None:
+        if issubclass(category, UserWarning) and "fem_grasp" in str(filename):
+            logging.getLogger("fem_grasp.warnings").warning("%s", message)
+        else:
+            old_show(message, category, filename, lineno, file, line)
+
     try:
-        yield
+        with warnings.catch_warnings():  # the caller's filters stay (pytest's errors, -W); only the display changes
+            warnings.showwarning = show
+            yield
     finally:
-        root.removeHandler(handler)
+        warnings.showwarning = old_show
+        for h in handlers:
+            root.removeHandler(h)
+            h.close()
         root.setLevel(old_level)
         root.propagate = old_propagate
 
@@ -415,8 +526,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exc:  # --help (0) or a usage error (2)
         return int(exc.code or 0)
     args.argv = argv
-    with _logging(args):
-        return _dispatch(args)
+    try:
+        with _logging(args):
+            return _dispatch(args)
+    except SystemExit as exc:  # --log-file cannot be opened
+        return int(exc.code or 0)
 
 
 def _dispatch(args: argparse.Namespace) -> int:

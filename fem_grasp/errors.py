@@ -23,14 +23,15 @@ rest on the table).
 
 Results that break a contact law (``AssertionError`` subclasses): :class:`RestCheckError`,
 :class:`PickupCheckError`.  Output folders that are not ours or not writable: :class:`OutputError`
-(an ``OSError``).  ν close to ½: :class:`LockingWarning` (P1 tetrahedra lock).
+(an ``OSError``).  ν close to ½: :class:`LockingWarning` (P1 tetrahedra lock); a size or density that
+says the mesh is in another unit: :class:`UnitsWarning`.
 """
 
 from __future__ import annotations
 
 __all__ = ["CollinearContactError", "ContactNodeError", "DirectionError", "FrictionError", "LockingWarning",
            "MaterialError", "MeshError", "OutputError", "PickupCheckError", "PlacementError", "RelaxationFailure",
-           "RestCheckError", "RestConvergenceError", "SceneError", "SurfaceError", "TrackingError"]
+           "RestCheckError", "RestConvergenceError", "SceneError", "SurfaceError", "TrackingError", "UnitsWarning"]
 
 
 # ------------------------------------------------------------------ bad input
@@ -108,3 +109,7 @@ class PickupCheckError(AssertionError):
 # ----------------------------------------------------------------- warnings
 class LockingWarning(UserWarning):
     """ν close to ½: linear tetrahedra are too stiff (volumetric locking); displacements are underestimated."""
+
+
+class UnitsWarning(UserWarning):
+    """An object whose size or density says its mesh is in another length unit (millimetres read as metres)."""

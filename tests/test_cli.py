@@ -196,3 +196,106 @@ def test_an_object_that_cannot_rest_exits_1_with_the_reason_not_as_an_internal_e
     err = capsys.readouterr().err
     assert code == 1, err
     assert "does not come to rest on the table" in err and str(exc) in err and "internal error" not in err
+
+
+# ------------------------------------------------ issue 25: what a user touches
+def test_the_summary_gives_each_fingers_force_and_says_what_table_iii_compares(capsys, tmp_path):
+    args = ["run", "foam_block", "--quick", "--no-lift", "--cache", str(tmp_path / "c")]
+    assert main(args) == 1  # --no-lift: not lifted, so exit 1 …
+    first = capsys.readouterr().out
+    # … but it says the lift test passed, not a red NOT PICKED UP
+    assert "lift test passed at rho = " in first and "lift not simulated" in first and "NOT PICKED UP" not in first
+    for words in ("finger 1 (", "finger 2 (", "grip ", "vertical ", "normal sum ",
+                  "table III  compares Σ f·n̂ over both fingers", "for a rigid object at the same contacts"):
+        assert words in first, first
+    assert "rest 0." in first and "(solved)" in first
+    assert main(args) == 1
+    second = capsys.readouterr().out
+    assert "(checked from the cache)" in second and "(solved)" not in second
+
+
+def test_info_reads_a_result_and_a_time_series(capsys):
+    code, out = cli_run("foam_block", "--no-lift")
+    assert main(["info", str(out / "result.json")]) == 0
+    text = capsys.readouterr().out
+    assert "foam_block (quick)" in text and "lift test passed" in text and "finger 1 resultant" in text
+    assert "time = finger path" in text
+    assert main(["info", str(out)]) == 0  # the folder: its result.json
+    assert main(["info", str(out / "object.pvd")]) == 0
+    text = capsys.readouterr().out
+    assert "ParaView time series" in text and "field data phase 0" in text and "squeeze_depth" in text
+    assert main(["info", str(out / "object.h5")]) == 2  # not a mesh: a message, not an internal error
+    err = capsys.readouterr().err
+    assert "cannot read it as a volume mesh" in err and "internal error" not in err
+
+
+def test_mesh_takes_units_and_warns_about_a_scan_in_millimetres(capsys, tmp_path):
+    pytest.importorskip("gmsh")
+    p, f = icosphere(30.0, 2)  # a 6 cm ball written in millimetres
+    stl = write_stl(tmp_path / "ball_mm.stl", p, f)
+    assert main(["mesh", str(stl), "-o", str(tmp_path / "raw.vtu"), "--vertices", "150"]) == 0
+    err = capsys.readouterr().err
+    assert "larger than 1 m" in err and "pass --units mm" in err and "millimetres" in err, err
+    log_file = tmp_path / "mesh.log"
+    assert main(["mesh", str(stl), "-o", str(tmp_path / "m.vtu"), "--vertices", "150", "--units", "mm",
+                 "--log-file", str(log_file)]) == 0
+    captured = capsys.readouterr()
+    assert "larger than 1 m" not in captured.err and "read in mm and written in metres" in captured.out
+    from fem_grasp import TetMesh
+
+    assert TetMesh.from_file(tmp_path / "m.vtu").diameter == pytest.approx(0.06 * 3 ** 0.5, rel=0.05)
+    assert "INFO" in log_file.read_text() and "vertices" in log_file.read_text()  # the library's log, with times
+
+
+def test_verbose_logs_the_library_to_stderr(capsys, tmp_path):
+    pytest.importorskip("gmsh")
+    p, f = icosphere(0.03, 2)
+    stl = write_stl(tmp_path / "ball.stl", p, f)
+    assert main(["mesh", str(stl), "-o", str(tmp_path / "m.vtu"), "--vertices", "150", "-v"]) == 0
+    assert "INFO: " in capsys.readouterr().err
+    assert main(["mesh", str(stl), "-o", str(tmp_path / "n.vtu"), "--vertices", "150"]) == 0
+    assert "INFO: " not in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("line, key, words", [
+    ("directions = [[0, 1, 0.5], [0, -1, 0.5]]", "fingers.directions", "upward"),
+    ("contacts = [0, 4]", "fingers.contacts", "finger 2"),
+])
+def test_errors_about_the_fingers_name_the_scene_file_and_key(capsys, tmp_path, line, key, words):
+    scene = tmp_path / "box.toml"
+    scene.write_text(f"""[object]
+box = ["3 cm", "4 cm", "3 cm"]
+divisions = [2, 2, 2]
+[material]
+young = "20 kPa"
+poisson = 0.3
+weight = "0.3 N"
+[friction]
+finger = 0.5
+[fingers]
+{line}
+""")
+    err = _bad(capsys, ["run", str(scene), "--no-cache"], f"{scene}: {key}", words)
+    assert "internal error" not in err
+
+
+def test_progress_bars_only_on_a_terminal_and_never_in_ci(monkeypatch):
+    from fem_grasp.progress import PhaseBar, progress, progress_enabled
+
+    class Tty:
+        def isatty(self):
+            return True
+
+    monkeypatch.delenv("CI", raising=False)
+    monkeypatch.delenv("FEM_GRASP_PROGRESS", raising=False)
+    assert progress_enabled(stream=Tty())
+    assert not progress_enabled(quiet=True, stream=Tty())
+    monkeypatch.setenv("CI", "true")
+    assert not progress_enabled(stream=Tty())
+    monkeypatch.delenv("CI")
+    monkeypatch.setenv("FEM_GRASP_PROGRESS", "0")
+    assert not progress_enabled(stream=Tty())
+    monkeypatch.delenv("FEM_GRASP_PROGRESS")
+    assert not progress_enabled()  # pytest captures stderr: not a terminal
+    items = [1, 2, 3]
+    assert progress(items) is items and PhaseBar(["a"]).bar is None

@@ -1,7 +1,7 @@
 """Every example in examples/ runs to the end as a script (a new example must be listed here with quick arguments).
 
 The examples' outputs are checked in detail elsewhere (``grasp/test_objects.py`` for demo.py,
-``test_cli.py`` for scene_demo.py); this test guarantees that none of them is left behind by a change.
+``test_cli.py`` for scene_demo.py, ``io/test_scene.py`` for sweep.py); this test guarantees that none of them is left behind by a change.
 """
 
 import os
@@ -14,7 +14,8 @@ from tests.helpers import ROOT
 
 EXAMPLES = sorted(p.name for p in (ROOT / "examples").glob("*.py"))
 #: Command-line arguments that keep each example quick (its --out folder is appended).
-QUICK_ARGS = {"demo.py": ["--object", "tomato"], "scene_demo.py": ["football", "--no-report"]}
+QUICK_ARGS = {"demo.py": ["--object", "tomato"], "scene_demo.py": ["football", "--no-report"],
+              "sweep.py": ["foam_block", "--youngs", "20 kPa", "40 kPa", "--mus", "0.5", "--no-lift"]}
 
 
 def test_every_example_has_quick_arguments():

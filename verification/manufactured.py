@@ -148,8 +148,11 @@ def convergence_study(levels: list[int], p2_levels: list[int], young: float = 1e
         h = 1/N), ``max_rel_diff_p1`` the largest relative difference between
         fem_grasp's and dolfinx's P1 errors.
     """
+    from fem_grasp.progress import progress
+
     runs: dict[str, list[dict]] = {m: [] for m in METHODS}
-    for n in sorted(set(levels) | set(p2_levels)):
+    sizes = sorted(set(levels) | set(p2_levels))
+    for n in progress(sizes, total=len(sizes), desc="convergence (mesh sizes)", unit="mesh"):
         mesh = box_mesh(divisions=(n, n, n))
         todo = []
         if n in levels:

@@ -154,10 +154,12 @@ def sweep(n: int, seed: int = 0, workers: int = 2, progress: Callable[[int, dict
           ) -> dict[str, Any]:
     """Draw ``n`` scenes (seeds seed … seed + n − 1) and run them on ``workers`` processes;
     ``progress(done, row)`` after each."""
+    from fem_grasp.progress import progress as bar
+
     seeds = list(range(seed, seed + n))
     rows = []
     with ProcessPoolExecutor(max_workers=workers) as pool:
-        for row in pool.map(_run_seed, seeds):
+        for row in bar(pool.map(_run_seed, seeds), total=n, desc="random scenes", unit="scene"):
             rows.append(row)
             if progress is not None:
                 progress(len(rows), row)

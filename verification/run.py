@@ -286,14 +286,24 @@ def environment() -> dict:
     return env
 
 
+#: Stages of a run (the progress bar's length).
+STAGES = 15
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m verification.run", description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="small meshes and fewer levels (< 3 minutes)")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"output directory (default {DEFAULT_OUT})")
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress of every solve")
+    parser.add_argument("--log-file", metavar="FILE", help="also write the log (info and up) to FILE")
     args = parser.parse_args(argv)
-    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
-                        format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    handlers: list[logging.Handler] = [logging.StreamHandler()]
+    handlers[0].setLevel(logging.INFO if args.verbose else logging.WARNING)
+    if args.log_file:
+        handlers.append(logging.FileHandler(args.log_file, encoding="utf-8"))
+        handlers[1].setLevel(logging.INFO)
+    logging.basicConfig(level=logging.INFO if (args.verbose or args.log_file) else logging.WARNING,
+                        format="%(asctime)s %(name)s %(levelname)s %(message)s", handlers=handlers)
     logging.getLogger("root").setLevel(logging.WARNING)
     cfg = CONFIGS["quick" if args.quick else "full"]
     out_dir = args.out
@@ -308,11 +318,16 @@ def main(argv: list[str] | None = None) -> int:
                                               "on the object"}
     images = summary["images"]
 
+    from fem_grasp.progress import PhaseBar
+
+    bar = PhaseBar(["stage"] * STAGES)  # a bar on a terminal, nothing in CI or a pipe (fem_grasp.progress)
+
     def stage(name: str, fn: Callable[[], Any], store: Callable[[Any], None]) -> None:
         print(f"[{time.perf_counter() - t_start:6.1f} s] {name} ...", flush=True)
         t0 = time.perf_counter()
         try:
-            store(fn())
+            with bar.phase(name):
+                store(fn())
         except Exception as exc:  # noqa: BLE001 - a failed stage is reported, the rest still run
             summary["failures"][name] = f"{type(exc).__name__}: {exc}"
             traceback.print_exc()
@@ -371,6 +386,7 @@ def main(argv: list[str] | None = None) -> int:
             images["collinear"] = plots.collinear_plot(stab["collinear"], out_dir / "collinear.png").name
 
     stage("plots", figures, lambda v: None)
+    bar.close()
     summary["checks"] = headline_checks(summary)
     summary["total_seconds"] = time.perf_counter() - t_start
     summary = json_safe(summary)

@@ -287,10 +287,10 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
         code, k, change, move, unsolved = gs.sweep(k_rec, k_c, f, d, u, has_u, status, k_mu, stick_tol, local_tol,
                                                    float(max_slip), memo, unsolved_force)
         if code == gs.FREE_TOO_FAR:
-            raise RelaxationFailure(f"contact {k} would move more than {max_slip:.3g} m to carry no "
+            raise RelaxationFailure(f"contact {k} would move more than {1e3 * max_slip:.3g} mm to carry no "
                                     "force: the remaining contacts no longer hold the object")
         if code == gs.SLIDE_TOO_FAR:
-            raise RelaxationFailure(f"contact {k} slides more than {max_slip:.3g} m: friction cannot "
+            raise RelaxationFailure(f"contact {k} slides more than {1e3 * max_slip:.3g} mm: friction cannot "
                                     "hold the object (gross slip)")
         if unsolved >= 0:
             stuck += 1

@@ -112,7 +112,7 @@ import logging
 from dataclasses import dataclass, field, replace
 from enum import Enum
 from functools import cached_property
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -184,6 +184,16 @@ class Parameter(str, Enum):
 
     __str__ = str.__str__  # messages and getattr read the attribute name
     __format__ = str.__format__
+
+
+def _where(param: "Parameter | str", state: Any) -> str:
+    """Where the tracking is, for messages, in millimetres: "ρ = 12.35 mm", "lift height 3.2 mm", "load λ = 0.5"."""
+    value = float(getattr(state, str(param)))
+    if str(param) == "squeeze_depth":
+        return f"ρ = {1e3 * value:.6g} mm"
+    if str(param) == "lift_height":
+        return f"lift height {1e3 * value:.6g} mm"
+    return f"gravity load λ = {value:.6g}"
 
 
 # ======================================================================= state
@@ -761,7 +771,7 @@ class Tracker:
                 continue
             log.debug("turning point of the slip system: node %d sticks", st.nodes[j])
             return state, events + more
-        raise TrackingError(f"no quasi-static equilibrium beyond {param} = {getattr(st, param):.6g}: the sliding "
+        raise TrackingError(f"no quasi-static equilibrium beyond {_where(param, st)}: the sliding "
                             f"runs away whichever sliding node sticks (gross slip); {exc}")
 
     def settle(self, state: ContactState, velocities: np.ndarray, *, phase: str, load_rate: float = 0.0,
@@ -793,11 +803,11 @@ class Tracker:
                         # its slip rate is negative.  The static state is reached by a finite slip.
                         state, ev2 = self.implicit_step(
                             state, 0.0, velocities, load_rate=load_rate, param=param, phase=phase,
-                            why=f"friction limit at {param} = {getattr(state, param):.6g}: node {e.node} "
+                            why=f"friction limit at {_where(param, state)}: node {e.node} "
                                 f"({e.contact}) leaves its friction cone when it sticks, yet its slip rate is "
                                 "negative when it slides")
                         return state, events + ev2
-        raise TrackingError(f"contact events keep cascading at {param} = {getattr(state, param):.6g} "
+        raise TrackingError(f"contact events keep cascading at {_where(param, state)} "
                             f"({max_cascade} rounds): the configuration chatters")
 
 
@@ -845,7 +855,7 @@ class Tracker:
                 rel = relax_contacts(resp.reduced_stiffness, forces, q0, cen, self.up, self.mu[owner], fscale,
                                      max_slip=MAX_SLIP * self.diameter)
             except RelaxationFailure as exc:
-                raise TrackingError(f"no quasi-static equilibrium at {param} = {getattr(at, param):.6g}"
+                raise TrackingError(f"no quasi-static equilibrium at {_where(param, at)}"
                                     f"{': ' + why if why else ''}; a static stick/slip state was sought and "
                                     f"not found: {exc}") from None
             disp = disp + rel.displacements
@@ -882,10 +892,10 @@ class Tracker:
             try:
                 check_contact_set(self.points, nodes)
             except CollinearContactError as exc:
-                raise TrackingError(f"the object is no longer held at {param} = {getattr(at, param):.6g}: "
+                raise TrackingError(f"the object is no longer held at {_where(param, at)}: "
                                     f"{exc}") from None
         else:
-            raise TrackingError(f"contacts keep being made and released at {param} = {getattr(at, param):.6g} "
+            raise TrackingError(f"contacts keep being made and released at {_where(param, at)} "
                                 f"({max_rounds} rounds)")
         sliding = status == SLIDE
         before = dict(zip(base.nodes.tolist(), base.sliding.tolist()))

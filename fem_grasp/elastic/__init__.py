@@ -10,6 +10,8 @@
    F̄ = C(Δ̄ − D̄) + mg e/√n, and the displacement field of eq. (4); :func:`solve_contact` does one solve.
 
 Contact forces and gravity balance in force and torque to round-off (:func:`equilibrium_residual`).
+:mod:`~fem_grasp.elastic.fields` turns a displacement into what a mechanician reads: strains, stresses,
+the von Mises stress and the strain energy density per element, and the displacement less its rigid motion.
 """
 
 from .body import Body

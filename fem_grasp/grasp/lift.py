@@ -75,7 +75,7 @@ def lift(tracker: Tracker, state: ContactState, *, max_height: float, step: floa
         out.state = st
         f = finger_sliding(st)
         if f is not None:
-            verdict.append(f"every contact of finger {f + 1} slides at lift height {st.lift_height:.4g} m: "
+            verdict.append(f"every contact of finger {f + 1} slides at lift height {1e3 * st.lift_height:.4g} mm: "
                            "the object slides on the finger")
             return True
         if not (st.owner == TABLE).any():
@@ -87,7 +87,8 @@ def lift(tracker: Tracker, state: ContactState, *, max_height: float, step: floa
         final, _, stopped = run(tracker, state, velocities, stop=max_height, step=step, param=Parameter.LIFT_HEIGHT,
                                 phase="lift", after_step=after, on_event=record)
     except TrackingError as exc:
-        out.reason = f"lift failed at height {out.state.lift_height:.4g} m: {exc}"
+        out.reason = (f"lift failed: {exc}" if "lift height " in str(exc) else
+                      f"lift failed at lift height {1e3 * out.state.lift_height:.4g} mm: {exc}")
         return out
     out.state = final
     if stopped and verdict and not verdict[-1]:
@@ -95,6 +96,6 @@ def lift(tracker: Tracker, state: ContactState, *, max_height: float, step: floa
     elif stopped:
         out.reason = verdict[-1]
     else:
-        out.reason = (f"the object is still on the table after lifting the fingers {max_height:.4g} m "
+        out.reason = (f"the object is still on the table after lifting the fingers {1e3 * max_height:.4g} mm "
                       f"({int((final.owner == TABLE).sum())} table contacts left)")
     return out

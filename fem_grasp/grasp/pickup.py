@@ -24,15 +24,18 @@ Default scene (the paper's §IV, where it is silent our choice)
   pairs of surface nodes extreme along ∓ĥ (ĥ the horizontal part of d̂₁) at
   heights stepped by 2.5 % of the object's height, those whose tangent
   fingertips clear the table by max(R/10, |d̂₁·ẑ| × maximum squeeze), start
-  outside the object and are force closure, the pair whose rigid grasp needs
-  the least total normal force (Table III's measure): contacts where the
-  surface faces a little upward let the normal forces carry part of the
-  weight.  (``placement_rule="centre-of-mass-height"``, the paper scenes'
-  rule: the first valid pair from the centre of mass's height outwards whose
-  rigid grasp is feasible — the fingers alone could hold a rigid body of the
-  resting shape; where a dome's side leans further than the friction angle,
-  the fingers move to where it is steeper — or the first valid pair if none
-  is.)
+  outside the object and are force closure, by the rule
+  ``placement_rule="centre-of-mass-height"`` (:data:`~fem_grasp.grasp.placement.DEFAULT_PLACEMENT_RULE`,
+  the rule of the paper scenes and of a scene that names none, so that
+  ``pickup()`` and ``fem-grasp run`` agree): the first valid pair from the
+  centre of mass's height outwards whose rigid grasp is feasible — the
+  fingers alone could hold a rigid body of the resting shape; where a dome's
+  side leans further than the friction angle, the fingers move to where it is
+  steeper — or the first valid pair if none is.  (``placement_rule="least-force"``:
+  the pair whose rigid grasp needs the least total normal force, Table III's
+  measure; contacts where the surface faces a little upward let the normal
+  forces carry part of the weight, but a deep squeeze there can push a soft
+  body up out of the grasp.)
 * maximum squeeze depth: 40 % of the object's width along ĥ;
 * squeeze increment: 1/20 of the depth ρ* = mg / (μ_ℱ k₀) at which a
   finger of the initial (point) contact stiffness k₀ would press hard enough
@@ -641,7 +644,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
         if not sq.passed:
             result.outcome = "squeeze failed" if sq.failed else "not liftable"
             result.reason = sq.reason + "".join(
-                f"; lift attempt at ρ = {a.squeeze_depth:.4g} m failed: {a.reason}" for a in result.lift_attempts)
+                f"; lift attempt at ρ = {1e3 * a.squeeze_depth:.4g} mm failed: {a.reason}" for a in result.lift_attempts)
             result.final = Snapshot.from_state(sq.state, finger_radius, "final", surface_nodes=surface)
             result.finger_normal_force = result.final.finger_normal_force(table)
             timings["total"] = time.perf_counter() - t_start
@@ -678,7 +681,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
     result.success = lf.success
     result.outcome = "picked up" if lf.success else "lift failed"
     result.reason = lf.reason if attempt == 1 or lf.success else (
-        f"{lf.reason} (after {attempt} lift attempts from ρ = {result.lift_attempts[0].squeeze_depth:.4g} m)")
+        f"{lf.reason} (after {attempt} lift attempts from ρ = {1e3 * result.lift_attempts[0].squeeze_depth:.4g} mm)")
     result.final = Snapshot.from_state(lf.state, finger_radius, "lift-off" if lf.success else "final",
                                        surface_nodes=surface)
     result.snapshots.append(result.final)

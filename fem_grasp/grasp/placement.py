@@ -36,8 +36,9 @@ MIN_HORIZONTAL = 1e-6
 
 #: Rules for choosing the initial finger contacts (:func:`fem_grasp.grasp.pickup.default_finger_contacts`).
 PLACEMENT_RULES = ("least-force", "centre-of-mass-height")
-#: ``pickup()``'s rule and a scene's when it names none (the paper scenes name "centre-of-mass-height").
-DEFAULT_PLACEMENT_RULE = "least-force"
+#: ``pickup()``'s rule and a scene's when it names none: the paper scenes' rule, so that Python and the command
+#: line give one answer (the committed paper meshes are graded where this rule puts the fingers).
+DEFAULT_PLACEMENT_RULE = "centre-of-mass-height"
 
 #: The paper's squeeze directions (§IV): d̂1 = (0, 0.974, −0.227), d̂2 = (0, −0.974, −0.227).
 PAPER_SQUEEZE_DIRECTIONS = (np.array([0.0, 0.974, -0.227]), np.array([0.0, -0.974, -0.227]))

@@ -133,11 +133,12 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
     except TrackingError as exc:
         out.state = last[0]
         out.failed = True
-        out.reason = f"squeeze failed at ρ = {last[0].squeeze_depth:.4g} m: {exc}"
+        out.reason = (f"squeeze failed: {exc}" if "ρ = " in str(exc) else
+                      f"squeeze failed at ρ = {1e3 * last[0].squeeze_depth:.4g} mm: {exc}")
         return out
     out.state = final
     out.passed = stopped
     if not stopped:
-        out.reason = (f"the lift test did not pass by the maximum squeeze depth ρ = {max_squeeze:.4g} m "
+        out.reason = (f"the lift test did not pass by the maximum squeeze depth ρ = {1e3 * max_squeeze:.4g} mm "
                       f"(liftable weight {lift_test.liftable:.4g} N < weight {lift_test.weight:.4g} N)")
     return out

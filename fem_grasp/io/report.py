@@ -3,20 +3,33 @@
 Pictures (PNG, beside report.html):
 
 * ``rest.png``, ``lift_start.png``, ``lifted.png`` — the object at rest, when
-  the lift starts, and at the end (lifted, or where the pickup stopped):
-  deformed shape (true scale) coloured by displacement magnitude |δ| (mm, one
-  colour scale for the three), contact forces on the object as arrows (one
-  length scale; red on the fingers, blue on the table), sliding contacts as
-  orange dots, the two fingertips (whole spheres) and the table.  Rendered
-  off-screen with pyvista in a freshly *spawned* process (VTK aborts in a
-  process that has loaded dolfinx; see ``verification/render.py``), from
-  plain arrays read back from the time series.
+  the lift starts, and at the end.  The deformed shape (true scale) is
+  coloured per tetrahedron by the von Mises stress (kPa; or the strain energy
+  density, J/m³, or the displacement less its rigid motion, mm:
+  :data:`COLOURINGS`), one colour scale for the three pictures.  Contact
+  forces on the object are arrows pointing at their nodes from outside the
+  object (one length scale; red on the fingers, blue on the table); every
+  contact node is a dot, green when it sticks and orange when it slides, with
+  a legend.  The fingertips are drawn translucent, so that the arrows and
+  dots on their patches show through them.  After a successful pickup
+  ``lifted.png`` shows the object and the fingers raised a further
+  :data:`LIFTED_CLEARANCE` × the object's height above the lift-off state, off
+  the table: once the table lets go, raising the fingers moves the hanging
+  object rigidly (its shape and forces do not change), so the picture is the
+  computed state, translated.
+* ``patches.png`` — a close-up of each finger's contact patch when the lift
+  starts and at the end, seen along the finger's squeeze direction: the
+  contact nodes (stick / slip), their normal forces (mN, written beside each
+  node and as the dot's size) and their tangential forces (arrows).
 * ``liftable.png`` — the liftable weight w(ρ) of the lift test against the
   object's weight (matplotlib, no pyplot state).
 * ``timeline.png`` — every event (A contact, B break, C stick→slip, D
   slip→stick) along the finger path (squeeze depth ρ, then ρ + lift height),
   coloured by the body it concerns, and the number of contacts per body.
 
+The 3D views are rendered off-screen with pyvista in a freshly *spawned*
+process (VTK aborts in a process that has loaded dolfinx; see
+``verification/render.py``), from plain arrays read back from the time series.
 Nothing here runs unless a report is asked for (``fem-grasp run --report``
 or ``fem-grasp report DIR``).
 """
@@ -34,25 +47,50 @@ import numpy as np
 
 from .output import MARKER, add_to_marker, atomic_write_text, read_result
 
-__all__ = ["write_report", "render_frames", "plot_liftable", "plot_timeline", "PICTURES"]
+__all__ = ["COLOURINGS", "LIFTED_CLEARANCE", "PICTURES", "plot_liftable", "plot_patches", "plot_timeline",
+           "render_frames", "render_views", "write_report"]
 
 log = logging.getLogger(__name__)
 
 #: The pictures of a report, in the order shown.
-PICTURES = ("rest.png", "lift_start.png", "lifted.png", "liftable.png", "timeline.png")
+PICTURES = ("rest.png", "lift_start.png", "lifted.png", "patches.png", "liftable.png", "timeline.png")
+#: What the 3D views can be coloured by: (field in the time series, label with its unit, factor from SI).
+COLOURINGS = {
+    "von_mises": ("von_mises", "von Mises stress (kPa)", 1e-3),
+    "energy": ("strain_energy_density", "strain energy density (J/m^3)", 1.0),
+    "elastic": ("elastic_displacement", "|displacement less its rigid motion| (mm)", 1e3),
+    "displacement": ("displacement", "|displacement| (mm)", 1e3),
+}
+#: ``lifted.png`` shows a picked-up object this far (× its height) above its lift-off state.
+LIFTED_CLEARANCE = 0.25
+#: Stick and slip dots.
+_STICK, _SLIP = "#2ca02c", "#ff7f0e"
 
 _BODY_COLOURS = {"finger1": "#d62728", "finger2": "#9467bd", "table": "#1f77b4"}
 
 
 # ------------------------------------------------------------------ frames
-def _read_frame(out: Path, frame: dict[str, Any]) -> dict[str, Any]:
+def _read_frame(out: Path, frame: dict[str, Any], doc: dict[str, Any] | None = None) -> dict[str, Any]:
     import meshio
 
     m = meshio.read(out / frame["file"])
     tets = next(c.data for c in m.cells if c.type == "tetra")
     pd = m.point_data
-    return {"points": np.asarray(m.points, float), "tets": np.asarray(tets, np.int64),
-            "displacement": np.asarray(pd["displacement"], float), "force": np.asarray(pd["contact_force"], float),
+    cd = {k: np.asarray(v[0], float) for k, v in m.cell_data.items()}
+    points = np.asarray(m.points, float)
+    disp = np.asarray(pd["displacement"], float)
+    if "von_mises" not in cd or "elastic_displacement" not in pd:  # a series written before these fields
+        from .output import mechanics_fields
+
+        scene = (doc or {}).get("scene") or {}
+        extra_pd, extra_cd = mechanics_fields(points - disp, np.asarray(tets, np.int64), disp,
+                                              float(scene.get("young") or 1.0), float(scene.get("poisson") or 0.3))
+        pd = {**extra_pd, **pd}
+        cd = {**extra_cd, **cd}
+    return {"points": points, "tets": np.asarray(tets, np.int64), "displacement": disp,
+            "elastic_displacement": np.asarray(pd["elastic_displacement"], float),
+            "von_mises": cd["von_mises"], "strain_energy_density": cd["strain_energy_density"],
+            "force": np.asarray(pd["contact_force"], float),
             "state": np.asarray(pd["contact_state"]).astype(int), "body": np.asarray(pd["contact_body"]).astype(int)}
 
 
@@ -81,28 +119,70 @@ def _centres(doc: dict[str, Any], frame: dict[str, Any]) -> np.ndarray | None:
     return None
 
 
-def render_frames(out: Path, doc: dict[str, Any], size: tuple[int, int] = (900, 700)) -> list[Path]:
-    """Render rest.png, lift_start.png, lifted.png into ``out`` (in a spawned process)."""
+def render_views(out: Path, doc: dict[str, Any], size: tuple[int, int] = (1000, 760),
+                 colour: str = "von_mises") -> list[dict[str, Any]]:
+    """Render rest.png, lift_start.png and lifted.png into ``out`` (in a spawned process, module notes).
+
+    ``colour`` is a key of :data:`COLOURINGS`.  Returns, per picture, what was drawn: ``path``, ``lift_offset``
+    (m, how far ``lifted.png`` is drawn above the computed lift-off state), ``table_gap`` (m, the drawn object's
+    lowest point above the table), ``arrows`` (per finger-force arrow: its node, tip and tail in 3D and
+    ``head_px``, the middle of its head in pixels from the top left, and ``length`` in metres), ``fingertips`` (centre and radius), ``legend`` (its labels), ``n_stick`` and
+    ``n_slip`` (contact dots of each colour), ``colour`` (the scalar bar's title) and ``clim``.
+    """
+    if colour not in COLOURINGS:
+        raise ValueError(f"colour must be one of {', '.join(COLOURINGS)}, got {colour!r}")
     picks = _pick_frames(doc)
-    data = [_read_frame(out, f) for _, _, f in picks]
-    allp = np.vstack([d["points"] for d in data])
-    umax = max(float(np.linalg.norm(d["displacement"], axis=1).max()) for d in data)
-    fmax = max(float(np.linalg.norm(d["force"], axis=1).max()) for d in data)
+    data = [_read_frame(out, f, doc) for _, _, f in picks]
     res = doc["result"]
+    table_z = float(doc["rest"]["table_z"]) if doc.get("rest") else 0.0
+    height = float(np.ptp(data[0]["points"][:, 2]))
+    field, label, factor = COLOURINGS[colour]
+    values = []
+    for d in data:
+        v = d[field]
+        values.append(factor * (np.linalg.norm(v, axis=1) if v.ndim == 2 else v))
+    # Point contacts concentrate stress in a few elements, and the resting state is ten times less loaded than
+    # the squeezed one: stresses and energies get a logarithmic scale from the 2nd to the 99.5th percentile
+    # (the few elements outside it take the end colours), so that the rest of the body is not one colour.
+    log_scale = colour in ("von_mises", "energy")
+    every = np.concatenate(values)
+    if log_scale:
+        positive = every[every > 0]
+        lo_v, top = ((float(np.percentile(positive, 2.0)), float(np.percentile(positive, 99.5)))
+                     if len(positive) else (1e-12, 1.0))
+        lo_v = min(lo_v, top / 10.0)
+        label = label.replace(")", ", log scale)")
+        values = [np.clip(v, lo_v, None) for v in values]
+    else:
+        lo_v, top = 0.0, float(every.max())
+    offsets = []
+    for (name, _, frame), d in zip(picks, data):
+        lifted = name == "lifted.png" and doc["summary"]["success"]
+        offsets.append(LIFTED_CLEARANCE * height if lifted else 0.0)
+    allp = np.vstack([d["points"] + [0.0, 0.0, o] for d, o in zip(data, offsets)])
+    fmax = max(float(np.linalg.norm(d["force"], axis=1).max()) for d in data)
     jobs = []
-    for (name, title, frame), d in zip(picks, data):
+    for (name, title, frame), d, v, off in zip(picks, data, values, offsets):
+        note = (f"drawn {1e3 * off:.3g} mm above the lift-off state (raising the fingers further moves the "
+                "hanging object rigidly)" if off else "")
         jobs.append({
-            **d, "path": str(out / name), "size": tuple(size),
+            **d, "values": v, "label": label, "clim": (lo_v, max(top, 1e-12)), "log_scale": log_scale,
+            "offset": off, "note": note,
+            "path": str(out / name), "size": tuple(size),
             "title": (f"{doc['scene']['name'] if doc.get('scene') else 'object'}: {title}   "
                       f"rho = {1e3 * frame['squeeze_depth']:.3g} mm, lift = {1e3 * frame['lift_height']:.3g} mm"),
             "centers": _centres(doc, frame), "radius": float(res["finger_radius"]),
-            "directions": np.asarray(res["directions"], float), "table_z": float(doc["rest"]["table_z"])
-            if doc.get("rest") else 0.0, "lo": allp.min(axis=0), "hi": allp.max(axis=0),
-            "umax_mm": 1e3 * umax, "fmax": fmax})
+            "directions": np.asarray(res["directions"], float), "table_z": table_z,
+            "lo": allp.min(axis=0), "hi": allp.max(axis=0), "fmax": fmax})
     ctx = multiprocessing.get_context("spawn")
     with ctx.Pool(1) as pool:
-        paths = pool.map(_draw_frame, jobs)
-    return [Path(p) for p in paths]
+        return pool.map(_draw_frame, jobs)
+
+
+def render_frames(out: Path, doc: dict[str, Any], size: tuple[int, int] = (1000, 760),
+                  colour: str = "von_mises") -> list[Path]:
+    """Render rest.png, lift_start.png, lifted.png into ``out``; their paths (:func:`render_views`)."""
+    return [Path(v["path"]) for v in render_views(out, doc, size, colour)]
 
 
 # ------------------------------------------------------------------ child side
@@ -114,59 +194,95 @@ def _pyvista() -> Any:
     return pv
 
 
-def _draw_frame(job: dict[str, Any]) -> str:
+def _draw_frame(job: dict[str, Any]) -> dict[str, Any]:
     from .output import fingertip_surface
 
     pv = _pyvista()
-    pts, tets = job["points"], job["tets"]
+    lift = np.array([0.0, 0.0, job["offset"]])
+    pts, tets = job["points"] + lift, job["tets"]
     lo, hi = job["lo"], job["hi"]
     diam = float(np.linalg.norm(hi - lo))
     cells = np.hstack([np.full((len(tets), 1), 4), tets]).ravel()
     grid = pv.UnstructuredGrid(cells, np.full(len(tets), pv.CellType.TETRA, dtype=np.uint8), pts)
-    label = "|displacement| (mm)"
-    grid.point_data[label] = 1e3 * np.linalg.norm(job["displacement"], axis=1)
+    label = job["label"]
+    if len(job["values"]) == len(tets):
+        grid.cell_data[label] = job["values"]
+    else:
+        grid.point_data[label] = job["values"]
     try:
         surf = grid.extract_surface(algorithm="dataset_surface")
     except TypeError:  # older pyvista
         surf = grid.extract_surface()
     p = pv.Plotter(off_screen=True, window_size=list(job["size"]))
     p.set_background("white")
-    p.add_mesh(surf, scalars=label, cmap="viridis", clim=[0.0, max(job["umax_mm"], 1e-9)], show_edges=True,
-               edge_color="#444444", line_width=0.3,
-               scalar_bar_args={"color": "black", "title": label, "vertical": False, "position_x": 0.3,
-                                "position_y": 0.03, "height": 0.07, "width": 0.4})
-    # Table.
+    p.add_mesh(surf, scalars=label, cmap="viridis", clim=list(job["clim"]), show_edges=True, log_scale=job["log_scale"],
+               edge_color="#555555", line_width=0.3,
+               scalar_bar_args={"color": "black", "title": label, "vertical": False, "position_x": 0.06,
+                                "position_y": 0.03, "height": 0.07, "width": 0.5, "fmt": "%.3g",
+                                "title_font_size": 14, "label_font_size": 12})
+    # Table, and the object's shadow straight below it (so that a lifted object is seen off the table).
     c = 0.5 * (lo + hi)
     span = 1.4 * float(max(hi[0] - lo[0], hi[1] - lo[1]))
     p.add_mesh(pv.Plane(center=(c[0], c[1], job["table_z"]), direction=(0, 0, 1), i_size=span, j_size=span),
                color="#c8b89a", opacity=0.35)
-    # Fingertips.
+    from scipy.spatial import ConvexHull
+
+    ring = pts[ConvexHull(pts[:, :2]).vertices]
+    ring[:, 2] = job["table_z"] + 1e-4 * diam
+    shadow = pv.PolyData(ring, np.hstack([[len(ring)], np.arange(len(ring))]))
+    p.add_mesh(shadow.triangulate(), color="#3a3a3a", opacity=0.25, lighting=False)
+    # Fingertips: translucent, so that the arrows and contact dots on their patches show through.
+    fingertips = []
     if job["centers"] is not None:
         for f in range(2):
-            hp, tri = fingertip_surface(job["centers"][f], job["radius"], job["directions"][f], 14, 36)
+            centre = np.asarray(job["centers"][f], float) + lift
+            hp, tri = fingertip_surface(centre, job["radius"], job["directions"][f], 14, 36)
             poly = pv.PolyData(hp, np.hstack([np.full((len(tri), 1), 3), tri]).ravel())
-            p.add_mesh(poly, color="#c0c0c0", smooth_shading=True, specular=0.4)
-    # Contact forces: arrows ending at the node (the force pushes the object there).
+            p.add_mesh(poly, color="#9a9a9a", opacity=0.3, smooth_shading=True,
+                       silhouette={"color": "#555555", "line_width": 1.5})
+            fingertips.append({"center": centre.tolist(), "radius": float(job["radius"])})
+    # Contact forces on the object: arrows from outside the object pointing at their nodes.
     force, body, state = job["force"], job["body"], job["state"]
+    arrows: list[dict[str, Any]] = []
+    legend = []
     if job["fmax"] > 0:
-        scale = 0.3 * diam / job["fmax"]
-        for codes, colour in (((1, 2), "#d62728"), ((3,), "#1f77b4")):
+        # the longest arrow spans 1.2 fingertip radii: it ends at its node inside the translucent fingertip
+        scale = min(0.3 * diam, 1.2 * float(job["radius"])) / job["fmax"]
+        for codes, colour, name in (((1, 2), "#d62728", "finger force on the object"),
+                                    ((3,), "#1f77b4", "table force on the object")):
             k = np.flatnonzero(np.isin(body, codes) & (np.linalg.norm(force, axis=1) > 1e-6 * job["fmax"]))
             if not len(k):
                 continue
-            cloud = pv.PolyData(pts[k] - force[k] * scale)
+            tails = pts[k] - force[k] * scale
+            cloud = pv.PolyData(tails)
             cloud["v"] = force[k] * scale
-            p.add_mesh(cloud.glyph(orient="v", scale="v", factor=1.0, geom=pv.Arrow()), color=colour)
-    slide = np.flatnonzero(state == 2)
-    if len(slide):
-        p.add_points(pts[slide], color="orange", point_size=11, render_points_as_spheres=True)
+            p.add_mesh(cloud.glyph(orient="v", scale="v", factor=1.0,
+                                   geom=pv.Arrow(tip_length=0.3, tip_radius=0.12, shaft_radius=0.04)), color=colour)
+            legend.append((name, colour))
+            if codes == (1, 2):
+                arrows += [{"node": int(n), "tip": pts[n].tolist(), "tail": t.tolist(),
+                            "length": float(np.linalg.norm(pts[n] - t))} for n, t in zip(k, tails)]
+    # Stick and slip, node by node.
+    counts = {}
+    for code, colour, name in ((1, _STICK, "contact sticks"), (2, _SLIP, "contact slides")):
+        k = np.flatnonzero(state == code)
+        counts[code] = len(k)
+        if len(k):
+            p.add_points(pts[k], color=colour, point_size=12, render_points_as_spheres=True)
+            legend.append((f"{name} ({len(k)})", colour))
+    # The legend, one coloured line per entry at the lower right (text actors: VTK's legend box clips long labels).
+    width, height_px = (int(x) for x in job["size"])
+    for i, (name, colour) in enumerate(reversed(legend)):
+        p.add_text(name, position=(int(0.66 * width), 18 + 22 * i), font_size=10, color=colour)
     p.add_text(job["title"], font_size=11, color="black", position="upper_left")
-    p.add_text(f"arrows: forces on the object (red fingers, blue table; longest {job['fmax']:.3g} N); "
-               "orange: sliding; true scale", font_size=8, color="#333333",
-               position=(12, int(job["size"][1]) - 58))
+    lines = [f"arrows: contact forces on the object, pointing at their nodes (longest {job['fmax']:.3g} N); "
+             "fingertips translucent; shape at true scale"]
+    if job["note"]:
+        lines.append(job["note"])
+    p.add_text("\n".join(lines), font_size=8, color="#333333", position=(12, int(job["size"][1]) - 70))
     # One camera for every picture: oblique, fingers left and right.
     focal = c.copy()
-    view = np.array([1.0, 0.12, 0.55])
+    view = np.array([1.0, 0.3, 0.4])
     view /= np.linalg.norm(view)
     p.camera_position = [tuple(focal + 2.6 * diam * view), tuple(focal), (0.0, 0.0, 1.0)]
     p.camera.view_angle = 30.0
@@ -174,11 +290,21 @@ def _draw_frame(job: dict[str, Any]) -> str:
     tmp = final.with_name(f".{final.stem}.{os.getpid()}.tmp.png")
     try:
         p.screenshot(str(tmp))
+        ren = p.renderer
+        for a in arrows:  # where each arrowhead is on the picture (its middle, 20 % of the arrow behind the tip)
+            tip, tail = np.asarray(a["tip"]), np.asarray(a["tail"])
+            ren.SetWorldPoint(*(tip - 0.2 * (tip - tail)), 1.0)
+            ren.WorldToDisplay()
+            x, y, _ = ren.GetDisplayPoint()
+            a["head_px"] = [float(x), float(height_px - y)]
         os.replace(tmp, final)
     finally:
         p.close()
         tmp.unlink(missing_ok=True)
-    return str(final)
+    return {"path": str(final), "lift_offset": float(job["offset"]),
+            "table_gap": float(pts[:, 2].min() - job["table_z"]), "arrows": arrows, "fingertips": fingertips,
+            "legend": [n for n, _ in legend], "n_stick": counts[1], "n_slip": counts[2], "colour": label,
+            "clim": [float(x) for x in job["clim"]]}
 
 
 # ------------------------------------------------------------------ plots
@@ -186,7 +312,7 @@ def _figure(size: tuple[float, float]) -> tuple[Any, Any]:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=size, dpi=110)
+    fig = Figure(figsize=size, dpi=110, layout="constrained")
     FigureCanvasAgg(fig)
     return fig, fig.subplots
 
@@ -222,6 +348,79 @@ def plot_liftable(doc: dict[str, Any], path: Path) -> Path:
     ax.set_title("Lift test: the fingers lift once w(ρ) ≥ mg" + ("" if len(lw) else " (no lift test ran)"))
     ax.grid(alpha=0.3)
     ax.legend(loc="upper left", fontsize=8)
+    return _save(fig, path)
+
+
+def plot_patches(out: Path, doc: dict[str, Any], path: Path) -> Path:
+    """Close-ups of the two contact patches when the lift starts and at the end (module notes)."""
+    picks = [(title, frame) for name, title, frame in _pick_frames(doc) if name != "rest.png"]
+    res = doc["result"]
+    radius = float(res["finger_radius"])
+    directions = np.asarray(res["directions"], float)
+    fig, subplots = _figure((9.6, 4.6 * len(picks)))
+    axes = np.atleast_2d(subplots(len(picks), 2))
+    for row, (title, frame) in enumerate(picks):
+        d = _read_frame(out, frame, doc)
+        centres = _centres(doc, frame)
+        for f in range(2):
+            ax = axes[row, f]
+            ax.set_aspect("equal")
+            ax.grid(alpha=0.25)
+            ax.set_xlabel("across the squeeze (mm)")
+            ax.set_ylabel("up (mm)")
+            if centres is None:
+                ax.set_title(f"finger {f + 1}, {title}: not placed", fontsize=9)
+                continue
+            c = np.asarray(centres[f], float)
+            dn = directions[f] / np.linalg.norm(directions[f])
+            ev = np.array([0.0, 0.0, 1.0]) - dn[2] * dn
+            ev /= np.linalg.norm(ev)
+            eu = np.cross(ev, dn)  # seen from the finger, looking along its squeeze direction
+            rel = d["points"] - c
+            near = np.flatnonzero((np.linalg.norm(rel, axis=1) < 1.6 * radius) & (rel @ dn > -0.2 * radius))
+            ax.scatter(1e3 * rel[near] @ eu, 1e3 * rel[near] @ ev, s=4, color="0.75", zorder=1,
+                       label="object nodes near the fingertip")
+            t = np.linspace(0, 2 * np.pi, 200)
+            ax.plot(1e3 * radius * np.cos(t), 1e3 * radius * np.sin(t), color="0.5", lw=0.8, ls="--",
+                    label=f"fingertip outline (R = {1e3 * radius:.3g} mm)")
+            k = np.flatnonzero(d["body"] == f + 1)
+            if not len(k):
+                ax.set_title(f"finger {f + 1}, {title}: no contact", fontsize=9)
+                continue
+            n_hat = rel[k] / np.linalg.norm(rel[k], axis=1, keepdims=True)
+            fk = d["force"][k]
+            fn = np.einsum("ij,ij->i", fk, n_hat)
+            ft = fk - fn[:, None] * n_hat
+            u, v = 1e3 * rel[k] @ eu, 1e3 * rel[k] @ ev
+            slide = d["state"][k] == 2
+            size = 30 + 250 * np.clip(fn, 0, None) / max(float(fn.max()), 1e-300)
+            for mask, colour, name in ((~slide, _STICK, "sticks"), (slide, _SLIP, "slides")):
+                if mask.any():
+                    ax.scatter(u[mask], v[mask], s=size[mask], color=colour, edgecolor="black", lw=0.5, zorder=3,
+                               label=f"contact node {name} ({int(mask.sum())})")
+            tmax = max(float(np.linalg.norm(ft, axis=1).max()), 1e-300)
+            ax.quiver(u, v, ft @ eu, ft @ ev, color="#d62728", zorder=4, angles="xy", scale_units="xy",
+                      scale=tmax / (0.35e3 * radius), width=0.006, label="tangential force (longest: 0.35 R)")
+            ax.text(0.02, 0.02, f"longest tangential force {1e3 * tmax:.3g} mN", transform=ax.transAxes, fontsize=7)
+            for x, y, val in zip(u, v, fn):
+                text = f"{1e3 * val:.3g}" if 1e3 * abs(val) >= 0.01 else "<0.01"
+                ax.annotate(text, (x, y), xytext=(4, 4), textcoords="offset points", fontsize=6.5)
+            r = fk.sum(axis=0)
+            ax.set_title(f"finger {f + 1}, {title}\n{len(k)} contacts: {int((~slide).sum())} stick, "
+                         f"{int(slide.sum())} slip\nΣ f·n̂ = {fn.sum():.3g} N, |resultant| = {np.linalg.norm(r):.3g} N",
+                         fontsize=8.5)
+            lim = 1.25e3 * radius
+            ax.set_xlim(-lim, lim)
+            ax.set_ylim(-lim, lim)
+    handles = {}
+    for ax in axes.ravel():
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            handles.setdefault(lab.split(" (")[0] if lab.startswith("contact node") else lab, h)
+    if handles:  # one legend for the four panels, under them
+        fig.legend(list(handles.values()), list(handles), loc="outside lower center", ncol=3, fontsize=7.5,
+                   markerscale=0.6)
+    fig.suptitle("Contact patches seen from each finger along its squeeze direction\n"
+                 "numbers and dot sizes: normal force f·n̂ on the object (mN); arrows: tangential force", fontsize=10)
     return _save(fig, path)
 
 
@@ -288,26 +487,45 @@ def _html(doc: dict[str, Any]) -> str:
         _row("friction", f"μ_F = {res['mu_finger']} (fingers), μ_P = {res['mu_table']} (table)"),
         _row("fingers", f"radius {g(res['finger_radius'], 1e3)} mm, initial contacts {res['finger_nodes']}, "
                         f"ratio s = {res['ratio']}"),
-        _row("verdict", verdict + ("" if ok else f": {s['reason']}")),
+        _row("verdict", verdict + ("" if ok else f": {s['reason']}")
+             if s.get("outcome") != "lift not run" else
+             f"lift test passed at ρ = {g(s['squeeze_depth'], 1e3)} mm; lift not simulated"),
         _row("squeeze depth ρ", f"{g(s['squeeze_depth'], 1e3)} mm (maximum {g(res['max_squeeze'], 1e3)} mm, "
                                 f"increment {g(res['step'], 1e3)} mm)"),
         _row("liftable weight", f"up to {g(s['max_liftable_weight'])} N against weight {g(s['weight'])} N"),
         _row("final contacts", s["n_final_contacts"]),
-        _row("finger normal force", f"{g(s['finger_normal_force'])} N (deformable); rigid object, same contacts: "
-                                    f"{g(s['rigid_total_normal_force'])} N (paper, Table III)"),
+        _row("Table III", f"Σ f·n̂ over both fingers {g(s['finger_normal_force'])} N (deformable); rigid object, "
+                          f"same contacts: {g(s['rigid_total_normal_force'])} N (the measure Table III compares)"),
         _row("events", ", ".join(f"{k}: {v}" for k, v in s["event_counts"].items())),
         _row("resting state", "—" if not doc.get("rest") else
              f"{doc['rest']['n_contacts']} table contacts ({doc['rest']['n_sliding']} sliding), max sag "
              f"{g(doc['rest']['max_sag'], 1e3)} mm" + (" (from cache)" if doc.get("rest_from_cache") else "")),
         _row("time", ", ".join(f"{k} {v:.2f} s" for k, v in s["timings"].items())),
     ]
+    lifted = ("At the end: lifted off the table, drawn a little above the lift-off state (raising the fingers "
+              "further moves the hanging object rigidly)." if ok else "At the end: where the pickup stopped.")
     pics = {
-        "rest.png": "At rest on the table (fingertips drawn where they first touch).",
+        "rest.png": "At rest on the table (fingertips drawn where they first touch). Colour: per tetrahedron "
+                    "(scale below the picture); arrows: contact forces on the object; dots: contact nodes, green "
+                    "sticking, orange sliding.",
         "lift_start.png": "When the lift test passes and the fingers start to lift (or where the squeeze stopped).",
-        "lifted.png": "At the end: lifted off the table, or where the pickup stopped.",
+        "lifted.png": lifted,
+        "patches.png": "Each finger's contact patch seen along its squeeze direction: contact nodes sticking or "
+                       "sliding, normal forces (mN) and tangential forces.",
         "liftable.png": "Liftable weight w(ρ) of the lift test against the object's weight.",
         "timeline.png": "Events along the finger path and contact nodes per body.",
     }
+    forces = s.get("finger_forces") or {}
+    force_rows = "".join(
+        f"<tr><td>{html.escape(name.replace('finger', 'finger '))}</td>"
+        f"<td>({', '.join(format(x, '.4g') for x in f['resultant'])})</td><td>{f['magnitude']:.4g}</td>"
+        f"<td>{f['grip']:.4g}</td><td>{f['vertical']:.4g}</td><td>{f['normal_sum']:.4g}</td><td>{f['contacts']}</td></tr>"
+        for name, f in forces.items())
+    when = "at lift-off" if ok else ("when the lift test passed" if s.get("outcome") == "lift not run" else "at the end")
+    force_table = "" if not forces else f"""<h2>Finger forces {when} (N)</h2>
+<table><tr><th>finger</th><th>resultant (x, y, z)</th><th>|resultant|</th><th>grip (along its squeeze direction)</th>
+<th>vertical (weight carried)</th><th>normal sum Σ f·n̂</th><th>contacts</th></tr>{force_rows}</table>
+<p>Table III of the paper compares {html.escape(s.get('table_iii_measure') or 'the normal sums')}.</p>"""
     figs = "\n".join(f'<figure><img src="{n}" alt="{html.escape(c)}"><figcaption>{html.escape(c)}</figcaption></figure>'
                      for n, c in pics.items())
     ev_rows = "".join(f"<tr><td>{i}</td><td>{e['phase']}</td><td>{e['kind']}</td><td>{e['contact']}</td>"
@@ -326,9 +544,14 @@ code {{ background: #f4f4f4; padding: 1px 4px; }}
 <h1>{html.escape(scene.get('name', 'pickup'))}: <span class="{'ok' if ok else 'fail'}">{verdict}</span></h1>
 <p>{html.escape(scene.get('description', ''))}</p>
 <table>{''.join(rows)}</table>
+{force_table}
 <p>Data: <a href="result.json">result.json</a> (schema {doc['schema']} v{doc['schema_version']}).
 ParaView: open <code>object.pvd</code>, <code>finger1.pvd</code>, <code>finger2.pvd</code> and <code>table.vtu</code>;
-colour by <code>contact_state</code> (0 none, 1 stick, 2 slip) or <code>displacement</code>, glyph <code>contact_force</code>.</p>
+the time value is the finger path (m: ρ, then ρ + lift height); colour by <code>von_mises</code> (Pa),
+<code>strain_energy_density</code> (J/m³), <code>contact_state</code> (0 none, 1 stick, 2 slip) or
+<code>elastic_displacement</code>; glyph <code>contact_force</code>; field data <code>phase</code>,
+<code>squeeze_depth</code>, <code>lift_height</code>, <code>liftable_weight</code> on every frame.
+<code>object.xdmf</code> holds the same series as XDMF/HDF5.</p>
 {figs}
 <h2>Events</h2>
 <table><tr><th>#</th><th>phase</th><th>kind</th><th>body</th><th>node</th><th>ρ (mm)</th><th>lift (mm)</th></tr>
@@ -338,8 +561,10 @@ colour by <code>contact_state</code> (0 none, 1 stick, 2 slip) or <code>displace
 """
 
 
-def write_report(out: str | Path) -> Path:
+def write_report(out: str | Path, colour: str = "von_mises") -> Path:
     """Render the pictures and ``report.html`` into the output folder ``out``; return the HTML path.
+
+    ``colour``: what the 3D views are coloured by, a key of :data:`COLOURINGS`.
 
     Raises
     ------
@@ -352,7 +577,10 @@ def write_report(out: str | Path) -> Path:
         from ..errors import OutputError
 
         raise OutputError(f"{out}/result.json has no time series to draw")
-    render_frames(out, doc)
+    if colour not in COLOURINGS:
+        raise ValueError(f"colour must be one of {', '.join(COLOURINGS)}, got {colour!r}")
+    render_frames(out, doc, colour=colour)
+    plot_patches(out, doc, out / "patches.png")
     plot_liftable(doc, out / "liftable.png")
     plot_timeline(doc, out / "timeline.png")
     path = atomic_write_text(out / "report.html", _html(doc))

@@ -13,7 +13,8 @@ optional)::
 
     [object]
     paper = "tomato"          # or: mesh = "scan.stl" (relative to this file), or box = ["4 cm", "3 cm", "2 cm"]
-    vertices = 490            # remesh with gmsh at about this many vertices (paper shapes and scans)
+    vertices = 490            # remesh with gmsh at about this many vertices (paper shapes, scans, volume meshes)
+    units = "mm"              # a mesh file's coordinates are in mm (or "cm"; default "m")
 
     [material]
     young = "10 kPa"          # numbers are SI (Pa); strings may carry a unit
@@ -43,8 +44,9 @@ optional)::
 
 Unknown keys, wrong types, units of the wrong kind and values out of range
 raise :class:`SceneError`, whose message names the file and the key.
-Lengths accept m, cm, mm; pressures Pa, kPa, MPa, GPa; forces N, mN; masses
-kg, g; densities kg/m^3, g/cm^3.  A bare number is in SI units.
+Units are spelled exactly as in SI (case matters: ``mPa`` is not ``MPa``): lengths
+m, cm, mm, µm; pressures Pa, kPa, MPa, GPa; forces N, mN, kN; masses kg, g, mg;
+densities kg/m^3, g/cm^3.  A bare number is in SI units.
 """
 
 from __future__ import annotations
@@ -61,14 +63,15 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..elastic.fem import STANDARD_GRAVITY
-from ..errors import SceneError
+from ..errors import MeshError, SceneError
 from ..grasp.placement import DEFAULT_PLACEMENT_RULE, PLACEMENT_RULES
 
 __all__ = ["SCENE_DIR", "ObjectSpec", "Scene", "SceneError", "check_quantity", "load_scene", "parse_quantity",
-           "parse_scene", "resolve_scene", "shipped_scenes", "with_overrides"]
+           "parse_scene", "pickup_scene", "resolve_scene", "run_scene", "shipped_scenes", "with_overrides"]
 
 if TYPE_CHECKING:
     from ..elastic.body import Body
+    from ..grasp.pickup import PickupResult
     from ..mesh.tetmesh import TetMesh
 
 log = logging.getLogger(__name__)
@@ -79,20 +82,35 @@ SCENE_DIR = Path(__file__).resolve().parents[1] / "scenes"
 
 
 # ------------------------------------------------------------------ units
+#: Units by kind, spelled exactly as SI writes them (case matters: m is milli, M is mega).
 _UNITS: dict[str, dict[str, float]] = {
-    "length": {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6, "µm": 1e-6},
-    "pressure": {"pa": 1.0, "kpa": 1e3, "mpa": 1e6, "gpa": 1e9},
-    "force": {"n": 1.0, "mn": 1e-3, "kn": 1e3},
-    "mass": {"kg": 1.0, "g": 1e-3},
-    "density": {"kg/m^3": 1.0, "kg/m3": 1.0, "g/cm^3": 1e3, "g/cm3": 1e3},
-    "acceleration": {"m/s^2": 1.0, "m/s2": 1.0},
+    "length": {"m": 1.0, "cm": 1e-2, "mm": 1e-3, "um": 1e-6, "µm": 1e-6, "μm": 1e-6},
+    "pressure": {"Pa": 1.0, "kPa": 1e3, "MPa": 1e6, "GPa": 1e9},
+    "force": {"N": 1.0, "mN": 1e-3, "kN": 1e3},
+    "mass": {"kg": 1.0, "g": 1e-3, "mg": 1e-6},
+    "density": {"kg/m^3": 1.0, "kg/m3": 1.0, "kg/m³": 1.0, "g/cm^3": 1e3, "g/cm3": 1e3, "g/cm³": 1e3},
+    "acceleration": {"m/s^2": 1.0, "m/s2": 1.0, "m/s²": 1.0},
 }
+#: What each unit is called, for messages that suggest the intended one.
+_UNIT_NAMES = {"m": "metre", "cm": "centimetre", "mm": "millimetre", "um": "micrometre", "µm": "micrometre",
+               "μm": "micrometre", "Pa": "pascal", "kPa": "kilopascal", "MPa": "megapascal", "GPa": "gigapascal",
+               "N": "newton", "mN": "millinewton", "kN": "kilonewton", "kg": "kilogram", "g": "gram",
+               "mg": "milligram"}
 _SI = {"length": "m", "pressure": "Pa", "force": "N", "mass": "kg", "density": "kg/m^3", "acceleration": "m/s^2"}
 _QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*([^\s\d].*?)?\s*$")
 
 
+def _named(unit: str) -> str:
+    return f"'{unit}' ({_UNIT_NAMES[unit]})" if unit in _UNIT_NAMES else f"'{unit}'"
+
+
 def parse_quantity(value: Any, kind: str, where: str = "value") -> float:
     """A number (SI) or a string ``"<number> <unit>"`` of the given kind → float in SI units.
+
+    Units are the exact SI spellings of :data:`_UNITS` (``"kPa"``, ``"mm"``, ``"mN"``): case matters, since
+    ``m`` is milli and ``M`` mega.  A unit that matches one only when case is ignored (``"10 mPa"``,
+    ``"1 CM"``) is refused with a message that suggests the intended unit; a unit of another kind
+    (``"3 mm"`` for a pressure) is refused naming both kinds.
 
     Raises
     ------
@@ -105,7 +123,7 @@ def parse_quantity(value: Any, kind: str, where: str = "value") -> float:
         return float(value)
     if not isinstance(value, str):
         raise SceneError(f"{where}: expected a {kind} (a number in {_SI[kind]} or a string like "
-                         f"\"2 {list(_UNITS[kind])[1] if len(_UNITS[kind]) > 1 else _SI[kind]}\"), got {value!r}")
+                         f"\"{_example(kind)}\"), got {value!r}")
     m = _QUANTITY.match(value)
     if not m:
         raise SceneError(f"{where}: cannot read {value!r} as a {kind} (write a number and a unit, e.g. "
@@ -114,19 +132,28 @@ def parse_quantity(value: Any, kind: str, where: str = "value") -> float:
     if not unit:
         return number
     table = _UNITS[kind]
-    key = unit.lower() if kind != "length" else unit
-    if key in table:
-        return number * table[key]
+    if unit in table:
+        return number * table[unit]
+    takes = f"a {kind} takes {', '.join(_display_units(kind))}"
     for other, units in _UNITS.items():
-        if unit.lower() in {u.lower() for u in units}:
-            raise SceneError(f"{where}: {value!r} is a {other}, but a {kind} is expected (units: "
-                             f"{', '.join(_display_units(kind))})")
-    raise SceneError(f"{where}: unknown unit {unit!r} in {value!r}; a {kind} takes {', '.join(_display_units(kind))}")
+        if other != kind and unit in units:
+            raise SceneError(f"{where}: {value!r} is a {other}, but a {kind} is expected ({takes})")
+    same_kind = [u for u in table if u.lower() == unit.lower()]
+    if same_kind:
+        milli = " (m is milli, M is mega)" if any(u[0] != unit[0] and u[0] in "mM" for u in same_kind) else ""
+        raise SceneError(f"{where}: unknown unit {unit!r} in {value!r}: units are case-sensitive{milli}; did you "
+                         f"mean {' or '.join(_named(u) for u in same_kind)}? ({takes})")
+    other_kind = [(u, o) for o, units in _UNITS.items() for u in units if u.lower() == unit.lower()]
+    if other_kind:
+        u, o = other_kind[0]
+        raise SceneError(f"{where}: unknown unit {unit!r} in {value!r}; {takes} (units are case-sensitive: "
+                         f"{_named(u)} would be a {o})")
+    raise SceneError(f"{where}: unknown unit {unit!r} in {value!r}; {takes}")
 
 
 def _display_units(kind: str) -> list[str]:
-    return {"length": ["m", "cm", "mm"], "pressure": ["Pa", "kPa", "MPa", "GPa"], "force": ["N", "mN", "kN"],
-            "mass": ["kg", "g"], "density": ["kg/m^3", "g/cm^3"], "acceleration": ["m/s^2"]}[kind]
+    return {"length": ["m", "cm", "mm", "µm"], "pressure": ["Pa", "kPa", "MPa", "GPa"], "force": ["N", "mN", "kN"],
+            "mass": ["kg", "g", "mg"], "density": ["kg/m^3", "g/cm^3"], "acceleration": ["m/s^2"]}[kind]
 
 
 def _example(kind: str) -> str:
@@ -148,6 +175,7 @@ class ObjectSpec:
     vertices : remesh at about this many vertices (paper shapes, surfaces)
     size : mesh size (edge length, metres) for surfaces
     down : which way is down in the mesh's frame (default −z)
+    units : the length unit of a mesh file's coordinates, "m" (default), "cm" or "mm" (scans are often in mm)
     """
 
     paper: str | None = None
@@ -157,6 +185,7 @@ class ObjectSpec:
     vertices: int | None = None
     size: float | None = None
     down: tuple[float, float, float] | None = None
+    units: str = "m"
 
     @property
     def kind(self) -> str:
@@ -218,21 +247,49 @@ class Scene:
             return cached_mesh(cache_dir, ("paper", spec.paper, spec.vertices, PAPER_SHAPES[spec.paper]),
                                 lambda: _paper_mesh(spec.paper, spec.vertices))
         path = spec.mesh
-        from ..mesh.scan import SURFACE_SUFFIXES
+        from ..mesh import scan
+        from ..mesh.units import LENGTH_UNITS
 
-        if path.suffix.lower() in SURFACE_SUFFIXES:
-            from ..mesh import scan
+        scale = LENGTH_UNITS[spec.units]
+        data = path.read_bytes()
+        if path.suffix.lower() in scan.SURFACE_SUFFIXES:
+            def surface() -> "TetMesh":
+                surf = scan.read_surface(path)
+                surf = scan.Surface(surf.points * scale, surf.faces, surf.source)
+                return scan.mesh_surface(surf, target_vertices=spec.vertices, size=spec.size)
 
-            data = path.read_bytes()
-            return cached_mesh(cache_dir, ("surface", digest(data), spec.vertices, spec.size),
-                                lambda: scan.mesh_surface(path, target_vertices=spec.vertices, size=spec.size))
-        return TetMesh.from_file(path)
+            return cached_mesh(cache_dir, ("surface", digest(data), spec.vertices, spec.size, spec.units), surface)
+        try:
+            volume = TetMesh.from_file(path)
+        except MeshError:
+            raise
+        except Exception as exc:  # meshio raises many types for unreadable files
+            raise SceneError(f"{self.path or '<scene>'}: object.mesh: cannot read {path} as a volume mesh "
+                             f"({type(exc).__name__}: {exc})", file=None if self.path is None else str(self.path),
+                             key="object.mesh") from None
+        if scale != 1.0:
+            volume = TetMesh(volume.points * scale, volume.tets)
+        if spec.vertices is None and spec.size is None:
+            return volume
+        # object.vertices / object.size on a volume mesh: remesh the solid its boundary encloses (gmsh)
+        log.info("%s: remeshing the volume mesh's boundary at %s", path,
+                 f"about {spec.vertices} vertices" if spec.vertices else f"size {spec.size:g} m")
+        boundary = scan.Surface(volume.points, volume.surface_faces, str(path))
+        return cached_mesh(cache_dir, ("volume", digest(data), spec.vertices, spec.size, spec.units),
+                           lambda: scan.mesh_surface(boundary, target_vertices=spec.vertices, size=spec.size))
 
     def body(self, cache_dir: Path | None = None) -> "Body":
         """The :class:`~fem_grasp.elastic.body.Body` of this scene."""
         from ..elastic.body import Body
+        from ..mesh.units import density_warning, size_warning, warn_implausible
 
         mesh = self.load_mesh(cache_dir)
+        if self.object.kind == "mesh":  # a file's unit is not written in it: say when it looks wrong
+            src = f"{self.path or '<scene>'}: object.mesh ({self.object.mesh.name})"
+            warn_implausible(size_warning(mesh.diameter, self.object.units, src, hint="object.units"))
+            if self.weight is not None:
+                warn_implausible(density_warning(self.weight / self.gravity, mesh.volume, self.object.units, src,
+                                                 hint="object.units"))
         kw = {"weight": self.weight} if self.weight is not None else {"density": self.density}
         return Body(mesh, self.young, self.poisson, gravity=self.gravity, **kw)
 
@@ -250,6 +307,43 @@ class Scene:
         d["path"] = None if self.path is None else str(self.path)
         return d
 
+    # ------------------------------------------------------------ the front door
+    @classmethod
+    def load(cls, name_or_path: str | Path, quick: bool = False) -> "Scene":
+        """A shipped scene by name (``"tomato"``) or a scene file, parsed and checked (``quick``: its ``[quick]``
+        overrides).  Same as :func:`load_scene` (:func:`resolve_scene` first)."""
+        return load_scene(resolve_scene(name_or_path), quick=quick)
+
+    def with_(self, **changes: Any) -> "Scene":
+        """A copy with some settings changed, given as in a scene file: numbers in SI units or strings with a
+        unit, checked the same way.
+
+        Keys: ``young``, ``poisson``, ``weight``, ``mass``, ``density``, ``gravity``; ``mu`` (both
+        coefficients), ``mu_finger``, ``mu_table``; ``finger_radius``; ``contacts`` ("auto", a placement rule
+        or two node indices) or ``placement_rule``; ``directions``, ``ratio``; ``backend``, ``max_squeeze``,
+        ``step``, ``lift_test_step``, ``max_lift``, ``lift``; ``vertices`` (remesh).  Example:
+        ``Scene.load("tomato").with_(young="15 kPa", mu=0.4)``.
+
+        Raises
+        ------
+        SceneError
+            An unknown key or a value of the wrong kind or range, naming the key.
+        """
+        return _with_changes(self, changes)
+
+    def run(self, cache_dir: "Path | str | None | object" = "default") -> "PickupResult":
+        """Pick the object up (Algorithm 1) as ``fem-grasp run`` does; returns the
+        :class:`~fem_grasp.grasp.PickupResult`.
+
+        ``cache_dir``: where meshes and resting states are cached ("default": the CLI's cache,
+        ``~/.cache/fem_grasp``; None: no cache).  A cached resting state is used only after it re-solves to the
+        same forces, so the answer does not depend on the cache.
+        """
+        from .cache import default_cache_dir
+
+        cache = default_cache_dir() if cache_dir == "default" else (None if cache_dir is None else Path(cache_dir))
+        return pickup_scene(self, cache)[0]
+
 
 def _paper_mesh(name: str, vertices: int) -> "TetMesh":
     from ..mesh import shapes
@@ -262,7 +356,7 @@ _SCHEMA: dict[str, dict[str, str]] = {
     "": {"name": "str", "description": "str", "expect": "str", "object": "table", "material": "table",
          "friction": "table", "fingers": "table", "solver": "table", "quick": "table"},
     "object": {"paper": "str", "mesh": "str", "box": "length3", "divisions": "int3", "vertices": "int",
-               "size": "length", "down": "vec3"},
+               "size": "length", "down": "vec3", "units": "str"},
     "material": {"young": "pressure", "poisson": "float", "weight": "force", "density": "density", "mass": "mass",
                  "gravity": "acceleration"},
     "friction": {"finger": "float", "table": "float"},
@@ -466,7 +560,16 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
     down = o.get("down")
     if down is not None and not any(down):
         raise SceneError(f"{o.where('down')} must be a non-zero vector, got {list(down)}")
-    spec = ObjectSpec(paper, mesh_path, box, tuple(divisions), vertices, size, down)
+    units = o.get("units", "m")
+    from ..mesh.units import LENGTH_UNITS
+
+    if units not in LENGTH_UNITS:
+        raise SceneError(f"{o.where('units')}: the unit of the mesh file's coordinates is one of "
+                         f"{', '.join(repr(u) for u in LENGTH_UNITS)}, got {units!r}")
+    if o.has("units") and mesh_path is None:
+        raise SceneError(f"{o.where('units')}: units says what a mesh file's coordinates are in; a "
+                         f"{'paper object' if paper else 'box'} is in metres already")
+    spec = ObjectSpec(paper, mesh_path, box, tuple(divisions), vertices, size, down, units)
 
     # [material]
     m = tables["material"]
@@ -602,3 +705,163 @@ def resolve_scene(name_or_path: str | Path) -> Path:
 def with_overrides(scene: Scene, **changes: Any) -> Scene:
     """A copy of ``scene`` with some fields replaced (e.g. ``backend="spectral"``)."""
     return replace(scene, **{k: v for k, v in changes.items() if v is not None})
+
+
+# ------------------------------------------------------------------ running a scene
+#: The keys of :meth:`Scene.with_`: the field each sets and the kind of its value.
+_CHANGES: dict[str, tuple[str, str]] = {
+    "young": ("young", "pressure"), "poisson": ("poisson", "float"), "weight": ("weight", "force"),
+    "mass": ("weight", "mass"), "density": ("density", "density"), "gravity": ("gravity", "acceleration"),
+    "mu": ("mu", "friction"), "mu_finger": ("mu_finger", "friction"), "mu_table": ("mu_table", "friction"),
+    "finger_radius": ("finger_radius", "length"), "contacts": ("contacts", "contacts"),
+    "placement_rule": ("placement_rule", "rule"), "directions": ("directions", "directions"),
+    "ratio": ("ratio", "ratio"), "backend": ("backend", "backend"), "max_squeeze": ("max_squeeze", "length"),
+    "step": ("step", "length"), "lift_test_step": ("lift_test_step", "force"), "max_lift": ("max_lift", "length"),
+    "lift": ("lift", "bool"), "vertices": ("vertices", "int"),
+}
+
+
+def _with_changes(scene: Scene, changes: dict[str, Any]) -> Scene:
+    new: dict[str, Any] = {}
+    for key, value in changes.items():
+        if key not in _CHANGES:
+            raise SceneError(f"Scene.with_: unknown setting {key!r}; it takes {', '.join(_CHANGES)}")
+        field_name, kind = _CHANGES[key]
+        w = f"Scene.with_({key}=…)"
+        if kind in _UNITS:
+            v = parse_quantity(value, kind, w)
+            check_quantity(w, v, _SI[kind])
+            if key == "mass":
+                v *= new.get("gravity", scene.gravity)
+            if field_name in ("weight", "density"):
+                new["weight" if field_name == "density" else "density"] = None
+            new[field_name] = v
+        elif kind == "float":  # Poisson's ratio
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not -1.0 < value < 0.5:
+                raise SceneError(f"{w}: Poisson's ratio must be a number in (-1, 0.5), got {value!r}")
+            new[field_name] = float(value)
+        elif kind in ("friction", "ratio"):
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise SceneError(f"{w}: expected a number, got {value!r}")
+            check_quantity(w, float(value), "dimensionless", allow_zero=True)
+            if key == "mu":
+                new["mu_finger"] = new["mu_table"] = float(value)
+            else:
+                new[field_name] = float(value)
+        elif kind == "contacts":
+            if value == "auto" or value is None:
+                new["contacts"] = None
+            elif isinstance(value, str):
+                if value not in PLACEMENT_RULES:
+                    raise SceneError(f"{w}: expected \"auto\", a placement rule ({', '.join(PLACEMENT_RULES)}) or "
+                                     f"two node indices, got {value!r}")
+                new["contacts"], new["placement_rule"] = None, value
+            else:
+                ij = tuple(value)
+                if (len(ij) != 2 or not all(isinstance(k, (int, np.integer)) and not isinstance(k, bool) for k in ij)
+                        or ij[0] == ij[1] or min(ij) < 0):
+                    raise SceneError(f"{w}: expected two distinct non-negative node indices, got {value!r}")
+                new["contacts"] = (int(ij[0]), int(ij[1]))
+        elif kind == "rule":
+            if value not in PLACEMENT_RULES:
+                raise SceneError(f"{w}: choose one of {', '.join(PLACEMENT_RULES)}, got {value!r}")
+            new["placement_rule"] = value
+        elif kind == "directions":
+            d = np.asarray(value, dtype=float)
+            if d.shape != (2, 3) or not np.isfinite(d).all() or not (np.linalg.norm(d, axis=1) > 0).all():
+                raise SceneError(f"{w}: expected two non-zero 3-vectors, got {value!r}")
+            new["directions"] = tuple(tuple(float(x) for x in row / np.linalg.norm(row)) for row in d)
+        elif kind == "backend":
+            if value not in ("sparse", "spectral"):
+                raise SceneError(f"{w}: \"sparse\" or \"spectral\", got {value!r}")
+            new["backend"] = value
+        elif kind == "bool":
+            if not isinstance(value, bool):
+                raise SceneError(f"{w}: expected True or False, got {value!r}")
+            new["lift"] = value
+        elif kind == "int":  # vertices: remesh
+            if isinstance(value, bool) or not isinstance(value, int) or value < 20:
+                raise SceneError(f"{w}: expected an integer ≥ 20, got {value!r}")
+            if scene.object.kind == "box":
+                raise SceneError(f"{w}: a box is meshed by its divisions, not a vertex count")
+            new["object"] = replace(scene.object, vertices=value)
+    return replace(scene, **new)
+
+
+def pickup_scene(scene: Scene, cache_dir: Path | None = None, phase: Any = None) -> tuple["PickupResult", bool]:
+    """Run a scene as ``fem-grasp run`` does: its body (mesh cached in ``cache_dir``), its resting state (cached,
+    re-solved before use), then :func:`~fem_grasp.grasp.pickup.pickup` with its settings.
+
+    ``phase``, when given, is called with a phase name ("meshing the object", "resting on the table",
+    "squeeze, lift test, lift") and returns a context manager around that phase (the CLI's progress bar).
+    Errors about the fingers (contact nodes, placement, squeeze directions) are raised naming the scene file
+    and its key.  ``result.timings["rest"]`` is the time the resting state took (to solve or to check from the
+    cache).  Returns (result, whether the resting state came from the cache).
+    """
+    import contextlib
+    import time
+
+    from ..grasp.pickup import pickup
+    from .cache import cached_rest
+
+    step = phase if phase is not None else (lambda name: contextlib.nullcontext())
+    with step("meshing the object"):
+        body = scene.body(cache_dir)
+        _check_contacts(scene, body.mesh)
+    t0 = time.perf_counter()
+    with step("resting on the table"):
+        rs, cached = cached_rest(body, scene.mu_table, backend=scene.backend, down=scene.object.down,
+                                 cache_dir=cache_dir)
+    t_rest = time.perf_counter() - t0
+    with step("squeeze, lift test, lift"):
+        try:
+            result = pickup(body, rest_state=rs, **scene.pickup_kwargs())
+        except SceneError as exc:
+            raise _in_scene(scene, exc) from None
+    result.timings["rest"] = t_rest
+    result.timings["total"] = result.timings.get("total", 0.0) + t_rest
+    return result, cached
+
+
+def run_scene(scene: str | Path | Scene, *, quick: bool = False, cache_dir: Path | str | None | object = "default",
+              **changes: Any) -> "PickupResult":
+    """One line from a scene to its answer: ``fem_grasp.run_scene("tomato", young="15 kPa")``.
+
+    ``scene`` is a shipped scene's name, a scene file or a :class:`Scene`; ``quick`` applies its ``[quick]``
+    overrides; ``changes`` are :meth:`Scene.with_`'s (units as in scene files); ``cache_dir`` as in
+    :meth:`Scene.run`.  The same answer as ``fem-grasp run`` with the same settings.
+    """
+    sc = scene if isinstance(scene, Scene) else Scene.load(scene, quick=quick)
+    return sc.with_(**changes).run(cache_dir)
+
+
+def _check_contacts(scene: Scene, mesh: "TetMesh") -> None:
+    """Node indices given in the scene exist and lie on the surface (else a SceneError naming the file and key)."""
+    if scene.contacts is None:
+        return
+    src = scene.path or "<scene>"
+    surface = set(mesh.surface_nodes.tolist())
+    for k in scene.contacts:
+        if k >= mesh.n_points:
+            raise SceneError(f"{src}: fingers.contacts: node {k} does not exist (the mesh has {mesh.n_points} nodes, "
+                             f"0 … {mesh.n_points - 1}); with --quick the mesh differs, use contacts = \"auto\"",
+                             file=str(src), key="fingers.contacts")
+        if k not in surface:
+            raise SceneError(f"{src}: fingers.contacts: node {k} is not on the surface of the mesh",
+                             file=str(src), key="fingers.contacts")
+
+
+#: The scene key an error about the fingers is about.
+_ERROR_KEYS = {"DirectionError": "fingers.directions", "ContactNodeError": "fingers.contacts",
+               "PlacementError": "fingers.contacts"}
+
+
+def _in_scene(scene: Scene, exc: SceneError) -> SceneError:
+    """``exc`` (raised by pickup() for the scene's settings) again, its message starting with the file and key."""
+    if exc.file is not None:
+        return exc
+    src = str(scene.path) if scene.path is not None else "<scene>"
+    key = _ERROR_KEYS.get(type(exc).__name__, "fingers")
+    how = "" if scene.contacts is not None or key != "fingers.contacts" else \
+        f" (contacts chosen by the rule {scene.placement_rule!r})"
+    return type(exc)(f"{src}: {key}{how}: {exc}", file=src, key=key)

@@ -6,7 +6,9 @@
 * :mod:`~fem_grasp.mesh.shapes` — gmsh solids: ellipsoids, domes, fused spheres and the paper's four objects
   of Table I at a given vertex count, graded where the fingertips touch (:class:`Refinement`);
 * :mod:`~fem_grasp.mesh.scan` — a closed triangle surface (STL, OBJ, PLY) checked and filled with tetrahedra;
-* :mod:`~fem_grasp.mesh.gmsh_session` — the one deterministic gmsh session both use.
+* :mod:`~fem_grasp.mesh.gmsh_session` — the one deterministic gmsh session both use;
+* :mod:`~fem_grasp.mesh.units` — the length unit of a mesh file (scans in mm), and warnings naming the likely
+  unit when an object's size or density is implausible.
 
 gmsh is optional: everything but meshing works without it.
 """

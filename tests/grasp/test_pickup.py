@@ -289,8 +289,20 @@ def test_pickup_refuses_a_bad_scene_with_a_named_error():
 def test_squeeze_depth_limit_is_a_failure():
     res = pick_up_box(0.5, max_squeeze=0.002)
     assert not res.success and "maximum squeeze depth" in res.reason
+    assert "ρ = 2 mm" in res.reason and " m " not in res.reason  # one length unit, mm, in failure reasons
     assert res.squeeze_depth == pytest.approx(0.002)
     res.check()
+
+
+def test_tracking_messages_give_the_depth_in_millimetres():
+    from types import SimpleNamespace
+
+    from fem_grasp.contact.tracking import Parameter, _where
+
+    st = SimpleNamespace(squeeze_depth=0.0123456, lift_height=0.0032, load=0.5)
+    assert _where(Parameter.SQUEEZE_DEPTH, st) == "ρ = 12.3456 mm"
+    assert _where(Parameter.LIFT_HEIGHT, st) == "lift height 3.2 mm"
+    assert _where(Parameter.LOAD, st) == "gravity load λ = 0.5"
 
 
 def test_a_failed_lift_sends_the_squeeze_on_and_the_next_lift_starts_deeper(monkeypatch, lifted):

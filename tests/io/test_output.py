@@ -33,8 +33,14 @@ def _pvd_files(path):
 def test_result_json_has_schema_summary_and_no_stray_files(run):
     out, doc = run
     assert doc["schema"] == SCHEMA and doc["schema_version"] == SCHEMA_VERSION
-    for key in ("success", "reason", "squeeze_depth", "n_final_contacts", "finger_normal_force", "event_counts"):
+    for key in ("success", "reason", "squeeze_depth", "n_final_contacts", "finger_normal_force", "event_counts",
+                "outcome", "finger_forces", "table_iii_measure"):
         assert key in doc["summary"]
+    forces = doc["summary"]["finger_forces"]  # each finger four ways (grasp.forces), and what Table III compares
+    assert set(forces) == {"finger1", "finger2"} and "normal sum" in doc["summary"]["table_iii_measure"]
+    assert forces["finger1"]["normal_sum"] + forces["finger2"]["normal_sum"] == pytest.approx(
+        doc["summary"]["finger_normal_force"], rel=1e-12)
+    assert {"resultant", "magnitude", "grip", "vertical", "normal_sum", "contacts"} <= set(forces["finger1"])
     assert doc["summary"]["n_events"] == len(doc["result"]["events"]) == sum(doc["summary"]["event_counts"].values())
     json.loads((out / "result.json").read_text(), parse_constant=lambda c: pytest.fail(f"non-strict JSON {c}"))
     assert not list(out.rglob("*.tmp*")) and not list(out.rglob(".*.vtu"))  # atomic writes leave nothing behind
@@ -48,13 +54,14 @@ def test_time_series_round_trips_and_matches_result_json(run):
     res = doc["result"]
     frames = doc["series"]["frames"]
     steps = _pvd_files(out / "object.pvd")
-    assert [f for _, f in steps] == [fr["file"] for fr in frames] and [t for t, _ in steps] == list(range(len(steps)))
+    assert [f for _, f in steps] == [fr["file"] for fr in frames] and [t for t, _ in steps] == [fr["time"] for fr in frames]
     assert frames[0]["label"] == "rest" and len(frames) == len(res["snapshots"]) + 1
     reference = None
     for fr in frames:
         m = meshio.read(out / fr["file"])
         pd = m.point_data
-        assert set(pd) == {"displacement", "contact_state", "contact_body", "contact_force"}
+        assert set(pd) == {"displacement", "elastic_displacement", "contact_state", "contact_body", "contact_force"}
+        assert set(m.cell_data) == {"von_mises", "strain_energy_density"}
         ref = m.points - pd["displacement"]
         if reference is None:
             reference = ref
@@ -88,9 +95,10 @@ def test_fingertips_are_spheres_of_the_fingertip_radius_at_the_snapshot_centres(
     res = doc["result"]
     for f, name in enumerate(("finger1", "finger2")):
         steps = _pvd_files(out / f"{name}.pvd")
-        assert len(steps) == len(doc["series"]["frames"])
-        for t, rel in steps[1:]:
-            snap = res["snapshots"][int(t) - 1]
+        frames = doc["series"]["frames"]
+        assert len(steps) == len(frames) and [t for t, _ in steps] == [fr["time"] for fr in frames]
+        for (t, rel), fr in list(zip(steps, frames))[1:]:
+            snap = res["snapshots"][fr["snapshot"]]
             m = meshio.read(out / rel)
             c = np.asarray(snap["finger_centers"][f])
             np.testing.assert_allclose(np.linalg.norm(m.points - c, axis=1), res["finger_radius"], rtol=1e-12)
@@ -99,6 +107,95 @@ def test_fingertips_are_spheres_of_the_fingertip_radius_at_the_snapshot_centres(
             assert along.max() == pytest.approx(res["finger_radius"]) and along.min() == pytest.approx(-res["finger_radius"])
     table = meshio.read(out / "table.vtu")
     np.testing.assert_allclose(table.points[:, 2], doc["rest"]["table_z"])
+
+
+# ------------------------------------------------------------ ParaView time and field data (issue 25, item 4)
+def test_the_time_value_is_the_finger_path_and_every_frame_says_where_it_is(run):
+    """PVD time = ρ during the squeeze, then ρ at lift start + lift height (strictly increasing); field data
+    phase, squeeze_depth, lift_height, liftable_weight on every frame, read back by meshio and by VTK."""
+    from fem_grasp.io.output import PHASE_CODES, TIME_TICK
+
+    out, doc = run
+    frames = doc["series"]["frames"]
+    times = np.array([t for t, _ in _pvd_files(out / "object.pvd")])
+    assert (np.diff(times) > 0).all() and times[0] == 0.0
+    longest = max(fr["finger_path"] for fr in frames)
+    liftable = doc["result"]["liftable"]
+    start = None
+    for fr, t in zip(frames, times):
+        if fr["phase"] == "lift" and start is None:
+            start = fr["squeeze_depth"]
+        path = fr["squeeze_depth"] if fr["phase"] != "lift" else start + fr["lift_height"]
+        assert fr["finger_path"] == pytest.approx(path, rel=1e-12, abs=1e-15)
+        assert t == pytest.approx(path, abs=len(frames) * TIME_TICK * longest)
+        fd = {k: np.asarray(v).ravel() for k, v in meshio.read(out / fr["file"]).field_data.items()}
+        assert set(fd) >= {"phase", "squeeze_depth", "lift_height", "liftable_weight", "finger_path"}
+        assert fd["phase"][0] == PHASE_CODES[fr["phase"]]
+        assert fd["squeeze_depth"][0] == fr["squeeze_depth"] and fd["lift_height"][0] == fr["lift_height"]
+        w = [v for r, v in liftable if r <= fr["squeeze_depth"] * (1 + 1e-12) + 1e-15]
+        assert fd["liftable_weight"][0] == pytest.approx(w[-1] if w else 0.0)
+    vtk = pytest.importorskip("vtk")
+    reader = vtk.vtkXMLUnstructuredGridReader()
+    reader.SetFileName(str(out / frames[-1]["file"]))
+    reader.Update()
+    fd = reader.GetOutput().GetFieldData()
+    names = {fd.GetArrayName(i) for i in range(fd.GetNumberOfArrays())}
+    assert {"phase", "squeeze_depth", "lift_height", "liftable_weight"} <= names
+    assert fd.GetArray("squeeze_depth").GetTuple1(0) == pytest.approx(frames[-1]["squeeze_depth"])
+
+
+def test_the_xdmf_series_holds_the_same_frames_at_the_same_times(tmp_path):
+    """object.xdmf + object.h5 (h5py): one grid per frame with its deformed geometry, the same point, cell and
+    field data, the same time values; read back with VTK's XDMF reader.  The run is a fresh process: h5py cannot
+    load into one that has loaded dolfinx's HDF5 (as the verification tests do), and then writes no XDMF."""
+    import subprocess
+    import sys
+
+    pytest.importorskip("h5py")
+    vtk = pytest.importorskip("vtk")
+    from vtk.util.numpy_support import vtk_to_numpy
+
+    from tests.helpers import ROOT, cache_dir
+
+    out = tmp_path / "o"
+    r = subprocess.run([sys.executable, "-m", "fem_grasp", "run", "foam_block", "--quick", "--no-lift", "--quiet",
+                        "--out", str(out), "--cache", str(cache_dir())], cwd=ROOT, capture_output=True, text=True,
+                       timeout=600)
+    assert r.returncode == 1, r.stderr[-2000:]
+    doc = read_result(out)
+    frames = doc["series"]["frames"]
+    assert doc["series"]["xdmf"] == "object.xdmf" and (out / "object.h5").exists()
+    root = ET.parse(out / "object.xdmf").getroot()
+    grids = root.find("Domain/Grid").findall("Grid")
+    assert [float(g.find("Time").get("Value")) for g in grids] == [fr["time"] for fr in frames]
+    reader = vtk.vtkXdmfReader()
+    reader.SetFileName(str(out / "object.xdmf"))
+    reader.UpdateInformation()
+    steps = reader.GetOutputInformation(0).Get(vtk.vtkStreamingDemandDrivenPipeline.TIME_STEPS())
+    assert list(steps) == [fr["time"] for fr in frames]
+    for k in (0, len(frames) - 1):
+        reader.UpdateTimeStep(steps[k])
+        grid = reader.GetOutputDataObject(0)
+        m = meshio.read(out / frames[k]["file"])
+        np.testing.assert_array_equal(vtk_to_numpy(grid.GetPoints().GetData()), m.points)
+        np.testing.assert_array_equal(vtk_to_numpy(grid.GetCellData().GetArray("von_mises")), m.cell_data["von_mises"][0])
+        np.testing.assert_array_equal(vtk_to_numpy(grid.GetPointData().GetArray("contact_state")),
+                                      m.point_data["contact_state"])
+        assert grid.GetFieldData().GetArray("lift_height").GetTuple1(0) == frames[k]["lift_height"]
+        assert grid.GetFieldData().GetArray("phase").GetTuple1(0) == m.field_data["phase"][0]
+
+
+def test_an_out_folder_named_like_a_file_is_refused(tmp_path, capsys):
+    from fem_grasp.cli import main
+    from fem_grasp.io.output import check_out_path
+
+    for name in ("x.xdmf", "run.vtu", "r.h5"):
+        with pytest.raises(OutputError, match="names a folder, not a file"):
+            check_out_path(tmp_path / name)
+    assert check_out_path(tmp_path / "x") == tmp_path / "x"
+    assert main(["run", "foam_block", "--quick", "--out", str(tmp_path / "x.xdmf")]) == 2
+    err = capsys.readouterr().err
+    assert "object.xdmf + object.h5" in err and not (tmp_path / "x.xdmf").exists()
 
 
 def test_hemisphere_geometry():

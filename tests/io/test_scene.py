@@ -173,3 +173,162 @@ def test_the_rest_cache_key_covers_every_module_the_rest_depends_on():
         assert needed in names, needed
     assert not any(f.parent.name == "io" for f in rest_code_files())  # its own floor: a cache, not physics
     assert rest_code_digest() == rest_code_digest()
+
+
+# ------------------------------------------------ units: exact SI spellings (issue 25, item 6)
+@pytest.mark.parametrize("text, kind, si", [("10 MPa", "pressure", 1e7), ("3 µm", "length", 3e-6),
+                                           ("3 μm", "length", 3e-6), ("5 mN", "force", 5e-3),
+                                           ("2 kN", "force", 2e3), ("250 mg", "mass", 2.5e-4),
+                                           ("1 kg/m³", "density", 1.0)])
+def test_exact_si_spellings_are_read(text, kind, si):
+    assert parse_quantity(text, kind) == pytest.approx(si)
+
+
+@pytest.mark.parametrize("text, kind, words", [
+    ("10 mPa", "pressure", ["case-sensitive", "m is milli, M is mega", "did you mean 'MPa' (megapascal)"]),
+    ("1 CM", "length", ["case-sensitive", "did you mean 'cm' (centimetre)"]),
+    ("10 kpa", "pressure", ["case-sensitive", "did you mean 'kPa' (kilopascal)"]),
+    ("5 MN", "force", ["did you mean 'mN' (millinewton)"]),
+    ("2 PA", "length", ["a length takes m, cm, mm", "'Pa' (pascal) would be a pressure"]),
+    ("3 mm", "pressure", ["'3 mm' is a length, but a pressure is expected"]),
+])
+def test_a_unit_in_the_wrong_case_is_refused_with_the_intended_one(text, kind, words):
+    with pytest.raises(SceneError) as exc:
+        parse_quantity(text, kind, "material.young")
+    msg = str(exc.value)
+    for w in words:
+        assert w in msg, msg
+    assert "is a length, but a length" not in msg and f"is a {kind}, but a {kind}" not in msg  # no self-contradiction
+
+
+# ------------------------------------------------ the front door (issue 25, item 1)
+def test_one_default_placement_rule_for_python_and_the_scenes():
+    import inspect
+
+    from fem_grasp import pickup
+    from fem_grasp.grasp.placement import DEFAULT_PLACEMENT_RULE
+
+    assert DEFAULT_PLACEMENT_RULE == objects.PAPER_PLACEMENT_RULE == "centre-of-mass-height"
+    assert inspect.signature(pickup).parameters["placement_rule"].default == DEFAULT_PLACEMENT_RULE
+    scene = load_scene(_write_box_scene_without_contacts())
+    assert scene.placement_rule == DEFAULT_PLACEMENT_RULE and scene.contacts is None
+
+
+def _write_box_scene_without_contacts() -> Path:
+    import tempfile
+
+    return _write(Path(tempfile.mkdtemp()), BOX)
+
+
+def test_scene_with_takes_units_and_checks_them():
+    from fem_grasp import Scene
+
+    base = Scene.load("foam_block", quick=True)
+    s = base.with_(young="15 kPa", mu=0.4, mass="40 g", finger_radius="8 mm", contacts="least-force", lift=False)
+    assert (s.young, s.mu_finger, s.mu_table, s.finger_radius, s.lift) == (15e3, 0.4, 0.4, 0.008, False)
+    assert s.weight == pytest.approx(0.04 * s.gravity) and s.density is None
+    assert s.contacts is None and s.placement_rule == "least-force"
+    assert base.young == 2e4 and base.contacts == (52, 72)  # a copy: the loaded scene is unchanged
+    for bad, words in (({"young": "15 mPa"}, "did you mean 'MPa'"), ({"young": "3 mm"}, "is a length"),
+                       ({"poisson": 0.5}, "(-1, 0.5)"), ({"mu": -1}, "≥ 0"), ({"colour": 3}, "unknown setting"),
+                       ({"contacts": "highest"}, "placement rule")):
+        with pytest.raises(SceneError, match=None) as exc:
+            base.with_(**bad)
+        assert words in str(exc.value) and "Scene.with_" in str(exc.value), str(exc.value)
+
+
+def test_run_scene_gives_the_command_lines_answer(tmp_path, capsys):
+    """fem_grasp.run_scene, Scene.load(...).with_(...).run() and `fem-grasp run` agree, and so does pickup() with
+    its own default placement."""
+    import json
+
+    import fem_grasp
+    from fem_grasp.cli import main
+
+    cache = tmp_path / "cache"
+    py = fem_grasp.run_scene("football", quick=True, young="12 kPa", lift=False, cache_dir=cache)
+    assert main(["run", "football", "--quick", "--young", "12 kPa", "--no-lift", "--quiet", "--cache", str(cache),
+                 "--out", str(tmp_path / "o")]) == 1
+    doc = json.loads((tmp_path / "o" / "result.json").read_text())
+    assert tuple(doc["result"]["finger_nodes"]) == tuple(py.finger_nodes)
+    assert doc["summary"]["squeeze_depth"] == pytest.approx(py.squeeze_depth, rel=1e-9)
+    assert doc["summary"]["n_events"] == len(py.events) and doc["summary"]["outcome"] == py.outcome
+    scene = fem_grasp.Scene.load("football", quick=True).with_(young="12 kPa", lift=False)
+    assert tuple(scene.run(cache_dir=None).finger_nodes) == tuple(py.finger_nodes)
+    from fem_grasp import pickup
+
+    kw = {k: v for k, v in scene.pickup_kwargs().items() if k != "placement_rule"}
+    assert tuple(pickup(scene.body(), **kw).finger_nodes) == tuple(py.finger_nodes)
+
+
+def test_the_sweep_example_returns_a_dataframe():
+    pd = pytest.importorskip("pandas")
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("sweep", Path(__file__).resolve().parents[2] / "examples" / "sweep.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    table = mod.sweep("foam_block", youngs=("20 kPa", "40 kPa"), mus=(0.5,), lift=False)
+    assert isinstance(table, pd.DataFrame) and len(table) == 2
+    assert list(table["E (Pa)"]) == [2e4, 4e4] and (table["mu"] == 0.5).all()
+    assert (table["rho (mm)"] > 0).all() and (table["outcome"] == "lift not run").all()
+    assert table["sum f.n (N)"].iloc[1] > table["sum f.n (N)"].iloc[0]  # stiffer: more force at the same weight
+
+
+# ------------------------------------------------ scans in millimetres, remeshing volume meshes (items 5, 7)
+def _ball_scene(tmp_path: Path, surface: str, extra: str = "", weight: str = '"0.1 N"') -> Path:
+    return _write(tmp_path, f"""
+[object]
+mesh = "{surface}"
+vertices = 150
+{extra}
+[material]
+young = "20 kPa"
+poisson = 0.3
+weight = {weight}
+[friction]
+finger = 0.5
+""", "ball.toml")
+
+
+@pytest.mark.gmsh
+def test_a_scan_in_millimetres_warns_naming_the_unit_and_object_units_fixes_it(tmp_path):
+    pytest.importorskip("gmsh")
+    from fem_grasp.errors import UnitsWarning
+    from tests.helpers import icosphere, write_stl
+
+    p, f = icosphere(30.0, 2)  # a 6 cm ball written in millimetres
+    write_stl(tmp_path / "ball_mm.stl", p, f)
+    scene = load_scene(_ball_scene(tmp_path, "ball_mm.stl"))
+    with pytest.warns(UnitsWarning) as record:
+        body = scene.body(tmp_path / "cache")
+    text = " ".join(str(w.message) for w in record)
+    assert "larger than 1 m" in text and 'object.units = "mm"' in text and "millimetres" in text, text
+    assert "density" in text and "kg/m^3" in text, text
+    assert body.mesh.diameter > 50
+    fixed = load_scene(_ball_scene(tmp_path, "ball_mm.stl", 'units = "mm"'))
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UnitsWarning)
+        good = fixed.body(tmp_path / "cache")
+    assert good.mesh.diameter == pytest.approx(body.mesh.diameter * 1e-3, rel=0.05)
+    with pytest.raises(SceneError, match="object.units"):
+        load_scene(_ball_scene(tmp_path, "ball_mm.stl", 'units = "inch"'))
+
+
+@pytest.mark.gmsh
+def test_object_vertices_remeshes_a_volume_mesh(tmp_path):
+    pytest.importorskip("gmsh")
+    from fem_grasp import TetMesh
+    from fem_grasp.mesh.scan import mesh_surface
+    from tests.helpers import icosphere, write_stl
+
+    p, f = icosphere(0.03, 3)
+    write_stl(tmp_path / "ball.stl", p, f)
+    fine = mesh_surface(tmp_path / "ball.stl")
+    fine.write(tmp_path / "ball.vtu")
+    scene = load_scene(_ball_scene(tmp_path, "ball.vtu"))
+    mesh = scene.load_mesh(tmp_path / "cache")
+    assert isinstance(mesh, TetMesh) and abs(mesh.n_points - 150) <= 15 < abs(fine.n_points - 150)
+    assert mesh.volume == pytest.approx(fine.volume, rel=0.05)
