@@ -28,7 +28,7 @@ $(STAMPS)/venv: $(STAMPS)/apt pyproject.toml
 	$(SYSPY) -m venv --system-site-packages $(VENV)
 	$(SYSPY) -c "import numpy; print('numpy==' + numpy.__version__)" > $(STAMPS)/constraints.txt
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -c $(STAMPS)/constraints.txt -e ".[dev,report,fast,docs]"
+	$(PY) -m pip install -q -c $(STAMPS)/constraints.txt -e ".[dev,report,fast,docs,search]"
 	@# Optional CHOLMOD backend: scikit-sparse compiled against Debian's SuiteSparse and the pinned numpy
 	@# (no build isolation, so Cython comes first). If it fails to build, SuperLU is used instead.
 	$(PY) -m pip install -q -c $(STAMPS)/constraints.txt "cython>=0.29" setuptools wheel && \
