@@ -451,9 +451,11 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--scheduler", metavar="ADDRESS", help="run on an existing Dask cluster, e.g. tcp://HOST:8786")
     p.add_argument("--candidates", type=int, default=64, metavar="N", help="at most N candidates (default 64)")
     p.add_argument("--heights", metavar="SPEC", help="heights as fractions of the object's height above the table "
-                                                     "clearance: N, LO:HI:N or A,B,C (default: sized to --candidates)")
-    p.add_argument("--azimuths", metavar="SPEC", help="azimuths of the squeeze axis, degrees: N, LO:HI:N or A,B,C "
-                                                      "(default: N over [0, 180) when s = 1, else [0, 360))")
+                                                     "clearance: a count N, LO:HI:N or A,B,C (one value: A,) (default: sized "
+                                                     "to --candidates)")
+    p.add_argument("--azimuths", metavar="SPEC", help="azimuths of the squeeze axis, degrees: a count N, LO:HI:N or "
+                                                      "A,B,C (one value: A,) (default: N over [0, 180) when s = 1, "
+                                                      "else [0, 360))")
     p.add_argument("--tilts", metavar="SPEC", help="downward tilts of the squeeze directions, degrees: A, A,B,C or "
                                                    "LO:HI:N (default: the paper's 13.1)")
     p.add_argument("--ratios", metavar="SPEC", help="squeeze ratios s: A, A,B,C or LO:HI:N (default 1)")
