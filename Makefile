@@ -80,8 +80,9 @@ rest-table: setup
 
 .PHONY: bench
 # Issue #7 benchmarks: contact solve against dolfinx, cost against vertex count (1k-100k), per-object pickups,
-# sparse against spectral, compiled against plain kernels, column batches, and the floor of the method (flops
-# against the dense peak; about 10 GiB at 100k); tables on stdout and bench/out/bench.json
+# sparse against spectral, compiled against plain kernels, column batches, the floor of the method (flops
+# against the dense peak; about 10 GiB at 100k), and the placement search serially and on Dask (section search);
+# tables on stdout and bench/out/bench.json
 # (long: shorter with BENCH_ARGS="--max-vertices 10000").
 bench: setup
 	$(PY) -m bench.bench $(BENCH_ARGS)
