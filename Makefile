@@ -78,6 +78,14 @@ spectral-vs-sparse: setup
 rest-table: setup
 	$(PY) scripts/rest_table.py
 
+.PHONY: search
+# Where to grasp: a placement search on the local cores (Dask), out/search-tomato/report.html and results.parquet.
+SEARCH_SCENE ?= tomato
+SEARCH_CANDIDATES ?= 64
+search: setup
+	$(PY) -m fem_grasp search $(SEARCH_SCENE) --candidates $(SEARCH_CANDIDATES) --out out/search-$(SEARCH_SCENE) $(SEARCH_ARGS); \
+	  status=$$?; if [ $$status -gt 1 ]; then exit $$status; fi
+
 .PHONY: bench
 # Issue #7 benchmarks: contact solve against dolfinx, cost against vertex count (1k-100k), per-object pickups,
 # sparse against spectral, compiled against plain kernels, column batches, the floor of the method (flops

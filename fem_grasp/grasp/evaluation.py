@@ -153,7 +153,7 @@ class SearchSetup:
     step, lift_test_step, max_lift, lift, max_lift_attempts, backend : :func:`~fem_grasp.grasp.pickup` settings
     table_z, rest_nodes, rest_forces, rest_displacements, rest_sliding, support_triangle, pose_rotation,
     pose_translation, pose_margin, rest_iterations, rest_time : the resting state
-    key : a digest of all of the above
+    key : a digest of what the answers depend on (not the name, nor what is re-solved from the rest)
     """
 
     name: str
@@ -208,7 +208,10 @@ class SearchSetup:
             pose_translation=np.array(rest_state.pose.translation, dtype=float),
             pose_margin=float(rest_state.pose.margin), rest_iterations=int(rest_state.iterations),
             rest_time=float(rest_state.wall_time))
-        key = _digest(*(v for k, v in sorted(fields.items()) if k not in ("name", "rest_time", "rest_iterations")))
+        # the key names what the answers depend on: not the name, the rest's timing, or what the worker re-solves
+        # (the forces and the margin, equal to round-off whether the rest was computed or read from a cache)
+        key = _digest(*(v for k, v in sorted(fields.items())
+                        if k not in ("name", "rest_time", "rest_iterations", "rest_forces", "pose_margin")))
         return cls(**fields, key=key)
 
 
