@@ -32,7 +32,7 @@ __all__ = ["SCENES", "print_search", "section_search"]
 
 #: The paper's four objects, each with its shipped scene.
 SCENES = ("tomato", "orange", "steam_bun", "football")
-RUN_COLUMNS = ("time", "setup_time", "worker")
+RUN_COLUMNS = ("time", "cpu_time", "setup_time", "worker")
 
 
 def _same(a: Any, b: Any) -> bool:
@@ -59,81 +59,91 @@ def _run(name: str, count: int, cache: str, client: Any = None) -> dict[str, Any
     wall = time.perf_counter() - t0
     t = r.table
     setup = t["setup_time"].to_numpy(float)
-    work = t["time"].to_numpy(float)
     built = setup[setup > 0]
+    work = float(t["time"].sum())
     return {"table": t, "wall_s": wall, "evaluate_s": r.timings["evaluate"], "rest_s": r.timings["rest"],
             "candidates_s": r.timings["candidates"], "worker_setup_s": [float(x) for x in built],
-            "work_s": float(work.sum()), "per_candidate_s": float(np.median(work)), "n": len(t),
-            "grasped": r.n_grasped, "errors": r.n_errors, "vertices": int(len(r.setup.points))}
+            "work_s": work, "cpu_s": float(t["cpu_time"].sum()), "n": len(t), "grasped": r.n_grasped,
+            "errors": r.n_errors, "vertices": int(len(r.setup.points))}
+
+
+def _engine_overhead(d: dict[str, Any], workers: int) -> float:
+    """Seconds per candidate that the engine's wall time spends outside the pickups and the workers' set-up."""
+    outside = d["evaluate_s"] * workers - d["work_s"] - sum(d["worker_setup_s"])
+    return outside / d["n"]
 
 
 def section_search(candidates: int = 16, scenes: tuple[str, ...] = SCENES) -> dict[str, Any]:
+    """Per scene, back to back (the machine's load drifts): the plain loop, one worker, two workers."""
     from dask.distributed import Client, LocalCluster
 
     rows = []
     load0 = os.getloadavg()
-    with tempfile.TemporaryDirectory() as cache:
-        serial = {}
-        for name in scenes:
-            _run(name, 1, cache)  # rest cached and kernels loaded: every engine then starts from the same cache
-            serial[name] = _run(name, candidates, cache)
-            log.info("search %s serial: %.1f s", name, serial[name]["evaluate_s"])
-        clusters = {}
+    clusters, starts = {}, {}
+    try:
         for n in (1, 2):
             t0 = time.perf_counter()
             cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
                                    dashboard_address=None, silence_logs=logging.ERROR)
             client = Client(cluster)
             client.wait_for_workers(n)
-            start = time.perf_counter() - t0
-            runs = {}
-            try:
-                for name in scenes:
-                    runs[name] = _run(name, candidates, cache, client)
-                    log.info("search %s dask %d: %.1f s", name, n, runs[name]["evaluate_s"])
-            finally:
-                client.close()
-                cluster.close()
-            clusters[n] = (start, runs)
-    for name in scenes:
-        s = serial[name]
-        row: dict[str, Any] = {"scene": name, "vertices": s["vertices"], "candidates": s["n"], "grasped": s["grasped"],
-                               "errors": s["errors"], "rest_s": s["rest_s"], "candidates_s": s["candidates_s"],
-                               "worker_setup_s": s["worker_setup_s"][0] if s["worker_setup_s"] else 0.0,
-                               "per_candidate_s": s["work_s"] / s["n"], "serial_evaluate_s": s["evaluate_s"]}
-        serial_loop = (s["evaluate_s"] - sum(s["worker_setup_s"])) / s["n"]
-        row["serial_per_candidate_wall_s"] = serial_loop
-        for n, (start, runs) in clusters.items():
-            d = runs[name]
-            setup = max(d["worker_setup_s"], default=0.0)
-            row[f"dask{n}_evaluate_s"] = d["evaluate_s"]
-            row[f"dask{n}_worker_setup_s"] = d["worker_setup_s"]
-            row[f"dask{n}_same"] = _same(d["table"], s["table"])
-            row[f"dask{n}_per_candidate_wall_s"] = (d["evaluate_s"] - setup) / d["n"] * n
-            row[f"dask{n}_start_s"] = start
-            row[f"dask{n}_per_minute"] = 60.0 * d["n"] / d["evaluate_s"]
-            row[f"dask{n}_per_minute_steady"] = 60.0 * d["n"] / max(d["evaluate_s"] - setup, 1e-9)
-        row["serial_per_minute"] = 60.0 * s["n"] / s["evaluate_s"]
-        row["dask_overhead"] = row["dask1_per_candidate_wall_s"] / serial_loop - 1.0
-        rows.append(row)
+            starts[n] = time.perf_counter() - t0
+            clusters[n] = (cluster, client)
+        with tempfile.TemporaryDirectory() as cache:
+            for name in scenes:
+                _run(name, 1, cache)  # the rest cached and the kernels loaded: every engine starts alike
+                s = _run(name, candidates, cache)
+                runs = {n: _run(name, candidates, cache, clusters[n][1]) for n in (1, 2)}
+                log.info("search %s: serial %.1f s, dask 1 %.1f s, dask 2 %.1f s", name, s["evaluate_s"],
+                         runs[1]["evaluate_s"], runs[2]["evaluate_s"])
+                per = s["work_s"] / s["n"]
+                row: dict[str, Any] = {
+                    "scene": name, "vertices": s["vertices"], "candidates": s["n"], "grasped": s["grasped"],
+                    "errors": s["errors"], "rest_s": s["rest_s"], "candidates_s": s["candidates_s"],
+                    # a fresh worker process's set-up (the loop's was done by the warm-up run)
+                    "worker_setup_s": runs[1]["worker_setup_s"][0] if runs[1]["worker_setup_s"] else 0.0,
+                    "per_candidate_s": per, "per_candidate_cpu_s": s["cpu_s"] / s["n"],
+                    "serial_evaluate_s": s["evaluate_s"], "serial_per_minute": 60.0 * s["n"] / s["evaluate_s"],
+                    "serial_overhead_s": _engine_overhead(s, 1)}
+                for n, d in runs.items():
+                    setup = max(d["worker_setup_s"], default=0.0)
+                    row.update({
+                        f"dask{n}_evaluate_s": d["evaluate_s"], f"dask{n}_worker_setup_s": d["worker_setup_s"],
+                        f"dask{n}_same": _same(d["table"], s["table"]), f"dask{n}_start_s": starts[n],
+                        f"dask{n}_per_candidate_s": d["work_s"] / d["n"],
+                        f"dask{n}_per_minute": 60.0 * d["n"] / d["evaluate_s"],
+                        f"dask{n}_per_minute_steady": 60.0 * d["n"] / max(d["evaluate_s"] - setup, 1e-9),
+                        f"dask{n}_overhead_s": _engine_overhead(d, n)})
+                # Dask's overhead over the plain loop, per candidate: the one-worker run's wall time less its
+                # set-up, against the loop's; and the engine time outside the pickups against their work
+                loop = (s["evaluate_s"] - sum(s["worker_setup_s"])) / s["n"]
+                one = (runs[1]["evaluate_s"] - sum(runs[1]["worker_setup_s"])) / runs[1]["n"]
+                row["dask_overhead_wall"] = one / loop - 1.0
+                row["dask_overhead"] = (row["dask1_overhead_s"] - row["serial_overhead_s"]) / per
+                rows.append(row)
+    finally:
+        for cluster, client in clusters.values():
+            client.close()
+            cluster.close()
     return {"rows": rows, "candidates": candidates, "load_average_before": load0,
-            "load_average_after": os.getloadavg(),
-            "note": "the same candidates (seed 0) per scene for every engine; shared set-up: rest + candidates in "
-                    "the client, factorisation + columns + rest + kernels once per worker process"}
+            "load_average_after": os.getloadavg(), "cluster_start_s": starts,
+            "note": "the same candidates (seed 0) per scene for every engine, run back to back; shared set-up: "
+                    "rest + candidates in the client, factorisation + columns + rest + kernels once per worker "
+                    "process; overhead: engine wall time outside the pickups and set-up, per candidate, over the "
+                    "pickups' own time (dask_overhead_wall: the one-worker run's wall time over the loop's)"}
 
 
 def print_search(sec: dict[str, Any]) -> None:
     print(f"\n(h) placement search, {sec['candidates']} candidates per paper scene (load average "
-          f"{sec['load_average_before'][0]:.1f} before, {sec['load_average_after'][0]:.1f} after)")
-    print(f"{'scene':>10s} {'vertices':>8s} {'grasped':>7s} {'set-up s: rest':>14s} {'cand.':>6s} {'worker':>7s} "
-          f"{'per cand. s':>11s} {'serial /min':>11s} {'dask 1 /min':>11s} {'dask 2 /min':>11s} "
-          f"{'(steady)':>8s} {'overhead':>8s} {'same':>5s}")
+          f"{sec['load_average_before'][0]:.1f} before, {sec['load_average_after'][0]:.1f} after; a local cluster "
+          f"starts in {sec['cluster_start_s'].get('1', sec['cluster_start_s'].get(1, float('nan'))):.1f} s with one "
+          f"worker, {sec['cluster_start_s'].get('2', sec['cluster_start_s'].get(2, float('nan'))):.1f} s with two)")
+    print(f"{'scene':>10s} {'vertices':>8s} {'grasped':>7s} | {'set-up s: rest':>14s} {'cand.':>6s} {'worker':>7s} | "
+          f"{'per cand. s':>11s} {'cpu s':>6s} | {'candidates/min: serial':>22s} {'dask 1':>7s} {'dask 2':>7s} "
+          f"{'steady':>7s} | {'overhead':>8s} {'wall':>7s} {'same':>5s}")
     for r in sec["rows"]:
-        print(f"{r['scene']:>10s} {r['vertices']:8d} {r['grasped']:4d}/{r['candidates']:<2d} {r['rest_s']:14.2f} "
-              f"{r['candidates_s']:6.2f} {r['worker_setup_s']:7.2f} {r['per_candidate_s']:11.2f} "
-              f"{r['serial_per_minute']:11.1f} {r['dask1_per_minute']:11.1f} {r['dask2_per_minute']:11.1f} "
-              f"{r['dask2_per_minute_steady']:8.1f} {100 * r['dask_overhead']:7.1f}% "
-              f"{str(r['dask1_same'] and r['dask2_same']):>5s}")
-    if sec["rows"]:
-        r = sec["rows"][0]
-        print(f"  local cluster start-up: {r['dask1_start_s']:.1f} s (1 worker), {r['dask2_start_s']:.1f} s (2 workers)")
+        print(f"{r['scene']:>10s} {r['vertices']:8d} {r['grasped']:4d}/{r['candidates']:<2d} | {r['rest_s']:14.2f} "
+              f"{r['candidates_s']:6.2f} {r['worker_setup_s']:7.2f} | {r['per_candidate_s']:11.2f} "
+              f"{r['per_candidate_cpu_s']:6.2f} | {r['serial_per_minute']:22.1f} {r['dask1_per_minute']:7.1f} "
+              f"{r['dask2_per_minute']:7.1f} {r['dask2_per_minute_steady']:7.1f} | {100 * r['dask_overhead']:7.1f}% "
+              f"{100 * r['dask_overhead_wall']:6.1f}% {str(r['dask1_same'] and r['dask2_same']):>5s}")

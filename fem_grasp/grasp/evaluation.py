@@ -111,6 +111,7 @@ ROW_COLUMNS: dict[str, tuple[str, str]] = {
     "events_C": ("int", "stick to slip"), "events_D": ("int", "slip to stick"),
     "lift_attempts": ("int", "simulated lifts (more than one when a lift failed and the squeeze went on)"),
     "time": ("float", "wall time of this candidate's pickup, s"),
+    "cpu_time": ("float", "CPU time of this candidate's pickup in its process, s"),
     "setup_time": ("float", "wall time this evaluation spent building the shared state, s (0 when its process "
                             "had it)"),
     "worker": ("str", "host:pid of the process that evaluated it"),
@@ -361,9 +362,10 @@ def evaluate(setup: SearchSetup, candidate: Candidate) -> dict[str, Any]:
     try:
         ev, built = evaluator_for(setup)
         setup_time = ev.setup_time if built else 0.0
-        t1 = time.perf_counter()
+        t1, c1 = time.perf_counter(), time.process_time()
         result = ev.pickup(candidate)
         row = result_row(candidate, result, time.perf_counter() - t1)
+        row["cpu_time"] = time.process_time() - c1
     except Exception as exc:  # noqa: BLE001 - recorded in the row, the search goes on
         tb = traceback.format_exc(limit=-3)
         row = error_row(candidate, f"{type(exc).__name__}: {exc}\n{tb}", time.perf_counter() - t0 - setup_time)

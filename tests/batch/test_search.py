@@ -25,7 +25,7 @@ pytest.importorskip("pyarrow")
 AZIMUTHS = [0, 60, 140, 160]
 SETTINGS = dict(mu_finger=0.5, mu_table=0.5, finger_radius=0.01, lift=False, step=1e-3, name="box")
 #: Columns that differ between runs of the same candidate: wall times and the process that ran it.
-RUN_COLUMNS = ["time", "setup_time", "worker"]
+RUN_COLUMNS = ["time", "cpu_time", "setup_time", "worker"]
 
 BOX_SCENE = """
 name = "box"
