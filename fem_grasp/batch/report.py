@@ -119,11 +119,11 @@ def _draw_candidates(job: dict[str, Any]) -> str:
     p.add_text(job["title"], font_size=10, color="black", position="upper_left")
     focal = c.copy()
     if job["view"] == "top":
-        p.camera_position = [tuple(focal + [0.0, 0.0, 2.6 * diam]), tuple(focal), (0.0, 1.0, 0.0)]
+        p.camera_position = [tuple(focal + [0.0, 0.0, 2.2 * diam]), tuple(focal), (0.0, 1.0, 0.0)]
     else:
         view = np.array([1.0, 0.12, 0.55])
         view /= np.linalg.norm(view)
-        p.camera_position = [tuple(focal + 2.6 * diam * view), tuple(focal), (0.0, 0.0, 1.0)]
+        p.camera_position = [tuple(focal + 2.0 * diam * view), tuple(focal), (0.0, 0.0, 1.0)]
     p.camera.view_angle = 30.0
     final = Path(job["path"])
     tmp = final.with_name(f".{final.stem}.{os.getpid()}.tmp.png")
