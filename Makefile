@@ -28,7 +28,7 @@ $(STAMPS)/venv: $(STAMPS)/apt pyproject.toml
 	$(SYSPY) -m venv --system-site-packages $(VENV)
 	$(SYSPY) -c "import numpy; print('numpy==' + numpy.__version__)" > $(STAMPS)/constraints.txt
 	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -c $(STAMPS)/constraints.txt -e ".[dev,report,fast,docs,xdmf,examples]"
+	$(PY) -m pip install -q -c $(STAMPS)/constraints.txt -e ".[dev,report,fast,docs,xdmf,examples,search]"
 	@# Optional CHOLMOD backend: scikit-sparse compiled against Debian's SuiteSparse and the pinned numpy
 	@# (no build isolation, so Cython comes first). If it fails to build, SuperLU is used instead.
 	$(PY) -m pip install -q -c $(STAMPS)/constraints.txt "cython>=0.29" setuptools wheel && \
@@ -79,10 +79,19 @@ spectral-vs-sparse: setup
 rest-table: setup
 	$(PY) scripts/rest_table.py --readme README.md
 
+.PHONY: search
+# Where to grasp: a placement search on the local cores (Dask), out/search-tomato/report.html and results.parquet.
+SEARCH_SCENE ?= tomato
+SEARCH_CANDIDATES ?= 64
+search: setup
+	$(PY) -m fem_grasp search $(SEARCH_SCENE) --candidates $(SEARCH_CANDIDATES) --out out/search-$(SEARCH_SCENE) $(SEARCH_ARGS); \
+	  status=$$?; if [ $$status -gt 1 ]; then exit $$status; fi
+
 .PHONY: bench
 # Issue #7 benchmarks: contact solve against dolfinx, cost against vertex count (1k-100k), per-object pickups,
-# sparse against spectral, compiled against plain kernels, column batches, and the floor of the method (flops
-# against the dense peak; about 10 GiB at 100k); tables on stdout and bench/out/bench.json
+# sparse against spectral, compiled against plain kernels, column batches, the floor of the method (flops
+# against the dense peak; about 10 GiB at 100k), and the placement search serially and on Dask (section search);
+# tables on stdout and bench/out/bench.json
 # (long: shorter with BENCH_ARGS="--max-vertices 10000").
 bench: setup
 	$(PY) -m bench.bench $(BENCH_ARGS)

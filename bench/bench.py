@@ -47,6 +47,12 @@ Sections (``--only NAME``, repeatable; default all):
     target).  One subprocess per size (L is converted to a simplicial copy
     to count it; about 10 GiB at 100k).  Needs CHOLMOD.
 
+``search``
+    A placement search (``fem-grasp search``) of ``--search-candidates`` candidates per paper scene, as a
+    plain loop and on a Dask LocalCluster of one and of two worker processes: candidates per minute, Dask's
+    overhead per candidate, and the time per candidate split into the shared set-up and the per-candidate
+    work (:mod:`bench.search`).
+
 Medians over ``--reps`` repetitions.  Prints tables and writes
 ``bench/out/bench.json`` (sections run earlier are kept when ``--only`` runs
 some again).  Meshes are generated once with gmsh and cached in
@@ -75,7 +81,7 @@ log = logging.getLogger("bench")
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "bench" / "out" / "bench.json"
-SECTIONS = ("solve", "scaling", "objects", "spectral", "jit", "columns", "floor")
+SECTIONS = ("solve", "scaling", "objects", "spectral", "jit", "columns", "floor", "search")
 SOLVE_SIZES = (10000, 50000)
 SCALING_SIZES = (1000, 3000, 10000, 30000, 50000, 100000)
 #: SuperLU above this many vertices takes minutes and gigabytes: not timed.
@@ -601,8 +607,14 @@ def print_floor(sec: dict[str, Any]) -> None:
 
 
 # -------------------------------------------------------------------- main
+def print_search(sec: dict[str, Any]) -> None:
+    from bench.search import print_search as show
+
+    show(sec)
+
+
 PRINTERS = {"solve": print_solve, "scaling": print_scaling, "objects": print_objects, "spectral": print_spectral,
-            "jit": print_jit, "columns": print_columns, "floor": print_floor}
+            "jit": print_jit, "columns": print_columns, "floor": print_floor, "search": print_search}
 
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:
@@ -614,6 +626,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                     help="seconds allowed per size in the scaling section (default 300)")
     ap.add_argument("--object-budget", type=float, default=60.0,
                     help="stop repeating an object's pickup after this many seconds (default 60)")
+    ap.add_argument("--search-candidates", type=int, default=16,
+                    help="candidates per paper scene in the search section (default 16)")
     ap.add_argument("--out", type=Path, default=OUT)
     ap.add_argument("--worker-scaling", type=int, help=argparse.SUPPRESS)
     ap.add_argument("--worker-floor", type=int, help=argparse.SUPPRESS)
@@ -648,6 +662,10 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             data["jit"] = section_jit()
         elif name == "columns":
             data["columns"] = section_columns(reps=args.reps)
+        elif name == "search":
+            from bench.search import section_search
+
+            data["search"] = section_search(args.search_candidates)
         elif name == "floor":
             data["floor"] = section_floor([s for s in SCALING_SIZES if s <= args.max_vertices], args.reps,
                                           data.get("scaling"))

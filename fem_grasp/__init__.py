@@ -2,8 +2,9 @@
 
 Implements *Picking up Soft 3D Objects with Two Fingers* (squeeze, lift test and lift of a deformable
 body by two rigid hemispherical fingertips).  The subpackages follow the paper and import one way,
-``mesh`` < ``elastic`` < ``contact`` < ``grasp`` < ``io``: meshes, the linear elasticity of §II, the
-frictional contact of §III-A/C, Algorithm 1 of §III, and files.  The core imports with numpy and scipy
+``mesh`` < ``elastic`` < ``contact`` < ``grasp`` < ``io`` < ``batch``: meshes, the linear elasticity of §II,
+the frictional contact of §III-A/C, Algorithm 1 of §III, files, and many pickups at once (:func:`search`,
+where to grasp).  The core imports with numpy and scipy
 alone; ``fem_grasp.objects``, ``fem_grasp.shapes`` and the other modules below load on first use.
 
 A scene in one line, the same answer as ``fem-grasp run tomato --young "15 kPa"``::
@@ -55,14 +56,25 @@ __version__ = "0.1.0"
 #: Modules reachable as attributes of the package, imported on first use (``fem_grasp.objects.load(...)``).
 _LAZY = {"objects": "fem_grasp.grasp.objects", "placement": "fem_grasp.grasp.placement",
          "shapes": "fem_grasp.mesh.shapes", "scan": "fem_grasp.mesh.scan", "scene": "fem_grasp.io.scene",
-         "output": "fem_grasp.io.output", "report": "fem_grasp.io.report"}
+         "output": "fem_grasp.io.output", "report": "fem_grasp.io.report", "batch": "fem_grasp.batch"}
 
 __all__ = ["Body", "ClosureResult", "CollinearContactError", "ContactEvent", "ContactNodeError", "ContactResponse",
            "ContactSolution", "ContactState", "DirectionError", "Fingertip", "FrictionError", "LockingWarning",
            "MaterialError", "MeshError", "PickupResult", "PlacementError", "RestCheckError", "RestConvergenceError",
            "RestState", "RestingPose", "RigidGrasp", "Scene", "SceneError", "Snapshot", "TablePlane", "TetMesh",
            "TrackingError", "box_mesh", "contact", "elastic", "errors", "force_closure", "grasp", "io", "mesh",
-           "pickup", "rest", "resting_pose", "rigid_grasp", "run_scene", "solve_contact", *_LAZY]
+           "pickup", "rest", "resting_pose", "rigid_grasp", "run_scene", "search", "solve_contact", *_LAZY]
+
+
+def search(scene: Any, out: Any = None, **kwargs: Any) -> Any:
+    """Where to grasp: Algorithm 1 for many finger placements of one object, serially or on a Dask cluster.
+
+    :func:`fem_grasp.batch.engine.search` (imported on first use; needs the ``search`` extra), which documents
+    the arguments: ``fem_grasp.search("tomato", "out/search", candidates=64, workers=2)``.
+    """
+    from .batch.engine import search as run
+
+    return run(scene, out, **kwargs)
 
 
 def __getattr__(name: str) -> Any:

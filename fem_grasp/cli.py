@@ -7,6 +7,8 @@ Subcommands::
     fem-grasp mesh INPUT -o OUTPUT [--vertices N | --size H] [--units mm]   closed surface scan → tetrahedra
     fem-grasp info PATH                                     a mesh, a surface, a scene, a result.json or a .pvd
     fem-grasp report DIR [--colour von_mises]               report.html + pictures from a run's output
+    fem-grasp search SCENE --out DIR [--workers N | --scheduler tcp://HOST:PORT]
+                                                            where to grasp: Algorithm 1 for many placements
     fem-grasp scenes                                        the scenes shipped with fem_grasp
 
 Every command takes -v/-vv (the library's log on stderr), --log-file FILE and -q; a progress bar is
@@ -382,6 +384,63 @@ def cmd_scenes(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _grid_option(text: str | None, option: str) -> Any:
+    """``N`` (a count), ``LO:HI:N`` (N values from LO to HI) or ``A,B,C`` (these values)."""
+    if text is None:
+        return None
+    t = text.strip()
+    try:
+        if ":" in t:
+            lo, hi, n = t.split(":")
+            return (float(lo), float(hi), int(n))
+        if "," in t or "." in t:
+            return [float(v) for v in t.split(",") if v.strip()]
+        return int(t)
+    except ValueError:
+        raise _BadInput(f"{option} {text!r}: write a count N, a range LO:HI:N, or values A,B,C") from None
+
+
+def cmd_search(args: argparse.Namespace) -> int:
+    from .batch.engine import search
+
+    scene = _load_scene(args)
+    if args.workers is not None and args.workers < 0:
+        raise _BadInput("--workers must be >= 0 (0: a plain loop in this process)")
+    grid = {k: _grid_option(getattr(args, k), f"--{k}") for k in ("heights", "azimuths", "tilts", "ratios")}
+    for k in ("tilts", "ratios"):  # a bare number of tilts or ratios is that value, not a count
+        if isinstance(grid[k], int):
+            grid[k] = [float(grid[k])]
+    result = search(scene, args.out, candidates=args.candidates, seed=args.seed, cone=args.cone,
+                    workers=args.workers, scheduler=args.scheduler, resume=args.resume, force=args.force,
+                    rank=args.rank, best=args.best if args.out else 0, report=not args.no_report and bool(args.out),
+                    cache_dir=_cache_dir(args), connect_timeout=args.connect_timeout,
+                    progress=_progress_enabled(args), **grid)
+    t, cs = result.table, result.candidates
+    n_ok, n_err = result.n_grasped, result.n_errors
+    rejected = ", ".join(f"{k} {v}" for k, v in cs.rejected.items()) or "none"
+    _out(args, f"search     {scene.name}{' (quick)' if scene.quick else ''}: {len(t)} candidates of {cs.valid} valid "
+               f"grid points (rejected: {rejected}); {result.engine}")
+    verdict = "picked up" if result.lifts else "pass the lift test (the lift is not simulated)"
+    _out(args, f"result     {n_ok} {verdict}, {len(t) - n_ok - n_err} not, {n_err} errors"
+               + (f" ({result.resumed} from an earlier run)" if result.resumed else ""))
+    best = result.ranked[result.ranked["rank"] > 0].head(max(args.best, 5))
+    for k, (_, r) in enumerate(best.iterrows()):
+        _out(args, f"{'best' if k == 0 else '':11s}{int(r['rank'])}. nodes {int(r['node_i'])}, {int(r['node_j'])}; "
+                   f"azimuth {r['azimuth_deg']:.0f} deg, tilt {r['tilt_deg']:.1f} deg, s {r['ratio']:g}, height "
+                   f"{_fmt(r['height'], 'mm', 1e3, 3)}: rho* {_fmt(r['rho_star'], 'mm', 1e3)}, grip "
+                   f"{r['grip1']:.3g} / {r['grip2']:.3g} N, sum f.n {r['finger_normal_force']:.3g} N "
+                   f"(ranked by {args.rank})")
+    per = t["time"].median() if len(t) else float("nan")
+    _out(args, "time       " + ", ".join(f"{k} {v:.1f} s" for k, v in result.timings.items())
+               + f"; median {per:.2f} s per candidate")
+    if args.out:
+        out = Path(args.out)
+        _out(args, f"files      {out}/results.parquet, {out}/results.csv (one row per candidate), {out}/search.json")
+        if result.report is not None:
+            _out(args, f"report     {result.report}" + (f" (best grasps: {out}/best/01 …)" if result.best else ""))
+    return EXIT_OK if n_ok else EXIT_FAILED
+
+
 # ------------------------------------------------------------------ parser
 def build_parser() -> argparse.ArgumentParser:
     common = argparse.ArgumentParser(add_help=False)
@@ -457,6 +516,38 @@ def build_parser() -> argparse.ArgumentParser:
                    help="colour the 3D views by the von Mises stress (default, kPa), the strain energy density "
                         "(J/m^3), the displacement less its rigid motion or the whole displacement (mm)")
     p.set_defaults(func=cmd_report)
+
+    p = sub.add_parser("search", parents=[common, scene_opts], help="where to grasp: Algorithm 1 for many placements",
+                       description="A placement search: candidate finger placements (heights, azimuths of the squeeze "
+                                   "axis, tilts, ratios s; antipodal, clear of the table, force closure) each run "
+                                   "through Algorithm 1 on a Dask cluster (a local one by default); results.parquet "
+                                   "and results.csv written as they arrive, report.html with the best grasps. Exit "
+                                   "status 0 when some candidate picks the object up, 1 when none does, 2 on bad input "
+                                   "or an unreachable scheduler.")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--workers", type=int, metavar="N",
+                   help="worker processes of the local Dask cluster (default: the cores; 0: a plain loop here)")
+    g.add_argument("--scheduler", metavar="ADDRESS", help="run on an existing Dask cluster, e.g. tcp://HOST:8786")
+    p.add_argument("--candidates", type=int, default=64, metavar="N", help="at most N candidates (default 64)")
+    p.add_argument("--heights", metavar="SPEC", help="heights as fractions of the object's height above the table "
+                                                     "clearance: a count N, LO:HI:N or A,B,C (one value: A,) (default: sized "
+                                                     "to --candidates)")
+    p.add_argument("--azimuths", metavar="SPEC", help="azimuths of the squeeze axis, degrees: a count N, LO:HI:N or "
+                                                      "A,B,C (one value: A,) (default: N over [0, 180) when s = 1, "
+                                                      "else [0, 360))")
+    p.add_argument("--tilts", metavar="SPEC", help="downward tilts of the squeeze directions, degrees: A, A,B,C or "
+                                                   "LO:HI:N (default: the paper's 13.1)")
+    p.add_argument("--ratios", metavar="SPEC", help="squeeze ratios s: A, A,B,C or LO:HI:N (default 1)")
+    p.add_argument("--seed", type=int, default=0, help="picks the candidates when the grid holds more (default 0)")
+    p.add_argument("--cone", type=float, metavar="DEG", help="half-angle of the antipodal cone (default atan mu_F)")
+    p.add_argument("--resume", action="store_true", help="skip the candidates whose results DIR already holds")
+    p.add_argument("--rank", choices=["force", "squeeze", "margin"], default="force",
+                   help="rank grasps by the least finger normal force (default), the least rho*, or the largest w/mg")
+    p.add_argument("--best", type=int, default=3, metavar="K", help="full results and pickup reports of the best K")
+    p.add_argument("--no-report", action="store_true", help="do not render report.html")
+    p.add_argument("--connect-timeout", type=float, default=10.0, metavar="S",
+                   help="seconds to reach --scheduler and find a worker on it (default 10)")
+    p.set_defaults(func=cmd_search)
 
     p = sub.add_parser("scenes", parents=[common], help="list the scenes shipped with fem_grasp")
     p.set_defaults(func=cmd_scenes)

@@ -17,9 +17,15 @@
 an :attr:`~PickupResult.outcome` (:data:`OUTCOMES`).  :mod:`~fem_grasp.grasp.rigid` is the rigid-body
 comparison of Table III, :mod:`~fem_grasp.grasp.objects` the four objects of Table I, and
 :mod:`~fem_grasp.grasp.checks` the one contact-law checker every result is held to.
+
+Where to grasp: :mod:`~fem_grasp.grasp.candidates` makes candidate placements and squeezes (step 1 for many
+of them) and :mod:`~fem_grasp.grasp.evaluation` runs Algorithm 1 for each on one shared resting state and
+factorisation; :mod:`fem_grasp.batch` runs them serially or on a Dask cluster.
 """
 
+from .candidates import Candidate, CandidateSet, placement_candidates
 from .closure import ClosureResult, force_closure
+from .evaluation import Evaluator, SearchSetup
 from .forces import FingerForce
 from .lift_test import LiftTest
 from .pickup import OUTCOMES, LiftAttempt, PickupResult, Snapshot, pickup
@@ -27,5 +33,6 @@ from .pose import RestingPose, resting_pose
 from .rest import RestState, rest
 from .rigid import RigidGrasp, rigid_grasp
 
-__all__ = ["OUTCOMES", "ClosureResult", "FingerForce", "LiftAttempt", "LiftTest", "PickupResult", "RestState", "RestingPose",
-           "RigidGrasp", "Snapshot", "force_closure", "pickup", "rest", "resting_pose", "rigid_grasp"]
+__all__ = ["OUTCOMES", "Candidate", "CandidateSet", "ClosureResult", "Evaluator", "FingerForce", "LiftAttempt",
+           "LiftTest", "PickupResult", "RestState", "RestingPose", "RigidGrasp", "SearchSetup", "Snapshot",
+           "force_closure", "pickup", "placement_candidates", "rest", "resting_pose", "rigid_grasp"]

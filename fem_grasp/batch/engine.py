@@ -1,0 +1,498 @@
+"""Where to grasp: a placement search run as a plain loop or on a Dask cluster (:func:`search`).
+
+A search takes one object (a scene, or a :class:`~fem_grasp.elastic.body.Body` with settings) and
+
+1. rests it on the table once (Algorithm 1 step 2, cached like ``fem-grasp run``'s);
+2. makes the candidate placements (:func:`fem_grasp.grasp.candidates.placement_candidates`: heights,
+   azimuths, tilts, ratios; antipodal, clear of the table, outside the object, force closure);
+3. evaluates Algorithm 1 for each (:func:`fem_grasp.grasp.evaluation.evaluate`) on the engine:
+
+   * ``workers=0``: a plain loop in this process;
+   * by default a ``dask.distributed.LocalCluster`` of ``workers`` processes (default: this machine's
+     cores) with one thread each, on 127.0.0.1;
+   * ``scheduler="tcp://HOST:PORT"``: an existing Dask cluster, the same code unchanged (its workers need
+     fem_grasp and its ``search`` extra installed); ``client=``: a ``dask.distributed.Client`` of yours.
+
+   The shared state travels once: the :class:`~fem_grasp.grasp.evaluation.SearchSetup` (plain arrays) is one
+   task that every candidate task depends on, so each worker receives it once, and builds the factorised
+   body, its compliance columns and the resting state from it once (the factor itself does not pickle);
+4. writes the rows as they arrive (:class:`~fem_grasp.batch.store.ResultStore`: ``results.parquet`` and
+   ``results.csv``), so that ``resume=True`` skips the candidates already done;
+5. ranks the grasps, reruns the best few to write their full results and pickup reports, and writes the
+   search's ``report.html`` (:mod:`fem_grasp.batch.report`).
+
+Failures: a candidate whose pickup raises is a row with ``status = "error"`` and the message; a worker
+that dies while evaluating one has it rescheduled on another by Dask (up to
+``distributed.scheduler.allowed-failures`` deaths, after which the row records that); a scheduler that
+cannot be reached, or that has no worker, within ``connect_timeout`` raises :class:`SchedulerError`.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import datetime
+import json
+import logging
+import os
+import sys
+import time
+import uuid
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Iterator, Sequence
+
+from ..contact.obstacles import DEFAULT_RADIUS
+from ..elastic.body import Body
+from ..errors import SceneError
+from ..grasp.candidates import Candidate, CandidateSet, placement_candidates
+from ..grasp.evaluation import SearchSetup, error_row, evaluate, evaluator_for
+from ..grasp.pickup import DEFAULT_FRICTION
+from ..io.cache import cached_rest, rest_code_digest
+from ..io.output import MARKER, add_to_marker, atomic_write_text, json_safe, package_version, prepare_out_dir
+from .store import CSV_FILE, PARQUET_FILE, ResultStore, read_results
+
+__all__ = ["MANIFEST", "RANKINGS", "SCHEMA", "SchedulerError", "SearchError", "SearchResult", "rank_table",
+           "search"]
+
+log = logging.getLogger(__name__)
+
+#: The search folder's description of itself (scene, settings, candidates, engine, times).
+MANIFEST = "search.json"
+SCHEMA = "fem_grasp.search"
+SCHEMA_VERSION = 1
+#: How grasps that pick the object up are ranked: column, ascending.
+RANKINGS = {
+    "force": ("finger_normal_force", True),   # the least finger normal force at lift-off (Table III's measure)
+    "squeeze": ("rho_star", True),            # the least squeeze depth ρ*
+    "margin": ("margin", False),              # the largest w(ρ*)/mg when the lift starts
+}
+
+
+class SearchError(SceneError):
+    """A search that cannot run as asked (a folder of another search to resume, no candidate, …)."""
+
+
+class SchedulerError(SearchError):
+    """The Dask scheduler cannot be reached, or has no worker, within the connection timeout."""
+
+
+@dataclass
+class SearchResult:
+    """What :func:`search` found.
+
+    Attributes
+    ----------
+    table : pandas DataFrame, one row per candidate (:data:`fem_grasp.grasp.evaluation.ROW_COLUMNS`), by candidate
+    ranked : the same rows ranked (column ``rank``: 1 for the best grasp; 0 for candidates not grasped)
+    candidates : the :class:`~fem_grasp.grasp.candidates.CandidateSet`
+    setup : the :class:`~fem_grasp.grasp.evaluation.SearchSetup` every candidate shared
+    engine : "serial", "local cluster of N workers" or "scheduler ADDRESS (N workers)"
+    out : the search folder, or None
+    report : its report.html, or None
+    timings : seconds: "rest" and "candidates" (before the engine), "engine start", "evaluate" (all
+        candidates, wall), "report", "total"
+    resumed : candidates taken from an earlier run of the same search
+    best : folders of the best grasps' full results (``best/01``, …)
+    rank_by : the ranking (:data:`RANKINGS`)
+    rest_positions : (n, 3) the resting shape the candidates were made on
+    """
+
+    table: Any
+    ranked: Any
+    candidates: CandidateSet
+    setup: SearchSetup
+    engine: str
+    out: Path | None = None
+    report: Path | None = None
+    timings: dict[str, float] = field(default_factory=dict)
+    resumed: int = 0
+    best: list[Path] = field(default_factory=list)
+    rank_by: str = "force"
+    rest_positions: Any = None
+
+    @property
+    def n_grasped(self) -> int:
+        """Candidates that pick the object up (or pass the lift test, when the lift is not simulated)."""
+        return int(self.table["grasped"].sum())
+
+    @property
+    def lifts(self) -> bool:
+        """Whether the lift is simulated (else a grasp is one whose lift test passes)."""
+        return bool(self.setup.lift)
+
+    @property
+    def n_errors(self) -> int:
+        return int((self.table["status"] == "error").sum())
+
+
+def rank_table(table: Any, by: str = "force") -> Any:
+    """``table`` ranked: the grasps (``grasped``: picked up, or the lift test passed when the lift is not
+    simulated) first, best first by :data:`RANKINGS` ``[by]``; then the others by how close they came (margin,
+    largest first); errors last.  Adds ``rank`` (1, 2, … for the grasps, 0 for the rest)."""
+    if by not in RANKINGS:
+        raise SearchError(f"unknown ranking {by!r}; choose one of {sorted(RANKINGS)}")
+    col, ascending = RANKINGS[by]
+    ok = table[table["grasped"]].sort_values([col, "candidate"], ascending=[ascending, True], kind="stable")
+    rest = table[~table["grasped"] & (table["status"] == "ok")].sort_values(
+        ["margin", "candidate"], ascending=[False, True], kind="stable")
+    err = table[table["status"] != "ok"].sort_values("candidate", kind="stable")
+    import pandas as pd
+
+    ranked = pd.concat([ok, rest, err]).reset_index(drop=True)
+    ranked.insert(0, "rank", [k + 1 if k < len(ok) else 0 for k in range(len(ranked))])
+    return ranked
+
+
+# ------------------------------------------------------------------ the object
+@dataclass
+class _Object:
+    name: str
+    body: Body
+    scene: Any
+    mu_finger: float
+    mu_table: float
+    finger_radius: float
+    down: Any
+    settings: dict[str, Any]
+
+
+_SETTINGS = ("step", "lift_test_step", "max_lift", "lift", "max_lift_attempts", "backend")
+
+
+def _object(scene: Any, quick: bool, cache_dir: Path | None, kwargs: dict[str, Any]) -> _Object:
+    from ..io.scene import Scene, load_scene, resolve_scene
+
+    if isinstance(scene, Body):
+        unknown = set(kwargs) - {"mu_finger", "mu_table", "finger_radius", "max_squeeze", "down", "name", *_SETTINGS}
+        if unknown:
+            raise TypeError(f"search() got unexpected keyword arguments {sorted(unknown)}")
+        mu_f = float(kwargs.get("mu_finger", DEFAULT_FRICTION))
+        settings = {k: kwargs[k] for k in (*_SETTINGS, "max_squeeze") if k in kwargs}
+        return _Object(str(kwargs.get("name", "object")), scene, None, mu_f, float(kwargs.get("mu_table", mu_f)),
+                       float(kwargs.get("finger_radius", DEFAULT_RADIUS)), kwargs.get("down"), settings)
+    if kwargs:
+        raise TypeError(f"search() of a scene takes its settings from the scene; got {sorted(kwargs)}")
+    if not isinstance(scene, Scene):
+        scene = load_scene(resolve_scene(scene), quick=quick)
+    settings = {"step": scene.step, "lift_test_step": scene.lift_test_step, "max_lift": scene.max_lift,
+                "lift": scene.lift, "backend": scene.backend, "max_squeeze": scene.max_squeeze}
+    return _Object(scene.name + (" (quick)" if scene.quick else ""), scene.body(cache_dir), scene, scene.mu_finger,
+                   scene.mu_table, scene.finger_radius, scene.object.down, settings)
+
+
+# ------------------------------------------------------------------ the engine
+def _identity(x: Any) -> Any:
+    """The task that hands the setup to the workers (recomputable if the worker holding it dies)."""
+    return x
+
+
+@contextlib.contextmanager
+def _dask(client: Any, scheduler: str | None, workers: int | None, connect_timeout: float
+          ) -> Iterator[tuple[Any, str, float]]:
+    """A Dask client: the caller's, one connected to ``scheduler``, or one of a LocalCluster; with its name and
+    its start-up time."""
+    t0 = time.perf_counter()
+    try:
+        from dask.distributed import Client, LocalCluster
+    except ImportError:
+        raise SearchError("the Dask engine needs dask.distributed: pip install \"fem_grasp[search]\" "
+                          "(or run serially with workers=0, --workers 0)") from None
+    if client is not None:
+        yield client, f"the given client ({client.scheduler.address})", 0.0
+        return
+    if scheduler:
+        try:
+            c = Client(scheduler, timeout=connect_timeout)
+        except (OSError, TimeoutError) as exc:
+            raise SchedulerError(f"cannot reach the Dask scheduler at {scheduler} within {connect_timeout:g} s "
+                                 f"({type(exc).__name__}: {exc}); start one with `dask scheduler` and workers with "
+                                 f"`dask worker {scheduler}`") from None
+        try:
+            try:
+                c.wait_for_workers(1, timeout=connect_timeout)
+            except (OSError, TimeoutError):
+                raise SchedulerError(f"the Dask scheduler at {scheduler} has no worker after {connect_timeout:g} s; "
+                                     f"start some with `dask worker {scheduler} --nthreads 1`") from None
+            n = len(c.scheduler_info(n_workers=-1)["workers"])
+            yield c, f"scheduler {scheduler} ({n} workers)", time.perf_counter() - t0
+        finally:
+            c.close()
+        return
+    n = int(workers) if workers else (os.cpu_count() or 1)
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
+                           dashboard_address=None, silence_logs=logging.ERROR)
+    c = Client(cluster)
+    try:
+        yield c, f"local cluster of {n} worker process{'es' if n != 1 else ''}", time.perf_counter() - t0
+    finally:
+        c.close()
+        cluster.close()
+
+
+def _killed_message(exc: BaseException) -> str:
+    name = type(exc).__name__
+    if name == "KilledWorker":
+        return (f"KilledWorker: the workers evaluating this candidate died (Dask gave up after "
+                f"distributed.scheduler.allowed-failures deaths): {exc}")
+    return f"{name}: {exc}"
+
+
+def _run_dask(client: Any, setup: SearchSetup, todo: Sequence[Candidate], on_row: Callable[[dict], None]) -> None:
+    from dask.distributed import as_completed
+
+    token = uuid.uuid4().hex[:8]
+    shared = client.submit(_identity, setup, key=f"fem-grasp-setup-{setup.key[:12]}-{token}", pure=False)
+    futures = {client.submit(evaluate, shared, c, key=f"fem-grasp-{c.key}-{token}", pure=False, retries=1): c
+               for c in todo}
+    try:
+        for fut in as_completed(futures):
+            cand = futures[fut]
+            if fut.status == "finished":
+                row = fut.result()
+            else:
+                exc = fut.exception()
+                row = error_row(cand, _killed_message(exc))
+                row["worker"] = "?"
+            fut.release()
+            on_row(row)
+    finally:
+        client.cancel(list(futures) + [shared])
+
+
+def _run_serial(setup: SearchSetup, todo: Sequence[Candidate], on_row: Callable[[dict], None]) -> None:
+    for c in todo:
+        on_row(evaluate(setup, c))
+
+
+# ------------------------------------------------------------------ the folder
+def _request(count: int, heights: Any, azimuths: Any, tilts: Any, ratios: Any, seed: int, cone: Any) -> dict:
+    return json_safe({"count": count, "heights": heights, "azimuths": azimuths, "tilts": tilts, "ratios": ratios,
+                      "seed": seed, "cone": cone})
+
+
+def _read_manifest(out: Path) -> dict[str, Any] | None:
+    try:
+        return json.loads((out / MANIFEST).read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _write_manifest(out: Path, doc: dict[str, Any]) -> None:
+    atomic_write_text(out / MANIFEST, json.dumps(json_safe(doc), indent=1, allow_nan=False))
+
+
+def _progress(total: int, initial: int, enabled: bool) -> Any:
+    if not enabled:
+        return None
+    try:
+        from tqdm import tqdm
+    except ImportError:
+        return None
+    return tqdm(total=total, initial=initial, unit="candidate", file=sys.stderr, leave=False, mininterval=0.2,
+                desc="Algorithm 1 per candidate")
+
+
+# ------------------------------------------------------------------ search
+def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, heights: Any = None,
+           azimuths: Any = None, tilts: Any = None, ratios: Any = None, seed: int = 0, cone: float | None = None,
+           workers: int | None = None, scheduler: str | None = None, client: Any = None, resume: bool = False,
+           force: bool = False, rank: str = "force", best: int = 3, report: bool = True, quick: bool = False,
+           cache_dir: str | Path | None = None, connect_timeout: float = 10.0, progress: bool = False,
+           candidate_list: Sequence[Candidate] | None = None, on_row: Callable[[dict[str, Any]], None] | None = None,
+           **settings: Any) -> SearchResult:
+    """Where to grasp: Algorithm 1 for many finger placements and squeezes of one object (module notes).
+
+    Parameters
+    ----------
+    scene : a :class:`~fem_grasp.io.scene.Scene`, a scene file or shipped scene name, or a
+        :class:`~fem_grasp.elastic.body.Body` (then ``settings`` give ``mu_finger``, ``mu_table``,
+        ``finger_radius``, ``max_squeeze``, ``step``, ``lift_test_step``, ``max_lift``, ``lift``,
+        ``max_lift_attempts``, ``backend``, ``down`` and ``name``, as :func:`~fem_grasp.grasp.pickup` takes them)
+    out : the search folder (results.parquet, results.csv, search.json, report.html, best/), or None
+    candidates, heights, azimuths, tilts, ratios, seed, cone : the candidates
+        (:func:`~fem_grasp.grasp.candidates.placement_candidates`; angles in degrees)
+    workers : 0 for a plain loop in this process; else the LocalCluster's processes (default: the cores)
+    scheduler : the address of a running Dask scheduler ("tcp://HOST:8786") instead of a LocalCluster
+    client : a ``dask.distributed.Client`` to use instead (not closed here)
+    resume : skip the candidates whose rows ``out`` already holds (the same search: same object, settings
+        and code)
+    force : write into a folder that is not empty and was not written by fem_grasp
+    rank : how the grasps that pick the object up are ranked (:data:`RANKINGS`)
+    best : how many of the best grasps get their full results and pickup report (``best/01`` …)
+    report : write report.html (needs matplotlib; pyvista for the pictures of the object)
+    quick : a scene's ``[quick]`` variant
+    cache_dir : meshes and resting states cached between runs (``fem-grasp run``'s cache), or None
+    connect_timeout : seconds to reach a scheduler and find a worker on it
+    progress : a tqdm progress bar on stderr
+    candidate_list : evaluate these candidates instead of making them
+    on_row : called with each result row as it arrives (in this process)
+
+    Returns
+    -------
+    SearchResult
+
+    Raises
+    ------
+    SearchError, SchedulerError
+        A search that cannot run as asked; a scheduler that cannot be reached.
+    """
+    t_start = time.perf_counter()
+    timings: dict[str, float] = {}
+    cache = None if cache_dir is None else Path(cache_dir)
+    if rank not in RANKINGS:
+        raise SearchError(f"unknown ranking {rank!r}; choose one of {sorted(RANKINGS)}")
+    if workers is not None and int(workers) < 0:
+        raise SearchError(f"workers must be >= 0 (0: a plain loop in this process), got {workers}")
+    if scheduler and (client is not None or workers):
+        raise SearchError("give a scheduler address or workers (a local cluster) or a client, not several")
+    obj = _object(scene, quick, cache, dict(settings))
+    settings = obj.settings
+
+    t0 = time.perf_counter()
+    rest_state, _ = cached_rest(obj.body, obj.mu_table, backend=settings.get("backend", "sparse"), down=obj.down,
+                                cache_dir=cache)
+    timings["rest"] = time.perf_counter() - t0
+    setup = SearchSetup.from_rest(rest_state, name=obj.name, mu_finger=obj.mu_finger, finger_radius=obj.finger_radius,
+                                  **{k: v for k, v in settings.items() if k in _SETTINGS and v is not None})
+    identity = f"{setup.key}-{rest_code_digest()}"
+    request = _request(candidates, heights, azimuths, tilts, ratios, seed, cone)
+
+    outp = None if out is None else Path(out)
+    previous: list[dict[str, Any]] = []
+    manifest = None
+    if outp is not None:
+        manifest = _read_manifest(outp) if resume else None
+        if manifest is not None:
+            if manifest.get("identity") != identity:
+                raise SearchError(f"{outp} holds a search of another object, settings or fem_grasp code "
+                                  f"({manifest.get('object')}); resume it with the same scene and settings, or "
+                                  "start a new search in another folder (or without --resume)")
+            old = read_results(outp)
+            previous = [] if old is None else old.to_dict("records")
+        elif resume and outp.exists() and any(outp.iterdir()) and not (outp / MARKER).exists() and not force:
+            raise SearchError(f"{outp} is not a search folder (no {MANIFEST}); nothing to resume")
+        else:
+            prepare_out_dir(outp, force)
+
+    t0 = time.perf_counter()
+    if candidate_list is not None:
+        cset = CandidateSet(list(candidate_list), len(candidate_list), {}, {}, int(seed))
+    elif manifest is not None and manifest.get("request") == request:
+        cset = CandidateSet([Candidate.from_dict(c) for c in manifest["candidates"]], int(manifest["valid"]),
+                            manifest["grid"], manifest.get("rejected", {}), int(seed))
+    else:
+        cset = placement_candidates(rest_state, mu_finger=obj.mu_finger, mu_table=obj.mu_table,
+                                    radius=obj.finger_radius, count=candidates, heights=heights, azimuths=azimuths,
+                                    tilts=tilts, ratios=ratios, seed=seed, max_squeeze=settings.get("max_squeeze"),
+                                    cone=cone)
+    timings["candidates"] = time.perf_counter() - t0
+    if not len(cset):
+        raise SearchError(f"no candidate placement on {obj.name}: the grid's points were rejected as "
+                          + ", ".join(f"{k} ({v})" for k, v in cset.rejected.items()))
+    keys = {c.key for c in cset}
+    kept = [r for r in previous if r["key"] in keys and r.get("status") == "ok"]
+    if len(previous) - len(kept):
+        log.info("resume: %d earlier rows are errors or of candidates no longer in the list; evaluating them again",
+                 len(previous) - len(kept))
+    index = {c.key: c.index for c in cset}
+    for r in kept:
+        r["candidate"] = index[r["key"]]
+    store = ResultStore(outp, kept)
+    todo = [c for c in cset if c.key not in store]
+
+    engine = "serial"
+    doc = {"schema": SCHEMA, "schema_version": SCHEMA_VERSION, "fem_grasp_version": package_version(),
+           "created": datetime.datetime.now().isoformat(timespec="seconds"), "identity": identity,
+           "object": obj.name, "scene": None if obj.scene is None else obj.scene.to_dict(),
+           "request": request, "grid": cset.grid, "valid": cset.valid, "rejected": cset.rejected, "seed": int(seed),
+           "candidates": [c.to_dict() for c in cset], "rank": rank,
+           "setup": {"mu_finger": setup.mu_finger, "mu_table": setup.mu_table, "finger_radius": setup.finger_radius,
+                     "weight": obj.body.weight, "young": setup.young, "poisson": setup.poisson,
+                     "n_nodes": int(len(setup.points)), "rest_contacts": int(len(setup.rest_nodes))}}
+    if outp is not None:
+        _write_manifest(outp, doc)
+        add_to_marker(outp, [MANIFEST, PARQUET_FILE, CSV_FILE])
+        store.flush()
+
+    bar = _progress(len(cset), len(cset) - len(todo), progress)
+
+    def arrived(row: dict[str, Any]) -> None:
+        store.add(row)
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix_str(f"{sum(bool(r['grasped']) for r in store.rows.values())} grasped", refresh=False)
+        if on_row is not None:
+            on_row(row)
+
+    t0 = time.perf_counter()
+    try:
+        if todo and workers == 0 and client is None and not scheduler:
+            timings["engine start"] = 0.0
+            t0 = time.perf_counter()
+            _run_serial(setup, todo, arrived)
+        elif todo:
+            with _dask(client, scheduler, workers, connect_timeout) as (c, engine, started):
+                timings["engine start"] = started
+                t0 = time.perf_counter()
+                _run_dask(c, setup, todo, arrived)
+        else:
+            timings["engine start"] = 0.0
+            engine = "none (every candidate was done)"
+    finally:
+        timings["evaluate"] = time.perf_counter() - t0
+        store.flush()
+        if bar is not None:
+            bar.close()
+    table = store.table()
+    ranked = rank_table(table, rank)
+    result = SearchResult(table, ranked, cset, setup, engine, outp, timings=timings,
+                          resumed=len(cset) - len(todo), rank_by=rank, rest_positions=rest_state.positions)
+    if outp is not None:
+        t0 = time.perf_counter()
+        if best > 0:
+            result.best = _write_best(outp, setup, cset, ranked, int(best), obj.scene)
+        if report:
+            from .report import write_search_report
+
+            result.report = write_search_report(outp, result)
+        timings["report"] = time.perf_counter() - t0
+    timings["total"] = time.perf_counter() - t_start
+    if outp is not None:
+        doc.update({"engine": engine, "timings": timings, "resumed": result.resumed,
+                    "grasped": result.n_grasped, "errors": result.n_errors})
+        _write_manifest(outp, doc)
+    return result
+
+
+def _write_best(out: Path, setup: SearchSetup, cset: CandidateSet, ranked: Any, count: int, scene: Any) -> list[Path]:
+    """The best grasps' full results (result.json, the ParaView series) in ``out/best/01`` …, rerun in this
+    process on the shared setup (the same answer as their rows); each with its pickup report when pyvista is there."""
+    from ..io.output import write_run
+    from ..io.scene import with_overrides
+
+    by_index = {c.index: c for c in cset}
+    picked = ranked[ranked["rank"] > 0].head(count)
+    folders = []
+    ev, _ = evaluator_for(setup)
+    for rank, idx in zip(picked["rank"], picked["candidate"]):
+        cand = by_index[int(idx)]
+        folder = out / "best" / f"{int(rank):02d}"
+        result = ev.pickup(cand)
+        sc = None
+        if scene is not None:
+            sc = with_overrides(scene, contacts=cand.finger_nodes, ratio=cand.ratio,
+                                directions=tuple(tuple(float(x) for x in d) for d in cand.directions),
+                                name=f"{scene.name}, grasp {int(rank)} of the search")
+        write_run(folder, result, sc, force=True, extra={"search_candidate": cand.to_dict()})
+        try:
+            import pyvista  # noqa: F401
+
+            from ..io.report import write_report
+
+            write_report(folder)
+        except ImportError:
+            log.warning("pyvista is not installed: no pictures for %s", folder)
+        folders.append(folder)
+    if folders:
+        add_to_marker(out, [str(p.relative_to(out)) for f in folders for p in f.rglob("*") if p.is_file()])
+    return folders

@@ -1,0 +1,75 @@
+"""Algorithm 1 for many candidates on one shared setup (fem_grasp.grasp.evaluation)."""
+
+import pickle
+
+import numpy as np
+import pytest
+
+from fem_grasp import Body, box_mesh, pickup, rest
+from fem_grasp.grasp import evaluation
+from fem_grasp.grasp.candidates import placement_candidates
+from fem_grasp.grasp.evaluation import ROW_COLUMNS, Evaluator, SearchSetup, evaluate, evaluator_for
+
+MU, RADIUS = 0.5, 0.01
+
+
+@pytest.fixture(scope="module")
+def case():
+    body = Body(box_mesh((-0.015, -0.02, 0.0), (0.015, 0.02, 0.03), (3, 3, 3)), 2e4, 0.3, weight=0.3)
+    rs = rest(body, MU)
+    cands = placement_candidates(rs, mu_finger=MU, mu_table=MU, radius=RADIUS, azimuths=[60, 160]).candidates
+    setup = SearchSetup.from_rest(rs, name="box", mu_finger=MU, finger_radius=RADIUS, lift=False, step=1e-3)
+    return body, rs, cands, setup
+
+
+def test_the_setup_pickles_small_and_its_key_names_what_the_answers_depend_on(case):
+    body, rs, _, setup = case
+    again = pickle.loads(pickle.dumps(setup))
+    assert again.key == setup.key and len(pickle.dumps(setup)) < 100_000
+    other = SearchSetup.from_rest(rs, name="another name", mu_finger=MU, finger_radius=RADIUS, lift=False, step=1e-3)
+    assert other.key == setup.key  # the name is not physics
+    assert SearchSetup.from_rest(rs, mu_finger=0.4, finger_radius=RADIUS, lift=False, step=1e-3).key != setup.key
+    with pytest.raises((AttributeError, TypeError, pickle.PicklingError)):
+        pickle.dumps(rs)  # a resting state holds the factorised body: that is why the setup exists
+
+
+def test_a_row_is_the_pickup_of_the_candidate_and_does_not_depend_on_what_ran_before(case):
+    body, rs, cands, setup = case
+    a, b = cands
+    first_b = evaluate(setup, b)  # b first …
+    evaluate(setup, a)
+    again_b = evaluate(setup, b)  # … and after a: the same numbers, bit for bit (every column is cached up front)
+    assert set(first_b) == set(ROW_COLUMNS)
+    for k in ROW_COLUMNS:
+        if k not in ("time", "cpu_time", "setup_time"):
+            assert first_b[k] == again_b[k] or (first_b[k] != first_b[k] and again_b[k] != again_b[k]), k
+    ev, built = evaluator_for(setup)
+    assert not built and ev.shared_columns
+    assert ev.body.compliance.cached_nodes == len(ev.body.mesh.surface_nodes)
+    direct = pickup(rs.body, mu_finger=MU, mu_table=MU, finger_radius=RADIUS, contacts=b.finger_nodes,
+                    directions=b.directions, ratio=b.ratio, max_squeeze=b.max_squeeze, step=1e-3, rest_state=rs,
+                    lift=False)
+    assert direct.outcome == first_b["outcome"] and len(direct.events) == first_b["events"]
+    assert np.isclose(direct.squeeze_depth, first_b["squeeze_depth"], rtol=1e-9)
+
+
+def test_columns_too_large_to_share_give_the_same_rows(case, monkeypatch):
+    _, _, cands, setup = case
+    shared = evaluate(setup, cands[0])
+    monkeypatch.setattr(evaluation, "SHARED_COLUMNS_BYTES", 0)
+    ev = Evaluator(setup)
+    assert not ev.shared_columns and ev.rest is None
+    res = ev.pickup(cands[0])
+    assert res.outcome == shared["outcome"] and len(res.events) == shared["events"]
+    assert np.isclose(res.squeeze_depth, shared["squeeze_depth"], rtol=1e-9)
+
+
+def test_an_exception_becomes_an_error_row(case):
+    _, _, cands, setup = case
+    mesh = setup.points, setup.tets
+    interior = int(np.setdiff1d(np.arange(len(mesh[0])), case[1].body.mesh.surface_nodes)[0])
+    bad = type(cands[0])(0, (interior, cands[0].finger_nodes[1]), cands[0].azimuth, cands[0].tilt, 1.0,
+                         cands[0].height, cands[0].max_squeeze, cands[0].points)
+    row = evaluate(setup, bad)
+    assert row["status"] == "error" and row["outcome"] == "error" and not row["grasped"]
+    assert "ContactNodeError" in row["error"] and row["reason"].startswith("ContactNodeError")
