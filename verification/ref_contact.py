@@ -41,12 +41,16 @@ a jump); when ``MAX_FULL_STEPS`` full steps do not converge, the solve restarts
 with an Armijo line search on ½‖residual‖², then with ε ×10 and ×0.1 (the
 solution does not depend on ε, the path of the iterates does).  A singular
 Newton matrix (a mechanism at the current iterate: too few active or sticking
-pairs) gets a minimum-norm least-squares step.
+pairs) gets a minimum-norm least-squares step, plus a move along the
+mechanism, in the direction the unbalanced load pushes, until the first free
+candidate touches (the contact the body would roll onto).
 
-No static state: every restart fails to converge, or an iterate moves a
-contact node more than ``GROSS_MOTION`` × diameter from its previous position
-(gross slip), or the converged contacts are fewer than three or collinear
-(Theorem 3: the body is not fixed).  Then :class:`NoEquilibrium` is raised.
+No static state: every restart fails to converge (an iterate moving a node
+more than ``DIVERGED_MOTION`` × diameter counts as diverged), or in the static
+state found a contact slides more than ``GROSS_MOTION`` × diameter (gross
+slip), or its contacts are fewer than three or
+collinear (Theorem 3: the body is not fixed).  Then :class:`NoEquilibrium` is
+raised.
 
 Candidate pairs are the surface nodes whose gap, at the previous positions and
 the new obstacle positions, is below a margin, plus every pair in contact
@@ -59,6 +63,7 @@ Nothing here is imported from fem_grasp.
 from __future__ import annotations
 
 import logging
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -85,11 +90,16 @@ MAX_FULL_STEPS = 25
 MAX_DAMPED_STEPS = 40
 #: Penalty factors tried in turn (× the node's own stiffness 1/mean diag H_ii).
 EPS_FACTORS = (1.0, 10.0, 0.1)
+#: Auxiliary problems of the continuation fallback (:func:`solve_continued`).
+CONTINUATION_STEPS = 8
 #: Candidate rounds (penetration found after a converged solve) before giving up.
 MAX_ROUNDS = 30
-#: An iterate or a solution that moves a contact node further than this × diameter from its previous position in
-#: one increment is gross slip (no static state within small displacements): the Newton attempt stops there.
+#: A solution in which a contact slides further than this × diameter in one increment is gross slip (no static
+#: state within small displacements; fem_grasp's bound on one relaxation, applied here to the whole increment).
 GROSS_MOTION = 0.1
+#: A Newton iterate that moves a node further than this × diameter has diverged (iterates may overshoot the
+#: solution on the way, so the bound on iterates is ten times the bound on solutions).
+DIVERGED_MOTION = 1.0
 #: Smallest step length of the damped Newton's line search.
 MIN_STEP = 1.0 / 64
 #: Pivots below this × the largest one make the Newton matrix singular (a least-squares step is taken instead).
@@ -415,7 +425,8 @@ class _Pairs:
 class _System:
     """The Newton system of one candidate set (module notes)."""
 
-    def __init__(self, body: CondensedBody, obst: Obstacles, pairs: _Pairs, load: float, eps_factor: float):
+    def __init__(self, body: CondensedBody, obst: Obstacles, pairs: _Pairs, load: float, eps_factor: float,
+                 extra_load: np.ndarray | None = None):
         self.body = body
         self.obst = obst
         self.pairs = pairs
@@ -426,6 +437,11 @@ class _System:
         self.Qp = body.Q[self.dofs]
         self.X = body.points[pairs.nodes]
         self.hgp = load * body.hg[self.dofs]
+        # Given loads beside gravity (surface order, (3s,)): the continuation's fading forces (solve_continued).
+        self.q_const = load * body.qg
+        if extra_load is not None:
+            self.hgp = self.hgp + body.H[self.dofs] @ extra_load
+            self.q_const = self.q_const + body.Q.T @ extra_load
         diag = np.diagonal(self.Hpp).reshape(-1, 3).mean(axis=1)
         self.eps = eps_factor / diag
         self.eps_eq = float(np.median(self.eps))
@@ -444,7 +460,7 @@ class _System:
         f = z[:3 * p].reshape(-1, 3)
         C, branch, Jf, Jx, extra = ac_equations(f, self.x(z), self.sphere, self.origin, self.obst.radius,
                                                  self.pairs.rref, self.mu, self.eps, jacobian)
-        eq = (self.Qp.T @ z[:3 * p] + self.load * self.body.qg) / self.eps_eq
+        eq = (self.Qp.T @ z[:3 * p] + self.q_const) / self.eps_eq
         res = np.concatenate([C.reshape(-1), eq])
         if not jacobian:
             return res, branch, None, extra
@@ -464,20 +480,55 @@ class _System:
         e = np.abs(res[3 * p:]).max() * self.eps_eq
         return c <= TOL_NEWTON * self.body.diameter and e <= TOL_NEWTON * self.body.weight
 
+    def _mechanism_step(self, z: np.ndarray, J: np.ndarray, res: np.ndarray, branch: np.ndarray,
+                        extra: dict) -> np.ndarray:
+        """Where the active pairs leave a mechanism (J singular: the body can turn or slide rigidly about its
+        load-bearing contacts), move along it in the direction the unbalanced load pushes until the first free
+        candidate touches: the next contact the body would roll onto.  Zero when no free candidate closes."""
+        p = self.p
+        _, sv, vt = np.linalg.svd(J)
+        v = vt[-1]
+        if sv[-1] > 1e-10 * sv[0]:
+            return np.zeros_like(z)
+        unbalanced = (self.Qp.T @ z[:3 * p] + self.q_const)  # net generalised load on the rigid modes
+        push = float(unbalanced @ v[3 * p:])
+        if push == 0.0:
+            return np.zeros_like(z)
+        v = np.sign(push) * v
+        dx = (self.Hpp @ v[:3 * p] + self.Qp @ v[3 * p:]).reshape(-1, 3)
+        dg = np.einsum("ki,ki->k", extra["n"], dx)
+        free = (branch == FREE) & (dg < 0) & (extra["g"] > 0)
+        if not free.any():
+            return np.zeros_like(z)
+        t = float((extra["g"][free] / -dg[free]).min())
+        return t * v
+
     def newton(self, z0: np.ndarray, damped: bool, max_iter: int) -> tuple[np.ndarray, np.ndarray, dict, int]:
         z = z0.copy()
         last_branch = None
-        limit = GROSS_MOTION * self.body.diameter
+        limit = DIVERGED_MOTION * self.body.diameter
         for it in range(1, max_iter + 1):
             res, branch, J, extra = self.residual(z)
             if self.converged(res) and last_branch is not None and np.array_equal(branch, last_branch):
+                slip = np.linalg.norm(extra["s"], axis=1)[branch == SLIP]
+                if slip.size and slip.max() > GROSS_MOTION * self.body.diameter:
+                    raise NoEquilibrium(f"gross slip: in the static state a contact slides "
+                                        f"{slip.max() / self.body.diameter:.3g} × diameter in one increment "
+                                        f"(more than {GROSS_MOTION})")
+                act = self.pairs.nodes[branch != FREE]
+                if not _fixes_body(self.body.points[act], self.body.diameter):
+                    # A degenerate solution (the body turns about its contacts); another start may find a proper one.
+                    raise NoEquilibrium(f"{len(act)} contact(s) left, too few or collinear to hold the body "
+                                        "(Theorem 3)")
                 return z, branch, extra, it
             last_branch = branch
             if self.p and np.abs(self.x(z) - self.x_prev).max() > limit:
-                raise NoEquilibrium(f"gross slip: a contact node moves more than {GROSS_MOTION} × diameter")
-            dz = _solve(J, -res)
+                raise NoEquilibrium(f"Newton diverged: an iterate moves a node more than {DIVERGED_MOTION} × diameter")
+            dz, singular = _solve(J, -res)
             if not np.isfinite(dz).all():
                 break
+            if singular:
+                dz = dz + self._mechanism_step(z, J, res, branch, extra)
             if not damped:
                 z = z + dz
                 continue
@@ -492,13 +543,16 @@ class _System:
         raise NoEquilibrium(f"Newton did not converge in {max_iter} iterations ({self.p} candidate pairs)")
 
 
-def _solve(J: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """J⁻¹ rhs by LU; a least-squares (minimum-norm) step when J is singular (a mechanism at this iterate)."""
-    lu, piv = la.lu_factor(J, check_finite=False)
+def _solve(J: np.ndarray, rhs: np.ndarray) -> tuple[np.ndarray, bool]:
+    """J⁻¹ rhs by LU, or a least-squares (minimum-norm) step when J is singular (a mechanism at this iterate);
+    returns the step and whether J was singular."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", la.LinAlgWarning)  # singular J is handled below
+        lu, piv = la.lu_factor(J, check_finite=False)
     d = np.abs(np.diagonal(lu))
     if d.size and d.min() > PIVOT_TOL * d.max():
-        return la.lu_solve((lu, piv), rhs, check_finite=False)
-    return la.lstsq(J, rhs, check_finite=False, cond=1e-12)[0]
+        return la.lu_solve((lu, piv), rhs, check_finite=False), False
+    return la.lstsq(J, rhs, check_finite=False, cond=1e-12)[0], True
 
 
 def _fixes_body(points: np.ndarray, diameter: float) -> bool:
@@ -511,7 +565,8 @@ def _fixes_body(points: np.ndarray, diameter: float) -> bool:
 
 def solve_static(body: CondensedBody, obst: Obstacles, prev_positions: np.ndarray, prev_obst: Obstacles,
                  prev_nodes: np.ndarray, prev_owner: np.ndarray, prev_forces: np.ndarray, prev_rigid: np.ndarray,
-                 load: float) -> StaticState:
+                 load: float, extra_load: np.ndarray | None = None, warm_positions: np.ndarray | None = None
+                 ) -> StaticState:
     """The static state after the obstacles moved from ``prev_obst`` to ``obst`` (module notes).
 
     Parameters
@@ -522,6 +577,9 @@ def solve_static(body: CondensedBody, obst: Obstacles, prev_positions: np.ndarra
     prev_nodes, prev_owner, prev_forces : the previous contacts and forces (warm start; always candidates)
     prev_rigid : (6,) previous rigid coefficients (warm start)
     load : gravity load factor λ
+    extra_load : (3s,) given forces on the surface nodes besides gravity (the continuation's), or None
+    warm_positions : (s, 3) where the candidates are looked for when the warm start is not the previous state
+        (the continuation's intermediate solutions); default ``prev_positions``
 
     Raises
     ------
@@ -544,6 +602,9 @@ def solve_static(body: CondensedBody, obst: Obstacles, prev_positions: np.ndarra
         margin = max(MARGIN_MOTION * motion, MARGIN_MIN * diam)
         for j in np.flatnonzero(obst.gaps(prev_positions, o) < margin):
             cand[(int(surf[j]), o)] = None
+        if warm_positions is not None:
+            for j in np.flatnonzero(obst.gaps(warm_positions, o) < margin):
+                cand[(int(surf[j]), o)] = None
     rigid0 = np.asarray(prev_rigid, float)
     for rnd in range(MAX_ROUNDS):
         keys = sorted(cand)
@@ -556,7 +617,7 @@ def solve_static(body: CondensedBody, obst: Obstacles, prev_positions: np.ndarra
         z0 = np.concatenate([f0.reshape(-1), rigid0])
         errors = []
         for factor in EPS_FACTORS:
-            system = _System(body, obst, pairs, load, factor)
+            system = _System(body, obst, pairs, load, factor, extra_load)
             for damped, iters in ((False, MAX_FULL_STEPS), (True, MAX_DAMPED_STEPS)):
                 try:
                     z, branch, extra, its = system.newton(z0, damped, iters)
@@ -572,6 +633,8 @@ def solve_static(body: CondensedBody, obst: Obstacles, prev_positions: np.ndarra
         f = z[:3 * p].reshape(-1, 3)
         a = z[3 * p:]
         us = body.surface_displacements(nodes, f, load, a)
+        if extra_load is not None:
+            us = us + (body.H @ extra_load).reshape(-1, 3)
         pos = body.points[surf] + us
         active = branch != FREE
         # Penetration of nodes that are not candidates for that obstacle.
@@ -599,6 +662,33 @@ def solve_static(body: CondensedBody, obst: Obstacles, prev_positions: np.ndarra
                            extra["s"][active].copy(), a.copy(), us, its,
                            float(np.abs(res[:3 * p]).max(initial=0.0)) / diam)
     raise NoEquilibrium(f"contacts kept appearing after {MAX_ROUNDS} rounds at λ = {load:.6g}")
+
+
+def solve_continued(body: CondensedBody, obst: Obstacles, prev: StaticState, load: float, *,
+                    fade: tuple[np.ndarray, np.ndarray] | None = None, steps: int = CONTINUATION_STEPS
+                    ) -> StaticState:
+    """The same static problem as :func:`solve_static` from ``prev`` (slip measured from ``prev``), found by
+    continuation in its data: a sequence of auxiliary static problems, **all with the slip reference of
+    ``prev``**, in which the load factor goes from ``prev.load`` to ``load`` and the forces ``fade`` = (nodes,
+    forces) of contacts that the new problem no longer has (the table's, when the lift test removes it) fade
+    from their value to zero; each solve starts from the one before.  The last auxiliary problem *is* the
+    problem, so its solution is a solution of the one static problem — the branch connected to ``prev``,
+    which a Newton iteration started far from it may miss.  Raises :class:`NoEquilibrium` when a step fails.
+    """
+    ref_pos = prev.positions(body)
+    cur = prev
+    ext0 = None
+    if fade is not None and len(fade[0]):
+        ext0 = np.zeros(3 * body.n_surface)
+        slots = body.slot[np.asarray(fade[0], dtype=np.int64)]
+        np.add.at(ext0.reshape(-1, 3), slots, np.asarray(fade[1], float))
+    for j in range(1, steps + 1):
+        t = j / steps
+        lam = prev.load + t * (load - prev.load)
+        extra = None if ext0 is None or j == steps else (1.0 - t) * ext0
+        cur = solve_static(body, obst, ref_pos, prev.obstacles, cur.nodes, cur.owner, cur.forces, cur.rigid, lam,
+                           extra, warm_positions=cur.positions(body))
+    return cur
 
 
 def incremental_residual(body: CondensedBody, state: StaticState, prev_positions: np.ndarray,

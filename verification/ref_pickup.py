@@ -17,7 +17,10 @@ finds.
   tests ρ_{l−1} → ρ_l is cut into ``M`` equal increments.
 * **Lift test (§III-B).**  At each ρ_l, the table is removed and gravity
   switched off (λ = 0) with the fingers where they are: one static problem
-  from the squeeze state (the *hanging base*).  Then the weights
+  from the squeeze state (the *hanging base*, solved by continuation as the
+  table's forces fade out, so that of the zero-weight states — a family when
+  the body can turn about two load-bearing contacts — the one connected to
+  the squeeze state is taken).  Then the weights
   w(ρ_{l−1}) + h, + 2h, … are applied in turn, each one static problem from
   the previous hanging state (a weight jump, not a ramp — the rule of
   fem_grasp's lift test, reimplemented here), until one is **not held**;
@@ -33,9 +36,13 @@ finds.
   or no static state exists.  A failed lift sends the squeeze on from the
   lift-start state (Algorithm 1 step 6), up to four lifts, as fem_grasp does.
 
-An increment whose static problem has no solution is split in halves, up to
-``MAX_SPLITS`` times, before the phase fails (a reference-side safeguard; it
-only refines the path).
+Every static problem is solved by Newton's method from the previous state,
+and, when that finds no static state, again by continuation in its data (the
+load factor, and the forces of the table contacts that the lift test removes,
+faded out) with the slip reference unchanged — the same problem, so the same
+answer when both succeed.  A squeeze or lift increment whose problem has no
+solution even so is split in halves, up to ``MAX_SPLITS`` times, before the
+phase fails (a reference-side safeguard; it only refines the path).
 """
 
 from __future__ import annotations
@@ -49,7 +56,7 @@ import numpy as np
 
 from .ref_body import CondensedBody
 from .ref_contact import (FINGER1, FINGER2, SLIP, STICK, TABLE, NoEquilibrium, Obstacles, PinchedNode, StaticState,
-                          solve_static)
+                          solve_continued, solve_static)
 
 log = logging.getLogger(__name__)
 
@@ -147,7 +154,8 @@ class RefOutcome:
     lift_attempts : [(ρ, success, reason, height)]
     lift_off_height : lift height at success (first increment with no table contact), else nan
     final : the last state (lift-off on success)
-    hangs : hanging states solved; splits : increments split; seconds : wall time
+    solves : static problems solved; splits : increments split; continued : problems found by continuation;
+    seconds : wall time
     """
 
     success: bool = False
@@ -162,6 +170,7 @@ class RefOutcome:
     hangs: int = 0
     splits: int = 0
     solves: int = 0
+    continued: int = 0
     seconds: float = 0.0
 
 
@@ -183,6 +192,7 @@ class ReferencePickup:
         self.mg = scenario.weight
         self.solves = 0
         self.splits = 0
+        self.continued = 0
 
     # ------------------------------------------------------------ geometry
     def obstacles(self, rho: float, lift: float, *, table: bool = True, fingers: bool = True) -> Obstacles:
@@ -191,11 +201,25 @@ class ReferencePickup:
         return Obstacles(None if centers is None else np.asarray(centers, float), sc.radius,
                          sc.table_z if table else None, sc.mu_finger, sc.mu_table)
 
-    def solve(self, prev: StaticState, obst: Obstacles, load: float) -> StaticState:
-        """One static problem from ``prev`` (its positions are the slip references)."""
+    def solve(self, prev: StaticState, obst: Obstacles, load: float,
+              fade: tuple[np.ndarray, np.ndarray] | None = None) -> StaticState:
+        """One static problem from ``prev`` (its positions are the slip references).
+
+        Newton from ``prev``; if that finds no static state, the same problem by continuation in its data
+        (:func:`~verification.ref_contact.solve_continued`, the load and the ``fade`` forces of contacts the
+        problem drops), which finds the branch connected to ``prev`` when a direct Newton misses it.
+        """
         self.solves += 1
-        return solve_static(self.body, obst, prev.positions(self.body), prev.obstacles, prev.nodes, prev.owner,
-                            prev.forces, prev.rigid, load)
+        try:
+            return solve_static(self.body, obst, prev.positions(self.body), prev.obstacles, prev.nodes, prev.owner,
+                                prev.forces, prev.rigid, load)
+        except NoEquilibrium as first:
+            try:
+                st = solve_continued(self.body, obst, prev, load, fade=fade)
+            except NoEquilibrium:
+                raise first from None
+            self.continued += 1
+            return st
 
     def advance(self, prev: StaticState, obst_of: Callable[[float], Obstacles], t0: float, t1: float,
                 load_of: Callable[[float], float] = lambda t: 1.0, splits: int = MAX_SPLITS) -> StaticState:
@@ -294,10 +318,18 @@ class ReferencePickup:
         if self._collinear(nodes):
             return False, "collinear finger contacts", None
         obst = replace(squeezed.obstacles, table=None)
+        table = squeezed.owner == TABLE
+        # Removing the table and the weight at once is a large jump, and at zero weight the problem can have a
+        # family of solutions (the body free to turn about two load-bearing contacts): the branch connected to
+        # the squeeze state (continuation, the table's forces faded out) first, Newton from it directly second.
         try:
-            st = self.solve(squeezed, obst, 0.0)
-        except (NoEquilibrium, PinchedNode) as exc:
-            return False, f"no static state: {exc}", None
+            self.solves += 1
+            st = solve_continued(self.body, obst, squeezed, 0.0, fade=(squeezed.nodes[table], squeezed.forces[table]))
+        except (NoEquilibrium, PinchedNode):
+            try:
+                st = self.solve(squeezed, obst, 0.0)
+            except (NoEquilibrium, PinchedNode) as exc:
+                return False, f"no static state: {exc}", None
         held, why = self._held(st)
         return held, why, st
 
@@ -400,7 +432,7 @@ class ReferencePickup:
         if out.final is None:
             out.final = state
             out.squeeze_depth = out.path[-1].rho
-        out.solves, out.splits = self.solves, self.splits
+        out.solves, out.splits, out.continued = self.solves, self.splits, self.continued
         out.seconds = time.perf_counter() - t_start
         return out
 
