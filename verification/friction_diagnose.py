@@ -100,7 +100,7 @@ def cross_examine(case: Case, increments: int, rhos: list[float] | None = None) 
     rows = []
     prev_ref = 0.0
     for rho, w in out.liftable:
-        want = rhos is not None and any(abs(rho - r) <= 1e-9 for r in rhos)
+        want = rhos is not None and any(abs(rho - r) <= 2e-3 * r for r in rhos)  # depths given to 4 digits
         differs = rho in fw and abs(fw[rho] - w) > 1e-9 * case.scenario.weight
         if (rhos is None and differs) or want:
             st = case.ref.squeeze_state_at(out, rho, increments)

@@ -9,7 +9,7 @@ by a random angle and a squeeze ratio.  A draw is *valid* when fem_grasp
 accepts the scene and reaches the squeeze (a placement exists); invalid draws
 are skipped, so the list depends only on the seed.
 
-    python -m verification.random_scenes OUT_DIR [--count 20] [--seed 24]
+    python -m verification.friction_random OUT_DIR [--count 20] [--seed 24]
 """
 
 from __future__ import annotations
@@ -44,9 +44,9 @@ def ellipsoid_mesh(axes: tuple[float, float, float], size: float) -> tuple[np.nd
     """Tetrahedra of the ellipsoid with semi-axes ``axes`` at edge length ``size`` (gmsh's OpenCASCADE kernel)."""
     import gmsh
 
-    own = not gmsh.isInitialized()
+    own = not bool(getattr(gmsh, "isInitialized", lambda: False)())
     if own:
-        gmsh.initialize(["-noenv"])
+        gmsh.initialize([], False)  # no argv, no user gmshrc
     try:
         gmsh.option.setNumber("General.Terminal", 0)
         gmsh.model.add("ellipsoid")
@@ -103,7 +103,7 @@ def draw(rng: np.random.Generator, k: int) -> Draw:
         obj = f"mesh = \"random_{k:02d}.vtu\""
     density = rng.uniform(400.0, 1100.0)
     weight = density * 9.8 * volume
-    text = f"""# Random scene {k} of verification.random_scenes (seeded)
+    text = f"""# Random scene {k} of verification.friction_random (seeded)
 name = "random_{k:02d}"
 description = "random {'box' if box else 'ellipsoid'}"
 
@@ -173,16 +173,61 @@ def random_scenes(out_dir: str | Path, count: int = 20, seed: int = DEFAULT_SEED
     return paths
 
 
+def compare_random(out_dir: str | Path, count: int = 20, seed: int = DEFAULT_SEED,
+                   levels: tuple[int, ...] = (1, 2, 4), max_draws: int = 200) -> list[dict]:
+    """Draw scenes until ``count`` are valid and run the comparison on each (fem_grasp runs once per draw).
+
+    Returns the summaries of :func:`verification.friction_reference.run_case` (own chain skipped, rest at
+    16 increments: the random scenes test the squeeze, lift test and lift).
+    """
+    from .friction_reference import load_case, run_case
+
+    out = Path(out_dir)
+    rng = np.random.default_rng(seed)
+    results: list[dict] = []
+    for k in range(max_draws):
+        dr = draw(rng, k)
+        path = write_draw(out, dr)
+        try:
+            case = load_case(path)
+        except Exception as exc:  # noqa: BLE001 - any refusal makes the draw invalid
+            log.info("%s: skipped (%s: %s)", dr.name, type(exc).__name__, exc)
+            path.unlink()
+            continue
+        summary = run_case(case, levels=levels, rest_levels=(16,), own_chain=False)
+        summary["draw"] = k
+        results.append(summary)
+        log.info("%s: fem_grasp %s, reference %s, force %.2e", dr.name, summary["verdict_fem_grasp"],
+                 summary["verdict_reference"], summary["force_max_finest"])
+        if len(results) >= count:
+            break
+    return results
+
+
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m verification.random_scenes", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="python -m verification.friction_random", description=__doc__.splitlines()[0])
     p.add_argument("out", type=Path)
     p.add_argument("--count", type=int, default=20)
     p.add_argument("--seed", type=int, default=DEFAULT_SEED)
+    p.add_argument("--compare", action="store_true", help="also run the frictional-contact comparison on each")
+    p.add_argument("--json", type=Path, help="with --compare: write the summaries here")
     args = p.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
-    for path in random_scenes(args.out, args.count, args.seed):
-        print(path)
-    return 0
+    if not args.compare:
+        for path in random_scenes(args.out, args.count, args.seed):
+            print(path)
+        return 0
+    import json
+
+    from .friction_reference import json_safe
+
+    rows = compare_random(args.out, args.count, args.seed)
+    for r in rows:
+        print(f"{r['scene']}: {r['vertices']} vertices, fem_grasp {r['verdict_fem_grasp']}, reference "
+              f"{r['verdict_reference']}, |Δρ*| {r['rho_star_difference'] * 1e3:.3g} mm, force {r['force_max_finest']:.2e}")
+    if args.json:
+        args.json.write_text(json.dumps(json_safe(rows), indent=1), encoding="utf-8")
+    return 0 if all(r["agree"] for r in rows) else 1
 
 
 if __name__ == "__main__":
