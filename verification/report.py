@@ -280,9 +280,14 @@ def write_report(summary: dict, out_dir: str | Path) -> Path:
                          "0.01. ‖K‖₂ is inflated by the slivers; agreement with dolfinx:</p>")
             parts.append(table(CROSS_HEADERS, _crosscheck_rows([dict(sl, label="sliver cube")])))
 
+    if s.get("friction"):
+        from .friction_report import section
+
+        parts.append(section(s["friction"], images))
+
     tm = s.get("stage_seconds", {})
     if tm:
-        parts.append("<h2>6. Timing</h2>" + table(["stage", "seconds"], [[k, v] for k, v in tm.items()]))
+        parts.append("<h2>7. Timing</h2>" + table(["stage", "seconds"], [[k, v] for k, v in tm.items()]))
     parts.append("</body></html>")
     path = out / "report.html"
     path.write_text("\n".join(parts), encoding="utf-8")
