@@ -174,7 +174,7 @@ def random_scenes(out_dir: str | Path, count: int = 20, seed: int = DEFAULT_SEED
 
 
 def compare_random(out_dir: str | Path, count: int = 20, seed: int = DEFAULT_SEED,
-                   levels: tuple[int, ...] = (1, 2, 4), max_draws: int = 200) -> list[dict]:
+                   levels: tuple[int, ...] = (1, 4), max_draws: int = 200) -> list[dict]:
     """Draw scenes until ``count`` are valid and run the comparison on each (fem_grasp runs once per draw).
 
     Returns the summaries of :func:`verification.friction_reference.run_case` (own chain skipped, rest at
@@ -211,6 +211,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=DEFAULT_SEED)
     p.add_argument("--compare", action="store_true", help="also run the frictional-contact comparison on each")
     p.add_argument("--json", type=Path, help="with --compare: write the summaries here")
+    p.add_argument("--increments", type=int, nargs="+", default=[1, 4], help="reference levels M (default 1 4)")
     args = p.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
     if not args.compare:
@@ -221,7 +222,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from .friction_reference import json_safe
 
-    rows = compare_random(args.out, args.count, args.seed)
+    rows = compare_random(args.out, args.count, args.seed, levels=tuple(args.increments))
     for r in rows:
         print(f"{r['scene']}: {r['vertices']} vertices, fem_grasp {r['verdict_fem_grasp']}, reference "
               f"{r['verdict_reference']}, |Δρ*| {r['rho_star_difference'] * 1e3:.3g} mm, force {r['force_max_finest']:.2e}")

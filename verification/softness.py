@@ -25,9 +25,14 @@ and the diagnostics that explain them:
 * ``tilt``: the angle between the patch's mean normal and the rigid contact
   normal at p_i (p_j), degrees — how much of the weight the normals carry;
 * ``utilisation`` = Σ|f_t| / (μ Σ f·n̂): the friction mobilised at lift-off (the
-  rigid least-force grasp has 1 at both contacts by construction);
+  rigid least-force grasp puts at least one contact on its cone);
 * ``liftable_excess`` = w at the passing lift test / mg (the lift test passes
   at w ≥ mg in steps of h, and each finger must keep a sticking contact).
+
+fem_grasp's squeeze increment is taken at the scene's own modulus and scaled
+by E_scene / E above it (displacements scale with 1/E; fem_grasp's default
+increment has a floor of 0.1 % of the maximum squeeze, which at 1–3 MPa would
+put the first lift test far beyond the squeeze the weight needs).
 
 ``python -m verification.softness [--objects …] [--youngs …] [--fine] [--json PATH] [--plot PATH]``
 (``--fine``: also a mesh graded to R/4 under the fingertips, about 2,500 vertices; the shipped meshes are
@@ -131,8 +136,9 @@ def fine_mesh(name: str, vertices: int = FINE_VERTICES, radius: float = 0.01):
     return shapes.paper_mesh(name, vertices, refine=refine)
 
 
-def run_one(name: str, young: float, mesh: Any | None = None) -> dict[str, Any]:
-    """fem_grasp's pickup of a paper scene at modulus ``young`` (optionally on another mesh) and its measures."""
+def run_one(name: str, young: float, mesh: Any | None = None, step: float | None = None) -> dict[str, Any]:
+    """fem_grasp's pickup of a paper scene at modulus ``young`` (optionally on another mesh, with another squeeze
+    increment) and its measures."""
     from fem_grasp import Body, pickup
     from fem_grasp.scene import load_scene, resolve_scene
 
@@ -141,9 +147,13 @@ def run_one(name: str, young: float, mesh: Any | None = None) -> dict[str, Any]:
     kw = {"weight": sc.weight} if sc.weight is not None else {"density": sc.density}
     body = Body(m, young, sc.poisson, gravity=sc.gravity, **kw)
     t0 = time.perf_counter()
-    res = pickup(body, **sc.pickup_kwargs())
+    pk = sc.pickup_kwargs()
+    if step is not None:
+        pk["step"] = step
+    res = pickup(body, **pk)
     row: dict[str, Any] = {"object": name, "young": young, "vertices": int(m.n_points), "success": bool(res.success),
-                           "reason": res.reason, "squeeze_depth": float(res.squeeze_depth),
+                           "reason": res.reason, "squeeze_depth": float(res.squeeze_depth), "step": float(res.step),
+                           "radius": float(res.finger_radius),
                            "seconds": time.perf_counter() - t0, "weight": float(res.body.weight),
                            "lift_test_step": float(sc.lift_test_step or 0.05 * res.body.weight)}
     passed = [w for r, w in res.liftable if r == res.squeeze_depth]
@@ -157,21 +167,28 @@ def run_one(name: str, young: float, mesh: Any | None = None) -> dict[str, Any]:
 
 
 def study(objects: tuple[str, ...] = PAPER_OBJECTS, youngs: tuple[float, ...] = YOUNGS, fine: bool = False,
-          fine_youngs: tuple[float, ...] | None = None) -> dict[str, Any]:
-    """The whole study: rows for every object and modulus (and the finer mesh when ``fine``)."""
+          fine_youngs: tuple[float, ...] | None = None, shipped: bool = True) -> dict[str, Any]:
+    """The whole study: rows for every object and modulus on the shipped meshes (unless not ``shipped``) and on
+    the finer graded mesh (when ``fine``)."""
+    from fem_grasp.scene import load_scene, resolve_scene
+
     rows = []
     for name in objects:
-        for e in youngs:
-            rows.append(dict(run_one(name, e), mesh="shipped"))
-            log.info("%s E = %.3g: %s", name, e, rows[-1].get("ratio"))
-        if fine:
-            try:
-                mesh = fine_mesh(name)
-            except Exception as exc:  # noqa: BLE001 - gmsh missing or the count not reached
-                log.warning("no finer mesh for %s: %s", name, exc)
-                continue
-            for e in (fine_youngs or youngs):
-                rows.append(dict(run_one(name, e, mesh), mesh="graded R/4"))
+        # The squeeze increment at the scene's own modulus, scaled by E_scene / E above it: displacements scale
+        # with 1/E, and fem_grasp's default increment is held above 0.1 % of the maximum squeeze, which at
+        # 1–3 MPa is many times the squeeze the weight needs (the first lift test would come far too late).
+        e0 = load_scene(resolve_scene(name)).young
+        step0 = run_one(name, e0)["step"]
+        for mesh_label, mesh in ([("shipped", None)] if shipped else []) + ([("graded R/4", "fine")] if fine else []):
+            if mesh == "fine":
+                try:
+                    mesh = fine_mesh(name)
+                except Exception as exc:  # noqa: BLE001 - gmsh missing or the count not reached
+                    log.warning("no finer mesh for %s: %s", name, exc)
+                    continue
+            for e in (youngs if mesh is None else (fine_youngs or youngs)):
+                rows.append(dict(run_one(name, e, mesh, step=step0 * min(1.0, e0 / e)), mesh=mesh_label))
+                log.info("%s %s E = %.3g: %s", name, mesh_label, e, rows[-1].get("ratio"))
     return {"rows": rows, "youngs": list(youngs), "table_iii": TABLE_III, "objects": list(objects)}
 
 
@@ -228,16 +245,20 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--objects", nargs="+", default=list(PAPER_OBJECTS))
     p.add_argument("--youngs", nargs="+", type=float, default=list(YOUNGS))
     p.add_argument("--fine", action="store_true", help="also a mesh graded to R/4 under the fingertips")
+    p.add_argument("--fine-youngs", nargs="+", type=float, help="moduli for the finer mesh (default: --youngs)")
+    p.add_argument("--no-shipped", action="store_true", help="only the finer mesh")
     p.add_argument("--json", type=Path)
     p.add_argument("--plot", type=Path)
     args = p.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(message)s")
-    s = study(tuple(args.objects), tuple(args.youngs), args.fine)
+    s = study(tuple(args.objects), tuple(args.youngs), args.fine,
+              tuple(args.fine_youngs) if args.fine_youngs else None, shipped=not args.no_shipped)
     s["conclusions"] = conclusions(s)
     for r in s["rows"]:
         if "ratio" in r:
             q = r["ratio"]
-            print(f"{r['object']:10s} {r['mesh']:10s} E = {r['young']:8.3g} Pa: ρ* = {r['squeeze_depth'] * 1e3:7.3f} mm, "
+            print(f"{r['object']:10s} {r['mesh']:10s} E = {r['young']:8.3g} Pa: ρ* = {r['squeeze_depth'] * 1e3:7.3f} mm "
+                  f"(step {r['step'] * 1e3:.3g}), "
                   f"Σf·n̂ {r['normal']:.3f} N (rigid {r['rigid']['normal']:.3f}, ×{q['normal']:.3f}), grip ×{q['grip']:.3f}, "
                   f"resultant ×{q['resultant']:.3f}, wrap {r['wrap']:.3f}, utilisation {r['utilisation']:.2f}, "
                   f"w/mg {r['liftable_excess']:.3f}")
