@@ -48,6 +48,7 @@ finest increment exceeds ``FORCE_TOL``, 2 bad input.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import logging
 import math
@@ -100,17 +101,29 @@ class Case:
 def load_case(scene: str | Path, *, quick: bool = False, step: float | None = None) -> Case:
     """Run fem_grasp on a scene (shipped name or path) and set up the reference.
 
+    Cached per (resolved path, file contents, quick, step) within a process: fem_grasp's pickup is the dear
+    part, and the step study, the tests and the command may ask for the same scene twice.
+
     Raises
     ------
     fem_grasp.scene.SceneError (a ValueError)
         A missing or invalid scene.
     """
+    from fem_grasp.scene import resolve_scene
+
+    path = Path(resolve_scene(str(scene))).resolve()
+    text = path.read_text(encoding="utf-8") if path.exists() else ""
+    return _load_case(str(path), text, bool(quick), None if step is None else float(step))
+
+
+@functools.lru_cache(maxsize=8)
+def _load_case(path_str: str, text: str, quick: bool, step: float | None) -> Case:
     from dataclasses import replace
 
     from fem_grasp import pickup
-    from fem_grasp.scene import load_scene, resolve_scene
+    from fem_grasp.scene import load_scene
 
-    path = resolve_scene(str(scene))
+    path = Path(path_str)
     sc = load_scene(path, quick=quick)
     if step is not None:
         sc = replace(sc, step=float(step))
