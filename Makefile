@@ -69,6 +69,17 @@ verify: setup
 verify-quick: setup
 	$(PY) -m verification.run --quick
 
+.PHONY: friction-reference softness
+# Issue 24: one scene against the independent frictional-contact reference (exit 1 when they disagree), and the
+# Table III study (softness against the rigid grasp); both are stages of `make verify` too.
+SCENE ?= tomato
+friction-reference: setup
+	$(PY) -m verification.friction_reference $(SCENE) $(FRICTION_ARGS)
+
+softness: setup
+	@mkdir -p verification/out
+	$(PY) -m verification.softness --fine --json verification/out/softness.json --plot verification/out/softness.png
+
 meshes: setup
 	$(PY) scripts/make_meshes.py
 

@@ -282,7 +282,7 @@ def write_report(summary: dict, out_dir: str | Path) -> Path:
 
     pert, rnd = s.get("perturbation"), s.get("random_scenes")
     if pert or rnd:
-        parts.append("<h2>Same answer on every machine</h2>")
+        parts.append("<h2>6. Same answer on every machine</h2>")
     if pert:
         tol = pert["tolerances"]
         parts.append(f"<p class='note'>Each case picked up in a fresh process under each variant ({', '.join(pert['variants'])}): "
@@ -303,9 +303,14 @@ def write_report(summary: dict, out_dir: str | Path) -> Path:
                      f"Crashes or failed checks: {len(rnd['problems'])}.</p>")
         if rnd["problems"]:
             parts.append(table(["seed", "problems"], [[p["seed"], "; ".join(p["problems"])] for p in rnd["problems"]]))
+    if s.get("friction"):
+        from .friction_report import section
+
+        parts.append(section(s["friction"], images))
+
     tm = s.get("stage_seconds", {})
     if tm:
-        parts.append("<h2>6. Timing</h2>" + table(["stage", "seconds"], [[k, v] for k, v in tm.items()]))
+        parts.append("<h2>8. Timing</h2>" + table(["stage", "seconds"], [[k, v] for k, v in tm.items()]))
     parts.append("</body></html>")
     path = out / "report.html"
     path.write_text("\n".join(parts), encoding="utf-8")

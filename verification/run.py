@@ -2,8 +2,9 @@
 
 Writes ``report.html``, the PNGs it embeds and ``summary.json`` (every number
 the report quotes) to ``verification/out/`` by default.  The full run takes
-about a quarter of an hour on a two-core machine, ``--quick`` under three
-minutes.  The exit status is 1 if a stage failed or a headline check failed.
+about a quarter of an hour on a two-core machine before the frictional-contact
+stages (issue 24, :mod:`verification.friction_verify`), which add about
+three quarters of an hour; ``--quick`` stays within a few minutes.  The exit status is 1 if a stage failed or a headline check failed.
 """
 
 from __future__ import annotations
@@ -287,7 +288,7 @@ def environment() -> dict:
 
 
 #: Stages of a run (the progress bar's length).
-STAGES = 15
+STAGES = 16
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -386,8 +387,21 @@ def main(argv: list[str] | None = None) -> int:
             images["collinear"] = plots.collinear_plot(stab["collinear"], out_dir / "collinear.png").name
 
     stage("plots", figures, lambda v: None)
+
+    def friction():
+        from . import friction_verify
+
+        part, imgs = friction_verify.run(args.quick, out_dir)
+        images.update(imgs)
+        return part
+
+    stage("frictional contact reference", friction, lambda v: summary.__setitem__("friction", v))
     bar.close()
     summary["checks"] = headline_checks(summary)
+    if "friction" in summary:
+        from . import friction_verify
+
+        summary["checks"] += friction_verify.checks(summary["friction"])
     summary["total_seconds"] = time.perf_counter() - t_start
     summary = json_safe(summary)
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=1), encoding="utf-8")
