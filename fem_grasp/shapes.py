@@ -35,7 +35,7 @@ import functools
 import logging
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, Iterator
+from typing import TYPE_CHECKING, Any, Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -80,19 +80,26 @@ class Refinement:
         return cls(tuple(tuple(float(x) for x in row) for row in np.asarray(centers, float)), 2.0 * r, 0.5 * r, r)
 
 
-def _apply_refinement(gmsh: Any, refine: "Refinement | None", mesh_size: float) -> None:
-    """Set the background size field of the current model (no-op without a refinement)."""
+def _apply_refinement(gmsh: Any, refine: "Refinement | Sequence[Refinement] | None", mesh_size: float) -> None:
+    """Set the background size field of the current model (no-op without a refinement).
+
+    ``refine`` may be one :class:`Refinement` or several (e.g. finer at the
+    fingertips than at the table): the size is the smallest any of them asks.
+    """
     if refine is None:
         return
     field = gmsh.model.mesh.field
     balls = []
-    for x, y, z in refine.centers:
-        f = field.add("Ball")
-        for key, value in (("Radius", refine.radius), ("Thickness", refine.thickness),
-                           ("VIn", min(refine.size, mesh_size)), ("VOut", mesh_size),
-                           ("XCenter", x), ("YCenter", y), ("ZCenter", z)):
-            field.setNumber(f, key, float(value))
-        balls.append(f)
+    for ref in ((refine,) if isinstance(refine, Refinement) else tuple(refine)):
+        for x, y, z in ref.centers:
+            f = field.add("Ball")
+            for key, value in (("Radius", ref.radius), ("Thickness", ref.thickness),
+                               ("VIn", min(ref.size, mesh_size)), ("VOut", mesh_size),
+                               ("XCenter", x), ("YCenter", y), ("ZCenter", z)):
+                field.setNumber(f, key, float(value))
+            balls.append(f)
+    if not balls:
+        return
     smallest = field.add("Min")
     field.setNumbers(smallest, "FieldsList", balls)
     field.setAsBackgroundMesh(smallest)
@@ -301,7 +308,7 @@ def _check_lengths(**lengths: float) -> None:
 
 def ellipsoid(
     semi_axes: tuple[float, float, float], mesh_size: float, *, algorithm: str = "auto",
-    refine: Refinement | None = None,
+    refine: "Refinement | Sequence[Refinement] | None" = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Tetrahedral mesh of a solid ellipsoid centred on the origin.
 
@@ -313,7 +320,7 @@ def ellipsoid(
         Target edge length in metres (gmsh's ``Mesh.MeshSizeMax``).
     algorithm : {"auto", "meshadapt", "frontal-delaunay", "delaunay"}
         gmsh's surface algorithm; see :data:`AUTO_MESHADAPT_MAX_VERTICES`.
-    refine : Refinement, optional
+    refine : Refinement or a sequence of them, optional
         A finer mesh around some points (``mesh_size`` elsewhere).
 
     Returns
@@ -346,7 +353,7 @@ def ellipsoid(
 
 
 def dome(radius: float, height: float, mesh_size: float, *, algorithm: str = "auto",
-         refine: Refinement | None = None, equator: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+         refine: "Refinement | Sequence[Refinement] | None" = None, equator: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Tetrahedral mesh of a steam-bun dome: a spheroid cut flat at its base.
 
     The solid is ``x² / r² + y² / r² + (z − e)² / h² <= 1, z >= 0`` with
@@ -367,7 +374,7 @@ def dome(radius: float, height: float, mesh_size: float, *, algorithm: str = "au
         Target edge length in metres.
     algorithm : {"auto", "meshadapt", "frontal-delaunay", "delaunay"}
         gmsh's surface algorithm, as for :func:`ellipsoid`.
-    refine : Refinement, optional
+    refine : Refinement or a sequence of them, optional
         A finer mesh around some points, as for :func:`ellipsoid`.
 
     Returns
@@ -439,7 +446,7 @@ class PaperShape:
     weight: float
 
     def build(self, mesh_size: float, algorithm: str = "auto",
-              refine: Refinement | None = None) -> tuple[np.ndarray, np.ndarray]:
+              refine: "Refinement | Sequence[Refinement] | None" = None) -> tuple[np.ndarray, np.ndarray]:
         """Mesh this shape with target edge length ``mesh_size`` (metres), finer where ``refine`` says."""
         if self.kind == "ellipsoid":
             a, b, c = self.dimensions
@@ -662,7 +669,7 @@ def _probe_size(count: Callable[[float], int], target: int) -> float:
 
 
 def paper_mesh(name: str, target_vertices: int | None = None, rel_tol: float = 0.05, *,
-               refine: Refinement | None = None) -> "TetMesh":
+               refine: "Refinement | Sequence[Refinement] | None" = None) -> "TetMesh":
     """One of the paper's objects as a :class:`~fem_grasp.mesh.TetMesh` with a set vertex count.
 
     Parameters
@@ -673,7 +680,7 @@ def paper_mesh(name: str, target_vertices: int | None = None, rel_tol: float = 0
         ~60 000 take a few seconds per gmsh call (use for refinement series).
     rel_tol : float
         Relative tolerance on the vertex count.
-    refine : Refinement, optional
+    refine : Refinement or a sequence of them, optional
         A finer mesh around given points; the search then sets the outer mesh
         size (see :func:`fem_grasp.objects.graded_paper_mesh`).
 
