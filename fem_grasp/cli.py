@@ -2,7 +2,7 @@
 
 Subcommands::
 
-    fem-grasp run SCENE [--quick] [--out DIR] [--report]    squeeze and lift (Algorithm 1)
+    fem-grasp run SCENE [--quick] [--out DIR] [--report] [--accuracy A]   squeeze and lift (Algorithm 1)
     fem-grasp rest SCENE [--quick] [--out DIR]              the resting state only (§III-A)
     fem-grasp mesh INPUT -o OUTPUT [--vertices N | --size H] closed surface scan → tetrahedral mesh
     fem-grasp info PATH                                     figures of a mesh, a surface or a scene
@@ -102,8 +102,29 @@ def _load_scene(args: argparse.Namespace) -> Any:
 
         young = parse_quantity(young, "pressure", "--young")
         _positive("--young", young, "Pa")
-    return with_overrides(scene, backend=getattr(args, "backend", None), young=young,
-                          lift=False if getattr(args, "no_lift", False) else None)
+    scene = with_overrides(scene, backend=getattr(args, "backend", None), young=young,
+                           lift=False if getattr(args, "no_lift", False) else None)
+    accuracy = getattr(args, "accuracy", None)
+    if accuracy is not None:
+        from dataclasses import replace
+
+        scene = replace(scene, accuracy=_parse_accuracy(accuracy))
+    return scene
+
+
+def _parse_accuracy(text: str) -> float | None:
+    """``--accuracy``: a relative error (0.05), a percentage (5%), or off (one run on the scene's mesh)."""
+    t = str(text).strip().lower()
+    if t in ("off", "none", "no"):
+        return None
+    try:
+        value = float(t[:-1]) / 100.0 if t.endswith("%") else float(t)
+    except ValueError:
+        raise _BadInput(f"--accuracy: expected a relative error such as 0.05, a percentage such as 5%, or off; "
+                        f"got {text!r}") from None
+    if not 0.0 < value < 1.0:
+        raise _BadInput(f"--accuracy: a relative error in (0, 1) (e.g. 0.05 or 5%), got {text!r}")
+    return value
 
 
 def _check_contacts(scene: Any, mesh: Any) -> None:
@@ -146,6 +167,34 @@ def _summary_lines(scene: Any, result: Any, rest_cached: bool) -> list[str]:
         + "  (A contact, B break, C stick→slip, D slip→stick)",
         "time       " + ", ".join(f"{k} {v:.2f} s" for k, v in result.timings.items()),
     ]
+    acc = getattr(result, "accuracy", None)
+    if acc:
+        lines[3:3] = _accuracy_lines(acc, scene.quick)
+    return lines
+
+
+def _accuracy_lines(acc: dict[str, Any], quick: bool) -> list[str]:
+    """The estimated error of the answer, and one line per level (:func:`fem_grasp.accuracy.converged_pickup`)."""
+    e = acc["estimated_error"]
+
+    def pct(x: Any) -> str:
+        if x is None or not np.isfinite(x):
+            return "unknown"
+        return f"{100 * x:.0f} %" if x >= 0.1 else f"{100 * x:.2g} %"
+
+    if acc["converged"]:
+        head = (f"accuracy   target {100 * acc['target']:g} %: estimated error rho* {pct(e['squeeze_depth'])}, "
+                f"finger force {pct(e['finger_force'])} ({len(acc['levels'])} levels, {acc.get('seconds', 0):.0f} s)")
+    else:
+        head = (f"accuracy   NOT CONVERGED to {100 * acc['target']:g} %: the answer may be off by about "
+                f"{pct(e['squeeze_depth'])} in rho* and {pct(e['finger_force'])} in the finger force "
+                f"({acc.get('note', '')})" + ("; run without --quick for the converged answer" if quick else ""))
+    lines = [head]
+    for lv in acc["levels"]:
+        lines.append(f"  level {lv['level']}  {lv['vertices']:,} vertices, spacing {1e3 * lv['inner_size']:.3g} mm at "
+                     f"the patches, increment {1e3 * lv['step']:.3g} mm: "
+                     f"{'picked up' if lv['success'] else 'not picked up'}, rho {1e3 * lv['squeeze_depth']:.4g} mm, "
+                     f"finger force {lv['finger_force']:.4g} N, {lv['seconds'] + lv['mesh_seconds']:.1f} s")
     return lines
 
 
@@ -171,8 +220,15 @@ def cmd_run(args: argparse.Namespace) -> int:
         with bar.phase("resting on the table"):
             rs, cached = cached_rest(body, scene.mu_table, backend=scene.backend, down=scene.object.down,
                                      cache_dir=cache)
-        with bar.phase("squeeze, lift test, lift"):
-            result = pickup(body, rest_state=rs, **scene.pickup_kwargs())
+        with bar.phase("squeeze, lift test, lift" if scene.accuracy is None else "squeeze and lift, refining"):
+            if scene.accuracy is None:
+                result = pickup(body, rest_state=rs, **scene.pickup_kwargs())
+            else:
+                from .accuracy import MAX_LEVELS, converged_pickup
+
+                # --quick: one refinement, enough to measure how far the coarse answer may be off
+                result = converged_pickup(body, accuracy=scene.accuracy, geometry=scene.geometry(), rest_state=rs,
+                                          max_levels=1 if scene.quick else MAX_LEVELS, **scene.pickup_kwargs())
         code = EXIT_OK if result.success else EXIT_FAILED
         if out is not None:
             with bar.phase("writing results"):
@@ -346,6 +402,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "status is then 1, as the object has not been lifted")
     p.add_argument("--young", metavar="E",
                    help="override the scene's Young's modulus: pascals, or a string with a unit, e.g. '20 kPa'")
+    p.add_argument("--accuracy", metavar="A",
+                   help="override the scene's [solver] accuracy: a relative error of rho* and the finger force "
+                        "(0.05 or 5%%): refine at the contact patches until two successive answers agree within it; "
+                        "'off' runs once on the scene's mesh (with --quick: one refinement, to measure the error)")
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("rest", parents=[common, scene_opts], help="compute the resting state of a scene's object",

@@ -276,6 +276,33 @@ def _row(k: str, v: Any) -> str:
     return f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"
 
 
+def _accuracy_html(acc: dict[str, Any] | None) -> str:
+    """The levels of ``pickup(..., accuracy=...)`` (:func:`fem_grasp.accuracy.converged_pickup`), as a table."""
+    if not acc:
+        return ""
+
+    def change(lv: dict[str, Any]) -> str:
+        c = lv.get("change")
+        return "—" if not c else f"{100 * c['squeeze_depth']:.2g} % / {100 * c['finger_force']:.2g} %"
+
+    rows = "".join(
+        f"<tr><td>{lv['level']}</td><td>{lv['vertices']:,}</td><td>{1e3 * lv['inner_size']:.3g}</td>"
+        f"<td>{1e3 * lv['outer_size']:.3g}</td><td>{1e3 * lv['step']:.3g}</td><td>{lv['lift_test_step']:.3g}</td>"
+        f"<td>{'picked up' if lv['success'] else 'not picked up'}</td><td>{1e3 * lv['squeeze_depth']:.4g}</td>"
+        f"<td>{lv['finger_force']:.4g}</td>"
+        f"<td>{lv['finger_nodes'][0]} / {lv['finger_nodes'][1]} / {lv['table_nodes']}</td>"
+        f"<td>{change(lv)}</td><td>{lv['seconds'] + lv['mesh_seconds']:.1f}</td></tr>" for lv in acc["levels"])
+    return (f"<h2>Accuracy: {'converged' if acc['converged'] else 'NOT converged'} "
+            f"(target {100 * acc['target']:g} %)</h2><p>{html.escape(acc.get('note', ''))}. Each level remeshes "
+            f"{html.escape(acc.get('geometry', ''))} with half the spacing at the contact patches and halves the "
+            "squeeze increment and the lift-test step h; the estimated error is the difference of the last two "
+            "levels.</p>"
+            "<table><tr><th>level</th><th>vertices</th><th>spacing at the patches (mm)</th><th>outer (mm)</th>"
+            "<th>increment (mm)</th><th>h (N)</th><th>verdict</th><th>ρ* (mm)</th><th>finger force (N)</th>"
+            "<th>contacts finger 1 / 2 / table</th><th>change of ρ* / force</th><th>s</th></tr>"
+            f"{rows}</table>")
+
+
 def _html(doc: dict[str, Any]) -> str:
     s, res, scene = doc["summary"], doc["result"], doc.get("scene") or {}
     ok = s["success"]
@@ -301,6 +328,13 @@ def _html(doc: dict[str, Any]) -> str:
              f"{g(doc['rest']['max_sag'], 1e3)} mm" + (" (from cache)" if doc.get("rest_from_cache") else "")),
         _row("time", ", ".join(f"{k} {v:.2f} s" for k, v in s["timings"].items())),
     ]
+    acc_html = _accuracy_html(doc.get("accuracy"))
+    if doc.get("accuracy"):
+        e = doc["accuracy"]["estimated_error"]
+        pct = lambda x: "unknown" if x is None else f"{100 * x:.2g} %"  # noqa: E731
+        rows.insert(5, _row("accuracy", f"target {100 * doc['accuracy']['target']:g} %: estimated error of ρ* "
+                                        f"{pct(e.get('squeeze_depth'))}, of the finger force {pct(e.get('finger_force'))}"
+                                        f" — {'converged' if doc['accuracy']['converged'] else 'NOT converged'}"))
     pics = {
         "rest.png": "At rest on the table (fingertips drawn where they first touch).",
         "lift_start.png": "When the lift test passes and the fingers start to lift (or where the squeeze stopped).",
@@ -329,6 +363,7 @@ code {{ background: #f4f4f4; padding: 1px 4px; }}
 <p>Data: <a href="result.json">result.json</a> (schema {doc['schema']} v{doc['schema_version']}).
 ParaView: open <code>object.pvd</code>, <code>finger1.pvd</code>, <code>finger2.pvd</code> and <code>table.vtu</code>;
 colour by <code>contact_state</code> (0 none, 1 stick, 2 slip) or <code>displacement</code>, glyph <code>contact_force</code>.</p>
+{acc_html}
 {figs}
 <h2>Events</h2>
 <table><tr><th>#</th><th>phase</th><th>kind</th><th>body</th><th>node</th><th>ρ (mm)</th><th>lift (mm)</th></tr>

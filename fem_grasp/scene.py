@@ -37,6 +37,8 @@ optional)::
     lift_test_step = "0.05 N"
     max_lift = "5 cm"
     lift = true
+    accuracy = 0.05           # relative accuracy of ρ* and the finger force: refine at the contact patches until
+                              # two successive levels agree within it (fem_grasp.accuracy); omit for one run
 
     [quick]                   # overrides for `--quick`: same tables, merged over the above
     object = { vertices = 200 }
@@ -199,6 +201,7 @@ class Scene:
     quick: bool = False
     expect: str | None = None
     placement_rule: str = DEFAULT_PLACEMENT_RULE
+    accuracy: float | None = None
 
     # ------------------------------------------------------------ building
     def load_mesh(self, cache_dir: Path | None = None) -> "Any":
@@ -238,8 +241,19 @@ class Scene:
         kw = {"weight": self.weight} if self.weight is not None else {"density": self.density}
         return Body(mesh, self.young, self.poisson, gravity=self.gravity, **kw)
 
+    def geometry(self) -> "Any":
+        """What ``accuracy`` remeshes (:mod:`fem_grasp.remesh`): the paper shape, the box, the scan's surface;
+        None for a volume mesh file (the loop then remeshes the mesh's own boundary)."""
+        from . import remesh
+
+        return remesh.geometry_of_scene(self)
+
     def pickup_kwargs(self) -> dict[str, Any]:
-        """Keyword arguments of :func:`fem_grasp.pickup.pickup` (all but ``body`` and ``rest_state``)."""
+        """Keyword arguments of :func:`fem_grasp.pickup.pickup` (all but ``body`` and ``rest_state``).
+
+        ``accuracy`` is not among them: a caller that wants the converged answer passes
+        ``accuracy=scene.accuracy, geometry=scene.geometry()`` (the CLI does).
+        """
         return {"mu_finger": self.mu_finger, "mu_table": self.mu_table, "finger_radius": self.finger_radius,
                 "contacts": self.contacts, "directions": tuple(np.array(d, float) for d in self.directions),
                 "ratio": self.ratio, "max_squeeze": self.max_squeeze, "step": self.step, "backend": self.backend,
@@ -311,7 +325,7 @@ _SCHEMA: dict[str, dict[str, str]] = {
     "friction": {"finger": "float", "table": "float"},
     "fingers": {"radius": "length", "contacts": "contacts", "directions": "directions", "ratio": "float"},
     "solver": {"backend": "str", "max_squeeze": "length", "step": "length", "lift_test_step": "force",
-               "max_lift": "length", "lift": "bool"},
+               "max_lift": "length", "lift": "bool", "accuracy": "float"},
 }
 
 
@@ -571,6 +585,9 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
         raise SceneError(f"{s.where('backend')} must be \"sparse\" or \"spectral\", got {backend!r}")
     for key, unit in (("max_squeeze", "m"), ("step", "m"), ("lift_test_step", "N"), ("max_lift", "m")):
         _positive(s.where(key), s.get(key), unit)
+    accuracy = s.get("accuracy")
+    if accuracy is not None and not 0.0 < accuracy < 1.0:
+        raise SceneError(f"{s.where('accuracy')} is a relative error in (0, 1), e.g. 0.05 for 5 %; got {accuracy!r}")
     step, max_sq = s.get("step"), s.get("max_squeeze")
     if step is not None and max_sq is not None and step > max_sq:
         raise SceneError(f"{s.where('step')} ({step:g} m) exceeds solver.max_squeeze ({max_sq:g} m)")
@@ -584,7 +601,8 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
                  contacts=contacts, directions=directions, ratio=float(ratio), backend=backend,
                  max_squeeze=max_sq, step=step, lift_test_step=s.get("lift_test_step"),
                  max_lift=s.get("max_lift"), lift=s.get("lift", True), description=top.get("description", ""),
-                 path=path, quick=quick, expect=expect, placement_rule=rule)
+                 path=path, quick=quick, expect=expect, placement_rule=rule,
+                 accuracy=None if accuracy is None else float(accuracy))
 
 
 def load_scene(path: str | Path, quick: bool = False) -> Scene:
