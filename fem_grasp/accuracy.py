@@ -322,7 +322,7 @@ def _level_meshes(geometry: Any, fingers: np.ndarray, table: np.ndarray, inner: 
 def converged_pickup(body: Any, *, accuracy: float = DEFAULT_ACCURACY, geometry: Any = None,
                      max_levels: int = MAX_LEVELS, max_seconds: float | None = None, rest_state: Any = None,
                      contacts: tuple[int, int] | None = None, step: float | None = None,
-                     lift_test_step: float | None = None, **kwargs: Any) -> Any:
+                     lift_test_step: float | None = None, on_level: Any = None, **kwargs: Any) -> Any:
     """Algorithm 1 to a target accuracy of its answer (module notes); what ``pickup(..., accuracy=...)`` runs.
 
     Parameters
@@ -341,6 +341,7 @@ def converged_pickup(body: Any, *, accuracy: float = DEFAULT_ACCURACY, geometry:
         (embedded as nodes where the geometry allows, :meth:`~fem_grasp.remesh.Geometry.build`)
     step, lift_test_step : level 0's squeeze increment (m) and lift-test step h (N), default pickup's;
         halved at every level
+    on_level : called with the :class:`AccuracyReport` after every level (progress, partial records)
     **kwargs : the other keywords of :func:`fem_grasp.pickup.pickup`
 
     Returns
@@ -374,6 +375,8 @@ def converged_pickup(body: Any, *, accuracy: float = DEFAULT_ACCURACY, geometry:
     report.levels.append(AccuracyLevel(0, inner, outer, ans))
     log.info("accuracy level 0: %d vertices, %s, rho* = %.4g m, finger force %.4g N", ans.n_vertices,
              "picked up" if ans.success else "not picked up", ans.squeeze_depth, ans.finger_force)
+    if on_level is not None:
+        on_level(report)
     fingers, table = patch_points(result)
     s0, h0 = result.step, result.lift_test_step
     prev = result
@@ -397,13 +400,23 @@ def converged_pickup(body: Any, *, accuracy: float = DEFAULT_ACCURACY, geometry:
         before = report.levels[-1].answer
         change = {"squeeze_depth": relative_change(before.squeeze_depth, ans.squeeze_depth),
                   "finger_force": relative_change(before.finger_force, ans.finger_force)}
+        if not (_passed(ans) or _passed(before)):
+            # Two failures agree only when they fail the same way and the fingers could hold as much:
+            # where a squeeze stops says little (both at the maximum depth agree trivially).
+            change["max_liftable"] = abs(ans.max_liftable - before.max_liftable) / ans.weight
+            if _failure_kind(ans.reason) != _failure_kind(before.reason):
+                change["max_liftable"] = math.inf
         report.levels.append(AccuracyLevel(level, inner_l, outer_l, ans, t_mesh, change))
         log.info("accuracy level %d: %d vertices (spacing %.3g m at the patches), %s, rho* = %.4g m (change %.2g), "
                  "finger force %.4g N (change %.2g)", level, ans.n_vertices, inner_l,
                  "picked up" if ans.success else "not picked up", ans.squeeze_depth, change["squeeze_depth"],
                  ans.finger_force, change["finger_force"])
-        report.estimated_error = dict(change)
-        if ans.success != before.success:
+        if on_level is not None:
+            on_level(report)
+        report.estimated_error = {k: change[k] for k in ("squeeze_depth", "finger_force")}
+        if "max_liftable" in change:
+            report.estimated_error["max_liftable"] = change["max_liftable"]
+        if _passed(ans) != _passed(before):
             report.estimated_error = {"squeeze_depth": math.inf, "finger_force": math.inf}
             report.note = f"the verdict changed between levels {level - 1} and {level}"
         elif max(change.values()) <= accuracy:
@@ -417,15 +430,31 @@ def converged_pickup(body: Any, *, accuracy: float = DEFAULT_ACCURACY, geometry:
     else:
         report.note = report.note or f"not converged to {100 * accuracy:g} % in {max_levels} refinements"
     if len(report.levels) >= 3:
-        ok = [lv for lv in report.levels if lv.answer.success == report.levels[-1].answer.success]
+        ok = [lv for lv in report.levels if _passed(lv.answer) == _passed(report.levels[-1].answer)]
         if len(ok) >= 3:
             h = [lv.inner_size for lv in ok]
-            report.richardson = {"squeeze_depth": estimate([lv.answer.squeeze_depth for lv in ok], h),
-                                 "finger_force": estimate([lv.answer.finger_force for lv in ok], h)}
+            est = {"squeeze_depth": estimate([lv.answer.squeeze_depth for lv in ok], h),
+                   "finger_force": estimate([lv.answer.finger_force for lv in ok], h)}
+            report.richardson = {k: v for k, v in est.items() if v["method"] == "richardson"}
     result.accuracy = report.to_dict()
     result.accuracy["seconds"] = time.perf_counter() - t_start
     log.info("accuracy: %s", report.summary_line())
     return result
+
+
+def _passed(ans: GraspAnswer) -> bool:
+    """Picked up, or (``lift=False``) stopped because the lift test passed: the verdict the levels compare."""
+    return ans.success or "lift was not run" in ans.reason
+
+
+def _failure_kind(reason: str) -> str:
+    """The class of a failed pickup's reason: where Algorithm 1 stopped."""
+    for key in ("no initial finger placement", "not force closure", "cannot be placed", "squeeze failed",
+                "lift test did not pass", "lift failed", "slides on the finger", "still on the table",
+                "lift was not run"):
+        if key in reason:
+            return key
+    return reason.split(":")[0]
 
 
 def _finger_nodes(result: Any) -> np.ndarray:

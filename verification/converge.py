@@ -83,11 +83,11 @@ CONFIGS: dict[str, dict[str, Any]] = {
         "uniform_factors": [1, 2, 4, 8, 16, 32, 64], "uniform_extra": {"orange": [52000]},
         "uniform_max_vertices": 60000,
         "box_factors": [1, 2, 3, 4, 5, 6],
-        "graded_inner": list(GRADED_INNER), "graded_table_inner": [1 / 2, 1 / 4, 1 / 8],
+        "graded_inner": list(GRADED_INNER), "graded_table_inner": [1 / 2, 1 / 4],
         "step_divisors": [1, 2, 4, 8], "h_divisors": [1, 2, 4, 8], "steps_factor": 4, "box_steps_factor": 2,
         "seeds": 5, "seed_factors": [1, 4], "box_seed_factors": [1, 2],
         "reference_divisors": [1, 2, 4], "reference_max_seconds": 900,
-        "adaptive_targets": [0.10, 0.05, 0.02],
+        "adaptive_target": 0.02, "adaptive_max_levels": 3, "adaptive_timeout": 5400,
         "case_timeout": 900, "memory_gib": 9.0, "diagnose_max_seconds": 150,
     },
     "quick": {
@@ -97,7 +97,7 @@ CONFIGS: dict[str, dict[str, Any]] = {
         "step_divisors": [1, 2], "h_divisors": [1, 2], "steps_factor": 2, "box_steps_factor": 1,
         "seeds": 3, "seed_factors": [1], "box_seed_factors": [1],
         "reference_divisors": [1, 2], "reference_max_seconds": 120,
-        "adaptive_targets": [0.10],
+        "adaptive_target": 0.10, "adaptive_max_levels": 1, "adaptive_timeout": 600,
         "case_timeout": 300, "memory_gib": 6.0, "diagnose_max_seconds": 30,
     },
 }
@@ -296,7 +296,7 @@ def _bracket(liftable: list) -> list[float] | None:
     return [float(liftable[-2][0]), float(liftable[-1][0])]
 
 
-def run_case(spec: dict[str, Any]) -> dict[str, Any]:
+def run_case(spec: dict[str, Any], record_path: Path | None = None) -> dict[str, Any]:
     """Build the mesh and run the pickup of one case; its record (module notes)."""
     from fem_grasp import accuracy, remesh
     from fem_grasp.pickup import pickup
@@ -306,7 +306,17 @@ def run_case(spec: dict[str, Any]) -> dict[str, Any]:
     if spec["series"] == "adaptive":
         t0 = time.perf_counter()
         body = scene.body()
-        res = pickup(body, accuracy=spec["target"], geometry=geometry_of(scene), **scene.pickup_kwargs())
+
+        def partial(report) -> None:  # a record after every level: a timed-out loop keeps its levels
+            if record_path is not None:
+                from fem_grasp.output import json_safe
+
+                part = dict(rec, partial=True, accuracy=report.to_dict(), seconds=time.perf_counter() - t0)
+                record_path.with_suffix(".partial").write_text(json.dumps(json_safe(part), indent=1))
+
+        res = accuracy.converged_pickup(body, accuracy=spec["target"], geometry=geometry_of(scene),
+                                        max_levels=spec.get("max_levels", accuracy.MAX_LEVELS), on_level=partial,
+                                        **scene.pickup_kwargs())
         rec["seconds"] = time.perf_counter() - t0
         rec["answer"] = accuracy.answer_of(res, rec["seconds"]).to_dict()
         rec["accuracy"] = res.accuracy
@@ -369,19 +379,19 @@ def diagnose(body, kw: dict[str, Any], scene, fraction: float = 0.125) -> dict[s
         def update(self, state):  # noqa: D401 - same contract
             w = super().update(state)
             base = lt_mod.hanging_state(self.tracker, state)
-            ws, reason, stop_state = 0.0, base.reason, None
+            ws, reason, st = 0.0, base.reason, None
             if base.held:
                 st, dw, k = base.state, fraction * self.step, 1
                 while k * dw <= 1.6 * self.weight:
                     r = lt_mod.hang(self.tracker, st, k * dw)
                     if not r.held:
-                        reason, stop_state = r.reason, r.state
+                        reason = r.reason
                         break
                     st, ws, k = r.state, k * dw, k + 1
             fingers = state.owner != 2
             rows.append({"rho": state.squeeze_depth, "test_w": w, "slow_w": ws, "reason": reason,
                          "finger_contacts": [int((state.owner == f).sum()) for f in (0, 1)],
-                         "finger_nodes": state.nodes[fingers].tolist()})
+                         "finger_nodes": state.nodes[fingers].tolist(), "held": _held_patch(self.tracker, st, reason)})
             return w
 
     kw = dict(kw, lift=False)
@@ -397,8 +407,32 @@ def diagnose(body, kw: dict[str, Any], scene, fraction: float = 0.125) -> dict[s
     peak = max(rows, key=lambda r: r["slow_w"]) if rows else None
     return {"rows": rows, "weight": weight, "test_pass": test_pass, "slow_pass": slow_pass,
             "slow_peak": None if peak is None else peak["slow_w"], "slow_peak_rho": None if peak is None else peak["rho"],
-            "peak_reason": None if peak is None else peak["reason"], "reason": res.reason,
-            "seconds": time.perf_counter() - t0}
+            "peak_reason": None if peak is None else peak["reason"], "peak_patch": None if peak is None else peak["held"],
+            "reason": res.reason, "seconds": time.perf_counter() - t0}
+
+
+def _held_patch(tracker, st, reason: str) -> dict[str, Any] | None:
+    """At the largest weight held: per finger its contacts, how many sit above the fingertip's centre (whose
+    normal forces push the object up), how many slide, and the vertical force it carries; and the node and
+    finger the failing settle names (its "contact k" indexes the held state's contact set)."""
+    import re
+
+    if st is None:
+        return None
+    out: dict[str, Any] = {"fingers": []}
+    pos = st.surface_positions[tracker.surface_index[st.nodes]]
+    for f in (0, 1):
+        on = st.owner == f
+        up = (pos[on, 2] - st.centers[f][2]) > 0
+        out["fingers"].append({"contacts": int(on.sum()), "above_centre": int(up.sum()),
+                               "sliding": int(st.sliding[on].sum()), "vertical": float(st.forces[on, 2].sum())})
+    m = re.search(r"contact (\d+)", reason or "")
+    if m and int(m.group(1)) < st.n_contacts:
+        k = int(m.group(1))
+        out["failing_node"] = int(st.nodes[k])
+        out["failing_finger"] = int(st.owner[k]) + 1
+        out["failing_above_centre"] = bool(pos[k, 2] > st.centers[st.owner[k]][2])
+    return out
 
 
 # ================================================================ the cases
@@ -420,7 +454,8 @@ def cases(cfg: dict[str, Any], objects: tuple[str, ...], records: dict[str, dict
         out.append([{"object": name, "series": "graded_table", "inner": i} for i in cfg["graded_table_inner"]])
         for f in (cfg["box_seed_factors"] if box else cfg["seed_factors"]):
             key = {"factor": f} if box else {"target": n0 * f}
-            out.append([dict({"object": name, "series": "seed", "seed": s}, **key) for s in range(1, cfg["seeds"] + 1)])
+            # seed 1 is gmsh's default: the uniform level itself (the analysis counts it among the seeds)
+            out.append([dict({"object": name, "series": "seed", "seed": s}, **key) for s in range(2, cfg["seeds"] + 1)])
     return out
 
 
@@ -453,8 +488,24 @@ def dependent_cases(cfg: dict[str, Any], objects: tuple[str, ...], records: dict
 
 
 def adaptive_cases(cfg: dict[str, Any], objects: tuple[str, ...]) -> list[list[dict]]:
-    return [[{"object": name, "series": "adaptive", "target": t} for t in sorted(cfg["adaptive_targets"], reverse=True)]
-            for name in objects]
+    """One run of the loop per object at the finest target: the loop is deterministic, so the answer at a looser
+    target is this run stopped at the first level that meets it (:func:`adaptive_at`)."""
+    return [[{"object": name, "series": "adaptive", "target": cfg["adaptive_target"],
+              "max_levels": cfg["adaptive_max_levels"]}] for name in objects]
+
+
+def adaptive_at(acc: dict[str, Any], target: float) -> dict[str, Any] | None:
+    """What ``pickup(..., accuracy=target)`` returns, read off a run of the loop at a finer target: the first level
+    ≥ 1 whose change from the one before is within ``target`` with the same verdict; its cumulative time."""
+    levels = acc.get("levels", [])
+    seconds = 0.0
+    for i, lv in enumerate(levels):
+        seconds += (lv.get("seconds") or 0.0) + (lv.get("mesh_seconds") or 0.0)
+        ch = lv.get("change")
+        if i and ch and levels[i - 1]["success"] == lv["success"] and max(ch.values()) <= target:
+            return {"level": lv, "seconds": seconds, "estimated_error": {k: ch[k] for k in ("squeeze_depth",
+                                                                                          "finger_force")}}
+    return None
 
 
 # ================================================================ driver
@@ -502,20 +553,22 @@ def _run_one(spec: dict[str, Any], cache: Path, records: dict[str, dict], cfg: d
         if rec is not None and not (stale and rec.get("code") != digest):
             return not rec.get("timeout")
         path = cache / f"{key}.json"
+        timeout = cfg["adaptive_timeout"] if spec["series"] == "adaptive" else cfg["case_timeout"]
         t0 = time.perf_counter()
         print(f"  {spec}", flush=True)
         cmd = [sys.executable, "-m", "verification.converge", "--worker", json.dumps(spec), "--record", str(path),
                "--memory-gib", str(cfg["memory_gib"])]
         try:
-            proc = subprocess.run(cmd, cwd=ROOT, env=_worker_env(), timeout=cfg["case_timeout"], capture_output=True,
-                                  text=True)
+            proc = subprocess.run(cmd, cwd=ROOT, env=_worker_env(), timeout=timeout, capture_output=True, text=True)
             if proc.returncode != 0 or not path.exists():
                 rec = {"spec": spec, "format": RECORD_FORMAT, "code": digest, "error": proc.stderr[-2000:],
                        "seconds": time.perf_counter() - t0}
                 path.write_text(json.dumps(rec, indent=1))
         except subprocess.TimeoutExpired:
-            rec = {"spec": spec, "format": RECORD_FORMAT, "code": digest, "timeout": True,
-                   "seconds": cfg["case_timeout"]}
+            rec = {"spec": spec, "format": RECORD_FORMAT, "code": digest, "timeout": True, "seconds": timeout}
+            part = path.with_suffix(".partial")
+            if part.exists():  # the adaptive loop's levels so far
+                rec.update({k: v for k, v in json.loads(part.read_text()).items() if k in ("accuracy",)})
             path.write_text(json.dumps(rec, indent=1))
         rec = json.loads(path.read_text())
         records[key] = rec
@@ -534,7 +587,7 @@ def worker(spec_json: str, record: Path, memory_gib: float) -> int:
     resource.setrlimit(resource.RLIMIT_AS, (limit, limit))
     logging.basicConfig(level=logging.WARNING)
     spec = json.loads(spec_json)
-    rec = run_case(spec)
+    rec = run_case(spec, record)
     from fem_grasp.output import json_safe
 
     tmp = record.with_suffix(".tmp")
@@ -648,11 +701,33 @@ def analyse(records: dict[str, dict], objects: tuple[str, ...], cfg: dict[str, A
                     "vertices": hit["vertices"], "patch_spacing": hit["patch_spacing"], "seconds": hit["seconds"],
                     "rho_error": hit["rho_error"], "force_error": hit["force_error"], "spec": hit["spec"]}
         obj["resolution"] = res
-        # --- scatter of the seeds
+        # --- the adaptive loop's answer at each target (one run at the finest target, read off level by level)
+        for r in series.get("adaptive", []):
+            acc = r.get("accuracy")
+            if not acc:
+                continue
+            r["targets"] = {}
+            for tgt in (0.10, 0.05, 0.02):
+                at = adaptive_at(acc, tgt)
+                if at is None:
+                    r["targets"][f"{tgt:g}"] = None
+                    continue
+                lv = at["level"]
+                r["targets"][f"{tgt:g}"] = {
+                    "level": lv["level"], "vertices": lv["vertices"], "seconds": at["seconds"],
+                    "success": lv["success"], "rho": lv["squeeze_depth"], "force": lv["finger_force"],
+                    "estimated_error": at["estimated_error"],
+                    "rho_error": math.inf if not lv["success"] else _err(lv["squeeze_depth"], rho_ref),
+                    "force_error": math.inf if not lv["success"] else _err(lv["finger_force"], f_ref)}
+        # --- scatter of the seeds (seed 1 is the uniform level of the same size)
         sc = {}
         for r in series.get("seed", []):
             key = str(r["spec"].get("target", r["spec"].get("factor")))
             sc.setdefault(key, []).append(r)
+        for r in series.get("uniform", []):
+            key = str(r["spec"].get("target", r["spec"].get("factor")))
+            if key in sc:
+                sc[key].insert(0, r)
         scatter = {}
         for key, rows in sc.items():
             ok = [r for r in rows if r.get("success")]
@@ -723,9 +798,19 @@ def explain(flip: dict[str, Any], d: dict[str, Any]) -> str:
         if d.get("slow_pass") is not None:
             return (f"numerical: a slow lift test holds mg = {w:.3g} N at ρ = {1e3 * d['slow_pass']:.2f} mm, where the "
                     "library's lift test did not pass: the state exists")
+        patch = d.get("peak_patch") or {}
+        fg = patch.get("fingers") or []
+        where = ""
+        if fg:
+            where = "; held by " + " and ".join(
+                f"finger {i + 1}: {f['contacts']} contacts ({f['above_centre']} above its centre, {f['sliding']} "
+                f"sliding) carrying {f['vertical']:.3g} N" for i, f in enumerate(fg))
+        if "failing_node" in patch:
+            where += (f"; the next weight loses node {patch['failing_node']} of finger {patch['failing_finger']}"
+                      f" ({'above' if patch['failing_above_centre'] else 'below'} the fingertip's centre)")
         return (f"physical outcome of this mesh: even loaded in steps of h/8 the fingers hold at most {peak:.3g} N "
-                f"= {peak / w:.2f} mg (at ρ = {1e3 * (d.get('slow_peak_rho') or 0):.2f} mm; beyond it: "
-                f"{(d.get('peak_reason') or '')[:160]})")
+                f"= {peak / w:.2f} mg (at ρ = {1e3 * (d.get('slow_peak_rho') or 0):.2f} mm{where}; "
+                f"{(d.get('peak_reason') or '')[:140]})")
     tp, sp = d.get("test_pass"), d.get("slow_pass")
     if tp is not None and sp is not None and abs(tp - sp) <= 1.01 * (r.get("step") or 0):
         return (f"the slow lift test passes at {1e3 * sp:.2f} mm too (the library's at {1e3 * tp:.2f} mm): the jump is "
@@ -754,7 +839,17 @@ def plots(analysis: dict[str, Any], out: Path) -> dict[str, str]:
         obj = analysis["objects"][name]
         for j, (q, label) in enumerate((("rho", "ρ*"), ("force", "finger force Σ f·n̂"))):
             ax = axes[i][j]
+            for r in obj["series"].get("adaptive", []):
+                pts = [v for v in (r.get("targets") or {}).values() if v]
+                if pts:
+                    e = [min(max(v[f"{q}_error"], 1e-4), 2.0) if math.isfinite(v[f"{q}_error"]) else 2.0 for v in pts]
+                    ax.loglog([v["seconds"] for v in pts], e, "*", color="#9467bd", ms=10,
+                              label="adaptive: pickup(accuracy = 10, 5, 2 %)")
+                    for v, ei in zip(pts, e):
+                        ax.annotate(f"level {v['level']}", (v["seconds"], ei), fontsize=6, color="#9467bd")
             for s, (mk, col, lab) in styles.items():
+                if s == "adaptive":
+                    continue
                 rows = [r for r in obj["series"].get(s, []) if "rho" in r]
                 if not rows:
                     continue

@@ -26,7 +26,7 @@ import numpy as np
 from fem_grasp import Body, TetMesh, box_mesh, solve_contact
 from fem_grasp.output import json_safe
 
-from . import crosscheck, hertz, manufactured, plots, render, report, stability
+from . import converge, crosscheck, hertz, manufactured, plots, render, report, stability
 from .dolfinx_ref import warm_up
 from .linalg import fem_grasp_factorization_by_mumps
 
@@ -341,6 +341,17 @@ def main(argv: list[str] | None = None) -> int:
     stage("near-collinear contacts", lambda: stability.collinear_study(cfg["collinear_angles"]),
           lambda v: stab.__setitem__("collinear", v))
     stage("sliver mesh", lambda: stability.sliver_study(), lambda v: stab.__setitem__("sliver", v))
+
+    def grasp_convergence():
+        # The pickup answer under refinement (verification.converge, `make converge`): cached runs are reused, so
+        # after `make converge` this only reads; from an empty cache it computes the whole study (hours; --quick:
+        # minutes).
+        res = converge.study(quick=args.quick, out=out_dir / "converge")
+        for key, name in res.pop("images", {}).items():
+            images[key] = f"converge/{name}"
+        return res
+
+    stage("grasp convergence", grasp_convergence, lambda v: summary.__setitem__("grasp_convergence", v))
 
     def figures():
         if "convergence" in summary:
