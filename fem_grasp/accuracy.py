@@ -54,6 +54,7 @@ from typing import Any, Sequence
 import numpy as np
 
 __all__ = ["GraspAnswer", "AccuracyLevel", "AccuracyReport", "answer_of", "patch_points", "estimate",
+           "single_run_report",
            "relative_change", "converged_pickup", "LEVEL_RATIO", "DEFAULT_ACCURACY", "MAX_LEVELS"]
 
 log = logging.getLogger(__name__)
@@ -463,3 +464,20 @@ def _finger_nodes(result: Any) -> np.ndarray:
         return np.asarray([k for k in result.finger_nodes if k >= 0], dtype=np.int64)
     nodes = np.concatenate([fin.contact_nodes["finger1"], fin.contact_nodes["finger2"]])
     return nodes if len(nodes) else np.asarray([k for k in result.finger_nodes if k >= 0], dtype=np.int64)
+
+
+def single_run_report(result: Any, target: float | None, expected_error: float | None, note: str) -> dict[str, Any]:
+    """The ``accuracy`` block of a run made without the loop (``--quick``): one level, not converged, and the
+    error the scene states for such a run (``[solver] expected_error``, measured by the convergence study)."""
+    from .remesh import spacing
+
+    ans = answer_of(result)
+    nodes = _finger_nodes(result)
+    level = AccuracyLevel(0, spacing(result.body.mesh, nodes) if len(nodes) else math.nan,
+                          spacing(result.body.mesh), ans)
+    err = math.inf if expected_error is None else float(expected_error)
+    rep = AccuracyReport(math.nan if target is None else float(target),
+                         {"squeeze_depth": err, "finger_force": err}, False, [level], note)
+    out = rep.to_dict()
+    out["expected_error_stated"] = expected_error is not None
+    return out

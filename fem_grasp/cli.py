@@ -169,6 +169,8 @@ def _summary_lines(scene: Any, result: Any, rest_cached: bool) -> list[str]:
     ]
     acc = getattr(result, "accuracy", None)
     if acc:
+        if not acc["converged"]:
+            lines[2] += "  [NOT CONVERGED: see accuracy]"
         lines[3:3] = _accuracy_lines(acc, scene.quick)
     return lines
 
@@ -185,6 +187,18 @@ def _accuracy_lines(acc: dict[str, Any], quick: bool) -> list[str]:
     if acc["converged"]:
         head = (f"accuracy   target {100 * acc['target']:g} %: estimated error rho* {pct(e['squeeze_depth'])}, "
                 f"finger force {pct(e['finger_force'])} ({len(acc['levels'])} levels, {acc.get('seconds', 0):.0f} s)")
+    elif len(acc["levels"]) == 1:
+        stated = acc.get("expected_error_stated")
+        bound = e["squeeze_depth"]
+        how = ("its verdict may differ from the converged one" if stated and not np.isfinite(bound) else
+               f"it may be off by about {pct(bound)} in rho* and the finger force (as measured by the convergence "
+               "study for this scene)" if stated else "how far it is off is not known")
+        head = (f"accuracy   NOT CONVERGED: {acc.get('note', '')}; {how}"
+                + (f"; run without --quick for the answer to {100 * acc['target']:g} %"
+                   if quick and acc.get("target") is not None and np.isfinite(acc["target"]) else ""))
+    elif not all(np.isfinite(v) for v in (e["squeeze_depth"], e["finger_force"])):
+        head = (f"accuracy   NOT CONVERGED to {100 * acc['target']:g} %: {acc.get('note', '')}, so not even the verdict "
+                "is settled at this resolution" + ("; run without --quick for the converged answer" if quick else ""))
     else:
         head = (f"accuracy   NOT CONVERGED to {100 * acc['target']:g} %: the answer may be off by about "
                 f"{pct(e['squeeze_depth'])} in rho* and {pct(e['finger_force'])} in the finger force "
@@ -221,14 +235,22 @@ def cmd_run(args: argparse.Namespace) -> int:
             rs, cached = cached_rest(body, scene.mu_table, backend=scene.backend, down=scene.object.down,
                                      cache_dir=cache)
         with bar.phase("squeeze, lift test, lift" if scene.accuracy is None else "squeeze and lift, refining"):
-            if scene.accuracy is None:
+            if scene.accuracy is None or scene.quick:
                 result = pickup(body, rest_state=rs, **scene.pickup_kwargs())
-            else:
-                from .accuracy import MAX_LEVELS, converged_pickup
+                if scene.quick or scene.expected_error is not None:
+                    from .accuracy import single_run_report
 
-                # --quick: one refinement, enough to measure how far the coarse answer may be off
+                    # One coarse run: not converged; the scene states how far such a run is from the converged
+                    # answer (its [quick] solver.expected_error, measured by the convergence study).
+                    result.accuracy = single_run_report(
+                        result, scene.accuracy, scene.expected_error,
+                        "--quick: one run on the coarse mesh, no refinement" if scene.quick else
+                        "one run on the scene's mesh (accuracy off)")
+            else:
+                from .accuracy import converged_pickup
+
                 result = converged_pickup(body, accuracy=scene.accuracy, geometry=scene.geometry(), rest_state=rs,
-                                          max_levels=1 if scene.quick else MAX_LEVELS, **scene.pickup_kwargs())
+                                          **scene.pickup_kwargs())
         code = EXIT_OK if result.success else EXIT_FAILED
         if out is not None:
             with bar.phase("writing results"):
@@ -405,7 +427,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--accuracy", metavar="A",
                    help="override the scene's [solver] accuracy: a relative error of rho* and the finger force "
                         "(0.05 or 5%%): refine at the contact patches until two successive answers agree within it; "
-                        "'off' runs once on the scene's mesh (with --quick: one refinement, to measure the error)")
+                        "'off' runs once on the scene's mesh (--quick always runs once, on its coarse mesh, and says "
+                        "that its answer is not converged)")
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("rest", parents=[common, scene_opts], help="compute the resting state of a scene's object",

@@ -39,6 +39,8 @@ optional)::
     lift = true
     accuracy = 0.05           # relative accuracy of ρ* and the finger force: refine at the contact patches until
                               # two successive levels agree within it (fem_grasp.accuracy); omit for one run
+    expected_error = 0.3      # how far a single run of this scene (no accuracy loop, e.g. its [quick] variant) is
+                              # from the converged answer, as measured by `make converge`: printed with its answer
 
     [quick]                   # overrides for `--quick`: same tables, merged over the above
     object = { vertices = 200 }
@@ -202,6 +204,7 @@ class Scene:
     expect: str | None = None
     placement_rule: str = DEFAULT_PLACEMENT_RULE
     accuracy: float | None = None
+    expected_error: float | None = None
 
     # ------------------------------------------------------------ building
     def load_mesh(self, cache_dir: Path | None = None) -> "Any":
@@ -325,7 +328,8 @@ _SCHEMA: dict[str, dict[str, str]] = {
     "friction": {"finger": "float", "table": "float"},
     "fingers": {"radius": "length", "contacts": "contacts", "directions": "directions", "ratio": "float"},
     "solver": {"backend": "str", "max_squeeze": "length", "step": "length", "lift_test_step": "force",
-               "max_lift": "length", "lift": "bool", "accuracy": "float"},
+               "max_lift": "length", "lift": "bool", "accuracy": "float",
+               "expected_error": "float"},
 }
 
 
@@ -588,6 +592,10 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
     accuracy = s.get("accuracy")
     if accuracy is not None and not 0.0 < accuracy < 1.0:
         raise SceneError(f"{s.where('accuracy')} is a relative error in (0, 1), e.g. 0.05 for 5 %; got {accuracy!r}")
+    expected_error = s.get("expected_error")
+    if expected_error is not None and not expected_error > 0:
+        raise SceneError(f"{s.where('expected_error')} is a relative error > 0 (inf: the verdict itself may be wrong); "
+                         f"got {expected_error!r}")
     step, max_sq = s.get("step"), s.get("max_squeeze")
     if step is not None and max_sq is not None and step > max_sq:
         raise SceneError(f"{s.where('step')} ({step:g} m) exceeds solver.max_squeeze ({max_sq:g} m)")
@@ -602,7 +610,8 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
                  max_squeeze=max_sq, step=step, lift_test_step=s.get("lift_test_step"),
                  max_lift=s.get("max_lift"), lift=s.get("lift", True), description=top.get("description", ""),
                  path=path, quick=quick, expect=expect, placement_rule=rule,
-                 accuracy=None if accuracy is None else float(accuracy))
+                 accuracy=None if accuracy is None else float(accuracy),
+                 expected_error=None if expected_error is None else float(expected_error))
 
 
 def load_scene(path: str | Path, quick: bool = False) -> Scene:

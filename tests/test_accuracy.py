@@ -159,8 +159,31 @@ def test_scene_key_and_cli_flag():
     with pytest.raises(SceneError, match="solver.accuracy"):
         parse_scene(dict(base, solver={"accuracy": 5.0}))
     assert isinstance(parse_scene(base).geometry(), remesh.BoxGeometry)
+    assert parse_scene(dict(base, solver={"expected_error": float("inf")})).expected_error == float("inf")
+    with pytest.raises(SceneError, match="solver.expected_error"):
+        parse_scene(dict(base, solver={"expected_error": -1.0}))
     assert _parse_accuracy("5%") == pytest.approx(0.05) and _parse_accuracy("0.02") == 0.02
     assert _parse_accuracy("off") is None
     for bad in ("2", "x", "0"):
         with pytest.raises(_BadInput, match="--accuracy"):
             _parse_accuracy(bad)
+
+
+def test_quick_says_its_answer_is_not_converged_and_by_how_much(capsys, tmp_path):
+    """--quick runs once on the coarse mesh: the summary and result.json say it is not converged, with the error
+    the scene states for its quick variant (here a scene file of our own with a stated 40 %)."""
+    from fem_grasp.cli import main
+
+    scene = tmp_path / "box.toml"
+    scene.write_text('[object]\nbox = ["3 cm", "4 cm", "3 cm"]\ndivisions = [4, 4, 4]\n'
+                     '[material]\nyoung = "20 kPa"\npoisson = 0.3\nweight = "0.3 N"\n'
+                     '[friction]\nfinger = 0.5\n[fingers]\nradius = "1 cm"\ncontacts = [52, 72]\n'
+                     '[solver]\naccuracy = 0.05\nlift = false\n'
+                     '[quick]\nsolver = { expected_error = 0.4 }\n')
+    out = tmp_path / "o"
+    main(["run", str(scene), "--quick", "--no-cache", "--out", str(out)])
+    text = capsys.readouterr().out
+    assert "NOT CONVERGED" in text and "40 %" in text and "run without --quick" in text
+    acc = json.loads((out / "result.json").read_text())["accuracy"]
+    assert acc["converged"] is False and len(acc["levels"]) == 1 and acc["target"] == 0.05
+    assert acc["estimated_error"] == {"squeeze_depth": 0.4, "finger_force": 0.4}

@@ -303,6 +303,7 @@ SERIES_NOTES = {
     "seed": "meshes of the same spacing (gmsh seeds; the box: jittered grid)",
     "reference": "the finest uniform level with the increment and h halved twice",
     "adaptive": "pickup(..., accuracy=target): the adaptive loop",
+    "quick": "the scene's [quick] variant (fem-grasp run NAME --quick), one run",
 }
 
 
