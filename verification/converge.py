@@ -277,7 +277,7 @@ def body_of(scene, mesh):
 
 # ================================================================ one case
 #: Modules that do not change a single pickup's answer (the adaptive loop, input and output).
-_DIGEST_SKIP = {"accuracy.py", "cli.py", "report.py", "output.py", "paper.py", "__main__.py", "__init__.py"}
+_DIGEST_SKIP = {"accuracy.py", "cli.py", "report.py", "output.py", "paper.py", "scene.py", "__main__.py", "__init__.py"}
 
 
 def code_digest() -> str:
