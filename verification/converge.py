@@ -90,7 +90,7 @@ CONFIGS: dict[str, dict[str, Any]] = {
         "step_divisors": [1, 2, 4, 8], "h_divisors": [1, 2, 4, 8], "steps_factor": 4, "box_steps_factor": 2,
         "seeds": 5, "seed_factors": [1, 4], "box_seed_factors": [1, 2],
         "reference_divisors": [1, 2, 4], "reference_max_seconds": 900,
-        "adaptive_target": 0.02, "adaptive_max_levels": 3, "adaptive_timeout": 5400,
+        "adaptive_target": 0.02, "adaptive_max_levels": 2, "adaptive_timeout": 5400, "early_levels": 4,
         "case_timeout": 900, "memory_gib": 9.0, "diagnose_max_seconds": 150,
     },
     "quick": {
@@ -100,7 +100,7 @@ CONFIGS: dict[str, dict[str, Any]] = {
         "step_divisors": [1, 2], "h_divisors": [1, 2], "steps_factor": 2, "box_steps_factor": 1,
         "seeds": 3, "seed_factors": [1], "box_seed_factors": [1],
         "reference_divisors": [1, 2], "reference_max_seconds": 120,
-        "adaptive_target": 0.10, "adaptive_max_levels": 1, "adaptive_timeout": 600,
+        "adaptive_target": 0.10, "adaptive_max_levels": 1, "adaptive_timeout": 600, "early_levels": 2,
         "case_timeout": 300, "memory_gib": 6.0, "diagnose_max_seconds": 30,
     },
 }
@@ -538,11 +538,15 @@ def run_series(series: list[dict[str, Any]], cache: Path, records: dict[str, dic
 
 
 def run_rounds(all_series: list[list[dict[str, Any]]], cache: Path, records: dict[str, dict], cfg: dict[str, Any],
-               stale: bool) -> None:
-    """Run many series level by level: the first case of every series, then the second, …; a series stops
-    after its first case that times out (its finer levels would too)."""
+               stale: bool, levels: int | None = None) -> None:
+    """Run many series level by level: the first case of every series, then the second, … (up to ``levels``
+    levels); a series stops after its first case that times out (its finer levels would too)."""
     stopped: set[int] = set()
-    for level in range(max((len(s) for s in all_series), default=0)):
+    for i, series in enumerate(all_series):  # a series that timed out before stays stopped
+        if any(records.get(case_key(sp), {}).get("timeout") for sp in series):
+            stopped.add(i)
+    top = max((len(s) for s in all_series), default=0)
+    for level in range(top if levels is None else min(levels, top)):
         for i, series in enumerate(all_series):
             if i in stopped or level >= len(series):
                 continue
@@ -923,8 +927,12 @@ def study(quick: bool = False, out: Path = DEFAULT_OUT, objects: tuple[str, ...]
         return bool(series) and (series_filter is None or series[0]["series"] in series_filter)
 
     if compute:
-        for group in (lambda: cases(cfg, objects, records), lambda: dependent_cases(cfg, objects, records)):
-            run_rounds([s for s in group() if want(s)], cache, records, cfg, stale)
+        # the coarse levels of every series first, then the step, h and reference series, then the fine levels
+        main_series = [s for s in cases(cfg, objects, records) if want(s)]
+        run_rounds(main_series, cache, records, cfg, stale, levels=cfg["early_levels"])
+        run_rounds([s for s in dependent_cases(cfg, objects, records) if want(s)], cache, records, cfg, stale)
+        run_rounds(main_series, cache, records, cfg, stale)
+        run_rounds([s for s in dependent_cases(cfg, objects, records) if want(s)], cache, records, cfg, stale)
         analysis = analyse(records, objects, cfg)
         for spec in diagnosis_cases(analysis, cfg):
             if series_filter is None or "diagnose" in series_filter or spec["series"] in series_filter:
