@@ -992,6 +992,7 @@ def main(argv: list[str] | None = None) -> int:
                                                "reference adaptive diagnose); the analysis reads every cached one")
     ap.add_argument("--report-only", action="store_true", help="analyse and plot the cached records; compute nothing")
     ap.add_argument("--stale", action="store_true", help="recompute records made with other fem_grasp sources")
+    ap.add_argument("--docs", type=Path, help="also copy the plots into this folder (the README's: docs/)")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     ap.add_argument("--record", type=Path, help=argparse.SUPPRESS)
     ap.add_argument("--memory-gib", type=float, default=9.0, help=argparse.SUPPRESS)
@@ -1003,6 +1004,13 @@ def main(argv: list[str] | None = None) -> int:
                      series_filter=set(args.series) if args.series else None)
     print_tables(analysis)
     print(f"\nwrote {args.out / 'converge.json'} and {', '.join(analysis['images'].values())}")
+    if args.docs:
+        import shutil
+
+        args.docs.mkdir(parents=True, exist_ok=True)
+        for name in analysis["images"].values():
+            shutil.copy(args.out / name, args.docs / name)
+        print(f"copied the plots into {args.docs}")
     return 0
 
 
