@@ -983,6 +983,75 @@ def print_tables(analysis: dict[str, Any]) -> None:
             print(f"  flip ({f['series']}, {f['kind']}) at {f['row']['vertices']} vertices: {d.get('verdict', '(not diagnosed)')}")
 
 
+def markdown(analysis: dict[str, Any]) -> str:
+    """The README's tables (``--markdown``): per object the reference, the uniform and graded levels, the cheapest
+    resolution for 10 / 5 / 2 %, and the adaptive loop."""
+    def pct(x: Any) -> str:
+        if x is None or (isinstance(x, float) and math.isnan(x)):
+            return "–"
+        return "wrong verdict" if math.isinf(x) else f"{100 * x:.1f} %"
+
+    def mm(x: Any) -> str:
+        return "–" if x is None else f"{1e3 * x:.2f}"
+
+    def band(est: dict[str, Any]) -> str:
+        e = est["error"]
+        return (f"{100 * e:.1f} % ({est['method']})" if math.isfinite(e) else
+                f"unknown ({est['method']}: one run)")
+
+    lines = []
+    for name, obj in analysis["objects"].items():
+        ref = obj.get("reference")
+        lines.append(f"\n**{name}**" + (
+            f" — reference ({ref['vertices']:,} vertices, increments ÷{len(ref['levels']) and round(ref['levels'][0]['step'] / ref['levels'][-1]['step'])}): "
+            f"ρ* = {mm(ref['rho']['value'])} mm ± {band(ref['rho'])}, finger force "
+            f"{ref['force']['value']:.3f} N ± {band(ref['force'])}" if ref else " — no reference"))
+        lines.append("")
+        lines.append("| series | level | vertices | spacing at patch (mm) | verdict | ρ* (mm) | error | Σ f·n̂ (N) | error | "
+                     "patches f1/f2/table | time (s) |")
+        lines.append("|---|---|---|---|---|---|---|---|---|---|---|")
+        for s_ in ("uniform", "graded", "graded_table", "step", "h", "quick"):
+            for r in obj["series"].get(s_, []):
+                sp = r["spec"]
+                lvl = next((f"{k} {sp[k]:g}" if k != "inner" else f"R/{1 / sp[k]:g}") for k in
+                           ("target", "factor", "inner", "divisor") if k in sp) if s_ != "quick" else "[quick]"
+                if "rho" not in r:
+                    lines.append(f"| {s_} | {lvl} | {r.get('vertices') or '–'} | – | "
+                                 f"{'timeout' if r['timeout'] else 'error'} | | | | | | {r['seconds']:.0f} |")
+                    continue
+                fg = r["fingers"]
+                lines.append(f"| {s_} | {lvl} | {r['vertices']:,} | {mm(r.get('patch_spacing'))} | "
+                             f"{'picked up' if r['success'] else 'NOT'} | {mm(r['rho'])} | {pct(r.get('rho_error'))} | "
+                             f"{r['force']:.3f} | {pct(r.get('force_error'))} | {fg[0]['nodes']}/{fg[1]['nodes']}/"
+                             f"{r['table_nodes']} | {r['seconds']:.0f} |")
+        for key, sc in obj.get("scatter", {}).items():
+            if sc["rho_mean"] is not None:
+                lines.append(f"\nSeeds at {key}: {sc['picked_up']}/{sc['runs']} picked up, ρ* {mm(sc['rho_mean'])} ± "
+                             f"{mm(sc['rho_std'])} mm (range {mm(sc['rho_min'])}–{mm(sc['rho_max'])}), finger force "
+                             f"{sc['force_mean']:.3f} ± {sc['force_std']:.3f} N.")
+            else:
+                lines.append(f"\nSeeds at {key}: {sc['picked_up']}/{sc['runs']} picked up.")
+    lines.append("\nTime to a 10 % / 5 % / 2 % answer (both ρ* and Σ f·n̂ within the target of the reference):\n")
+    lines.append("| object | target | uniform | graded | graded + table | adaptive (levels, its estimate) |")
+    lines.append("|---|---|---|---|---|---|")
+    for name, obj in analysis["objects"].items():
+        ad = next((r for r in obj["series"].get("adaptive", []) if r.get("targets")), None)
+        for t in ("0.1", "0.05", "0.02"):
+            cells = []
+            for s_ in ("uniform", "graded", "graded_table"):
+                v = obj["resolution"].get(s_, {}).get(t)
+                cells.append("not reached" if v is None else f"{v['seconds']:.0f} s ({v['vertices']:,} v)")
+            a = None if ad is None else ad["targets"].get(t)
+            if a is None:
+                cells.append("not reached" if ad is not None else "–")
+            else:
+                est = max(a["estimated_error"].values())
+                cells.append(f"{a['seconds']:.0f} s ({a['level'] + 1} levels; error {pct(max(a['rho_error'], a['force_error']))}"
+                             f", estimate {pct(est)})")
+            lines.append(f"| {name} | {100 * float(t):g} % | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m verification.converge", description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a few levels per series (minutes)")
@@ -993,6 +1062,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--report-only", action="store_true", help="analyse and plot the cached records; compute nothing")
     ap.add_argument("--stale", action="store_true", help="recompute records made with other fem_grasp sources")
     ap.add_argument("--docs", type=Path, help="also copy the plots into this folder (the README's: docs/)")
+    ap.add_argument("--markdown", action="store_true", help="print the README's tables")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     ap.add_argument("--record", type=Path, help=argparse.SUPPRESS)
     ap.add_argument("--memory-gib", type=float, default=9.0, help=argparse.SUPPRESS)
@@ -1002,7 +1072,7 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(name)s %(levelname)s %(message)s")
     analysis = study(args.quick, args.out, tuple(args.objects), compute=not args.report_only, stale=args.stale,
                      series_filter=set(args.series) if args.series else None)
-    print_tables(analysis)
+    print(markdown(analysis)) if args.markdown else print_tables(analysis)
     print(f"\nwrote {args.out / 'converge.json'} and {', '.join(analysis['images'].values())}")
     if args.docs:
         import shutil
