@@ -13,7 +13,7 @@ and the liftable weight w(ρ) — is computed under
     the foam block's 6 × 8 × 6 grid) upwards, ×2 in vertices per level
     (``fem_grasp.shapes.paper_mesh(name, N)``; the box: its grid divisions × k);
 ``graded``
-    grading at the fingertips: spacing R/2, R/4, R/8, R/16 within 1.25 R of
+    grading at the fingertips: spacing R/2, R/4, R/8 (and R/16 for the orange and the box) within 1.25 R of
     the two finger contact points (placed by the scene's rule on the
     paper-resolution mesh), growing at :data:`fem_grasp.remesh.DEFAULT_GRADING`
     to the paper-resolution spacing (:class:`fem_grasp.shapes.Refinement`);
@@ -24,7 +24,8 @@ and the liftable weight w(ρ) — is computed under
     mesh (the uniform level at 4× the paper's vertex count; the box's ×2 grid);
 ``seed``
     five meshes of the same spacing (gmsh's ``Mesh.RandomSeed``; the box's
-    grid jittered) at the paper's resolution and at 4×, for the scatter at a fixed h;
+    grid jittered) at the paper's resolution (and at 4× for the orange; the box's ×2 grid),
+    for the scatter at a fixed h;
 ``reference``
     the finest uniform level that ran, with the squeeze increment and h halved
     twice: the reference every other run's error is measured against;
@@ -86,9 +87,10 @@ CONFIGS: dict[str, dict[str, Any]] = {
         "uniform_factors": [1, 2, 4, 8, 16, 32, 64], "uniform_extra": {"orange": [52000]},
         "uniform_max_vertices": 60000,
         "box_factors": [1, 2, 3, 4, 5, 6],
-        "graded_inner": list(GRADED_INNER), "graded_table_inner": [1 / 2, 1 / 4],
-        "step_divisors": [1, 2, 4, 8], "h_divisors": [1, 2, 4, 8], "steps_factor": 4, "box_steps_factor": 2,
-        "seeds": 5, "seed_factors": [1, 4], "box_seed_factors": [1, 2],
+        "graded_inner": list(GRADED_INNER[:3]), "graded_table_inner": [1 / 2, 1 / 4],
+        "step_divisors": [1, 2, 4, 8], "h_divisors": [1, 2, 4], "steps_factor": 4, "box_steps_factor": 2,
+        "seeds": 5, "seed_factors": [1], "seed_factors_extra": {"orange": [4]}, "box_seed_factors": [1, 2],
+        "graded_inner_extra": {"orange": [1 / 16], "foam_block": [1 / 16]},
         "reference_divisors": [1, 2, 4], "reference_max_seconds": 900,
         "adaptive_target": 0.02, "adaptive_max_levels": 2, "adaptive_timeout": 5400, "early_levels": 4,
         "case_timeout": 900, "memory_gib": 9.0, "diagnose_max_seconds": 150,
@@ -456,9 +458,12 @@ def cases(cfg: dict[str, Any], objects: tuple[str, ...], records: dict[str, dict
                    if t <= cfg["uniform_max_vertices"]]
         out.append(uni)
         out.append([{"object": name, "series": "quick"}])
-        out.append([{"object": name, "series": "graded", "inner": i} for i in cfg["graded_inner"]])
+        inner = list(cfg["graded_inner"]) + list(cfg.get("graded_inner_extra", {}).get(name, []))
+        out.append([{"object": name, "series": "graded", "inner": i} for i in inner])
         out.append([{"object": name, "series": "graded_table", "inner": i} for i in cfg["graded_table_inner"]])
-        for f in (cfg["box_seed_factors"] if box else cfg["seed_factors"]):
+        factors = cfg["box_seed_factors"] if box else list(cfg["seed_factors"]) + list(
+            cfg.get("seed_factors_extra", {}).get(name, []))
+        for f in factors:
             key = {"factor": f} if box else {"target": n0 * f}
             # seed 1 is gmsh's default: the uniform level itself (the analysis counts it among the seeds)
             out.append([dict({"object": name, "series": "seed", "seed": s}, **key) for s in range(2, cfg["seeds"] + 1)])
