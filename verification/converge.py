@@ -93,7 +93,7 @@ CONFIGS: dict[str, dict[str, Any]] = {
         "graded_inner_extra": {"orange": [1 / 16], "foam_block": [1 / 16]},
         "reference_divisors": [1, 2, 4], "reference_max_seconds": 900,
         "adaptive_target": 0.02, "adaptive_max_levels": 2, "adaptive_timeout": 5400, "early_levels": 4,
-        "case_timeout": 900, "memory_gib": 9.0, "diagnose_max_seconds": 150,
+        "case_timeout": 2400, "memory_gib": 9.0, "diagnose_max_seconds": 150,
     },
     "quick": {
         "uniform_factors": [1, 2, 4], "uniform_extra": {}, "uniform_max_vertices": 5000,
