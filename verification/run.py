@@ -252,6 +252,26 @@ def headline_checks(s: dict) -> list[dict]:
     if st.get("beam"):
         v = st["beam"]["max_fem_grasp_vs_dolfinx_p1"]
         add("cantilever tip deflection, fem_grasp P1 vs dolfinx P1, all ν", v, "≤ 1e-9", v <= 1e-9)
+    gc = s.get("grasp_convergence")
+    if gc:
+        # The adaptive loop's estimated error against its actual error (vs the study's reference), wherever a
+        # target was reached; the reference's own uncertainty is added to the estimate.
+        worst, n = 0.0, 0
+        for obj in gc.get("objects", {}).values():
+            ref = obj.get("reference") or {}
+            band = {"rho": (ref.get("rho") or {}).get("error", np.inf), "force": (ref.get("force") or {}).get("error",
+                                                                                                          np.inf)}
+            for r in obj.get("series", {}).get("adaptive", []):
+                for v in (r.get("targets") or {}).values():
+                    if not v or not ref:
+                        continue
+                    for q, key in (("rho", "squeeze_depth"), ("force", "finger_force")):
+                        allowed = v["estimated_error"][key] + (band[q] if np.isfinite(band[q]) else 0.0)
+                        worst = max(worst, v[f"{q}_error"] / allowed if allowed > 0 else np.inf)
+                        n += 1
+        if n:
+            add(f"grasp convergence: adaptive error / (its estimate + the reference's band), {n} answers", worst,
+                "≤ 1", worst <= 1.0)
     if st.get("poisson_operators"):
         v = _max(r["K_rel_diff"] for r in st["poisson_operators"])
         add("K vs dolfinx for ν up to 0.4999", v, "≤ 1e-12", v <= 1e-12)
