@@ -11,7 +11,7 @@ APT_PACKAGES := python3-dolfinx python3-gmsh python3-venv python3-pip python3-de
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 PYTEST_ARGS ?=
 
-.PHONY: setup test docs lint demo verify verify-quick meshes spectral-vs-sparse rest-table clean-venv paper-scenes
+.PHONY: setup test docs lint demo verify verify-quick meshes spectral-vs-sparse rest-table clean-venv paper-scenes converge
 
 setup: $(STAMPS)/venv
 
@@ -101,11 +101,20 @@ search: setup
 .PHONY: bench
 # Issue #7 benchmarks: contact solve against dolfinx, cost against vertex count (1k-100k), per-object pickups,
 # sparse against spectral, compiled against plain kernels, column batches, the floor of the method (flops
-# against the dense peak; about 10 GiB at 100k), and the placement search serially and on Dask (section search);
+# against the dense peak; about 10 GiB at 100k), the placement search serially and on Dask (section search), and
+# the time to a 10/5/2 % answer (section converge, from the cached study of `make converge`);
 # tables on stdout and bench/out/bench.json
 # (long: shorter with BENCH_ARGS="--max-vertices 10000").
 bench: setup
 	$(PY) -m bench.bench $(BENCH_ARGS)
+
+.PHONY: converge
+# Issue #23: the pickup answer (verdict, rho*, finger forces, patches, w(rho)) of the five shipped scenes under
+# uniform and graded refinement, halved increments and seeds, and the adaptive accuracy loop; one subprocess per
+# run, cached in verification/out/converge/cache (a re-run only reads). Tables on stdout, converge.json and plots
+# in verification/out/converge. From an empty cache: hours on 2 cores (CONVERGE_ARGS=--quick: minutes).
+converge: setup
+	$(PY) -m verification.converge $(CONVERGE_ARGS)
 
 .PHONY: paper
 # Our figures beside the paper's Tables II and III: one process per object (logs in out/paper/), then the tables.

@@ -52,6 +52,16 @@ Sections (``--only NAME``, repeatable; default all):
     plain loop and on a Dask LocalCluster of one and of two worker processes: candidates per minute, Dask's
     overhead per candidate, and the time per candidate split into the shared set-up and the per-candidate
     work (:mod:`bench.search`).
+``converge``
+    Issue #23: wall time to a 10 %, 5 % and 2 % answer (ρ* and the finger
+    force both within the target of the converged reference) for each paper
+    object and the foam block: uniform refinement, grading at the fingertips
+    (the cheapest level from which every finer one is within the target) and
+    the adaptive loop (``pickup(..., accuracy=target)``: its time, its error
+    against the reference and whether its own estimate covered it).  The runs
+    are those of ``python -m verification.converge`` (``make converge``), one
+    subprocess each, read from its cache (and computed into it when missing:
+    hours from an empty cache).
 
 Medians over ``--reps`` repetitions.  Prints tables and writes
 ``bench/out/bench.json`` (sections run earlier are kept when ``--only`` runs
@@ -81,7 +91,7 @@ log = logging.getLogger("bench")
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "bench" / "out" / "bench.json"
-SECTIONS = ("solve", "scaling", "objects", "spectral", "jit", "columns", "floor", "search")
+SECTIONS = ("solve", "scaling", "objects", "spectral", "jit", "columns", "floor", "search", "converge")
 SOLVE_SIZES = (10000, 50000)
 SCALING_SIZES = (1000, 3000, 10000, 30000, 50000, 100000)
 #: SuperLU above this many vertices takes minutes and gigabytes: not timed.
@@ -606,6 +616,68 @@ def print_floor(sec: dict[str, Any]) -> None:
               f"{r['peak_gflops']:5.0f} {tail}")
 
 
+# -------------------------------------------------------------------- converge
+CONVERGE_TARGETS = ("0.1", "0.05", "0.02")
+
+
+def section_converge(quick: bool = False) -> dict[str, Any]:
+    """Time to a converged answer per object and target (module notes), from verification.converge's study."""
+    import math
+
+    from verification import converge
+
+    analysis = converge.study(quick=quick)
+    out: dict[str, Any] = {"quick": quick, "objects": {}, "note": "times: meshing + pickup of one run (uniform, "
+                           "graded: the cheapest qualifying level; adaptive: every level of the loop)"}
+    for name, obj in analysis["objects"].items():
+        row: dict[str, Any] = {"reference": obj.get("reference")}
+        for series in ("uniform", "graded", "graded_table"):
+            row[series] = {t: obj["resolution"].get(series, {}).get(t) for t in CONVERGE_TARGETS}
+        adaptive = {}
+        ref = obj.get("reference")
+        for r in obj["series"].get("adaptive", []):
+            for t, v in (r.get("targets") or {}).items():
+                if v is None:
+                    adaptive[t] = {"timeout": bool(r.get("timeout")), "seconds": r.get("seconds")}
+                    continue
+                est = v["estimated_error"]
+                err = {"squeeze_depth": v["rho_error"], "finger_force": v["force_error"]}
+                covered = all(math.isfinite(e) and e <= est[k] for k, e in err.items()) if ref else None
+                adaptive[t] = {"seconds": v["seconds"], "vertices": v["vertices"], "levels": v["level"] + 1,
+                               "converged": True, "estimated_error": est, "error": err, "estimate_covers": covered,
+                               "success": v["success"]}
+        row["adaptive"] = adaptive
+        out["objects"][name] = row
+    return out
+
+
+def print_converge(sec: dict[str, Any]) -> None:
+    print("\n== converge: wall time to a 10 % / 5 % / 2 % answer (rho* and finger force within the target of the "
+          "reference)" + (" [quick study]" if sec.get("quick") else ""))
+
+    def cell(v: Any) -> str:
+        if not v:
+            return "not reached"
+        if v.get("timeout"):
+            return "timeout"
+        extra = f" ({v['vertices']:,} v)" if v.get("vertices") else ""
+        return f"{v['seconds']:.0f} s{extra}"
+
+    print(f"{'object':<11} {'target':>6} | {'uniform':>20} | {'graded':>20} | {'graded+table':>20} | "
+          f"{'adaptive':>20} | adaptive error (rho*, force) vs its estimate")
+    for name, row in sec["objects"].items():
+        for t in CONVERGE_TARGETS:
+            a = row["adaptive"].get(t)
+            ae = ""
+            if a and "error" in a:
+                e, est = a["error"], a["estimated_error"]
+                pct = lambda x: "–" if x is None else ("wrong verdict" if x == float("inf") else f"{100 * x:.2g} %")  # noqa: E731
+                ae = (f"{pct(e['squeeze_depth'])}, {pct(e['finger_force'])} vs {pct(est.get('squeeze_depth'))}, "
+                      f"{pct(est.get('finger_force'))}" + ("" if a.get("converged") else " (not converged)"))
+            print(f"{name:<11} {100 * float(t):>5g}% | {cell(row['uniform'][t]):>20} | {cell(row['graded'][t]):>20} | "
+                  f"{cell(row['graded_table'][t]):>20} | {cell(a):>20} | {ae}")
+
+
 # -------------------------------------------------------------------- main
 def print_search(sec: dict[str, Any]) -> None:
     from bench.search import print_search as show
@@ -614,7 +686,8 @@ def print_search(sec: dict[str, Any]) -> None:
 
 
 PRINTERS = {"solve": print_solve, "scaling": print_scaling, "objects": print_objects, "spectral": print_spectral,
-            "jit": print_jit, "columns": print_columns, "floor": print_floor, "search": print_search}
+            "jit": print_jit, "columns": print_columns, "floor": print_floor, "search": print_search,
+            "converge": print_converge}
 
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:
@@ -629,6 +702,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--search-candidates", type=int, default=16,
                     help="candidates per paper scene in the search section (default 16)")
     ap.add_argument("--out", type=Path, default=OUT)
+    ap.add_argument("--converge-quick", action="store_true",
+                    help="section converge: read (or compute) the quick study of verification.converge")
     ap.add_argument("--worker-scaling", type=int, help=argparse.SUPPRESS)
     ap.add_argument("--worker-floor", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
@@ -666,6 +741,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             from bench.search import section_search
 
             data["search"] = section_search(args.search_candidates)
+        elif name == "converge":
+            data["converge"] = section_converge(args.converge_quick)
         elif name == "floor":
             data["floor"] = section_floor([s for s in SCALING_SIZES if s <= args.max_vertices], args.reps,
                                           data.get("scaling"))

@@ -2,7 +2,7 @@
 
 Subcommands::
 
-    fem-grasp run SCENE [--quick] [--out DIR] [--report] [--young E] [--no-lift]   squeeze and lift (Algorithm 1)
+    fem-grasp run SCENE [--quick] [--out DIR] [--report] [--young E] [--no-lift] [--accuracy A]   squeeze and lift (Algorithm 1)
     fem-grasp rest SCENE [--quick] [--out DIR]              the resting state only (§III-A)
     fem-grasp mesh INPUT -o OUTPUT [--vertices N | --size H] [--units mm]   closed surface scan → tetrahedra
     fem-grasp info PATH                                     a mesh, a surface, a scene, a result.json or a .pvd
@@ -80,8 +80,16 @@ def _load_scene(args: argparse.Namespace) -> Any:
 
         young = parse_quantity(young, "pressure", "--young")
         check_quantity("--young", young, "Pa")
-    return with_overrides(scene, backend=getattr(args, "backend", None), young=young,
-                          lift=False if getattr(args, "no_lift", False) else None)
+    scene = with_overrides(scene, backend=getattr(args, "backend", None), young=young,
+                           lift=False if getattr(args, "no_lift", False) else None)
+    accuracy = getattr(args, "accuracy", None)
+    if accuracy is not None:
+        from dataclasses import replace
+
+        from .io.scene import parse_accuracy
+
+        scene = replace(scene, accuracy=parse_accuracy(accuracy, "--accuracy"))
+    return scene
 
 
 def _fmt(x: float | None, unit: str = "", scale: float = 1.0, digits: int = 4) -> str:
@@ -146,6 +154,48 @@ def _summary_lines(scene: Any, result: Any, rest_cached: bool) -> list[str]:
         + "  (A contact, B break, C stick→slip, D slip→stick)",
         "time       " + ", ".join(time_parts),
     ]
+    acc = getattr(result, "accuracy", None)
+    if acc:
+        if not acc["converged"]:
+            lines[2] += "  [NOT CONVERGED: see accuracy]"
+        lines[3:3] = _accuracy_lines(acc, scene.quick)
+    return lines
+
+
+def _accuracy_lines(acc: dict[str, Any], quick: bool) -> list[str]:
+    """The estimated error of the answer, and one line per level (:func:`fem_grasp.grasp.accuracy.converged_pickup`)."""
+    e = acc["estimated_error"]
+
+    def pct(x: Any) -> str:
+        if x is None or not np.isfinite(x):
+            return "unknown"
+        return f"{100 * x:.0f} %" if x >= 0.1 else f"{100 * x:.2g} %"
+
+    if acc["converged"]:
+        head = (f"accuracy   target {100 * acc['target']:g} %: estimated error rho* {pct(e['squeeze_depth'])}, "
+                f"finger force {pct(e['finger_force'])} ({len(acc['levels'])} levels, {acc.get('seconds', 0):.0f} s)")
+    elif len(acc["levels"]) == 1:
+        stated = acc.get("expected_error_stated")
+        bound = e["squeeze_depth"]
+        how = ("its verdict may differ from the converged one" if stated and not np.isfinite(bound) else
+               f"it may be off by about {pct(bound)} in rho* and the finger force (as measured by the convergence "
+               "study for this scene)" if stated else "how far it is off is not known")
+        head = (f"accuracy   NOT CONVERGED: {acc.get('note', '')}; {how}"
+                + (f"; run without --quick for the answer to {100 * acc['target']:g} %"
+                   if quick and acc.get("target") is not None and np.isfinite(acc["target"]) else ""))
+    elif not all(np.isfinite(v) for v in (e["squeeze_depth"], e["finger_force"])):
+        head = (f"accuracy   NOT CONVERGED to {100 * acc['target']:g} %: {acc.get('note', '')}, so not even the verdict "
+                "is settled at this resolution" + ("; run without --quick for the converged answer" if quick else ""))
+    else:
+        head = (f"accuracy   NOT CONVERGED to {100 * acc['target']:g} %: the answer may be off by about "
+                f"{pct(e['squeeze_depth'])} in rho* and {pct(e['finger_force'])} in the finger force "
+                f"({acc.get('note', '')})" + ("; run without --quick for the converged answer" if quick else ""))
+    lines = [head]
+    for lv in acc["levels"]:
+        lines.append(f"  level {lv['level']}  {lv['vertices']:,} vertices, spacing {1e3 * lv['inner_size']:.3g} mm at "
+                     f"the patches, increment {1e3 * lv['step']:.3g} mm: "
+                     f"{'picked up' if lv['success'] else 'not picked up'}, rho {1e3 * lv['squeeze_depth']:.4g} mm, "
+                     f"finger force {lv['finger_force']:.4g} N, {lv['seconds'] + lv['mesh_seconds']:.1f} s")
     return lines
 
 
@@ -478,6 +528,11 @@ def build_parser() -> argparse.ArgumentParser:
                         "status is then 1, as the object has not been lifted")
     p.add_argument("--young", metavar="E",
                    help="override the scene's Young's modulus: pascals, or a string with a unit, e.g. '20 kPa'")
+    p.add_argument("--accuracy", metavar="A",
+                   help="override the scene's [solver] accuracy: a relative error of rho* and the finger force "
+                        "(0.05 or 5%%): refine at the contact patches until two successive answers agree within it; "
+                        "'off' runs once on the scene's mesh (--quick always runs once, on its coarse mesh, and says "
+                        "that its answer is not converged)")
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("rest", parents=[common, scene_opts], help="compute the resting state of a scene's object",

@@ -308,10 +308,119 @@ def write_report(summary: dict, out_dir: str | Path) -> Path:
 
         parts.append(section(s["friction"], images))
 
+    gc = s.get("grasp_convergence")
+    if gc:
+        parts.append(grasp_convergence_section(gc, images))
+
     tm = s.get("stage_seconds", {})
     if tm:
-        parts.append("<h2>8. Timing</h2>" + table(["stage", "seconds"], [[k, v] for k, v in tm.items()]))
+        parts.append("<h2>9. Timing</h2>" + table(["stage", "seconds"], [[k, v] for k, v in tm.items()]))
     parts.append("</body></html>")
     path = out / "report.html"
     path.write_text("\n".join(parts), encoding="utf-8")
     return path
+
+
+# ----------------------------------------------------------------- the pickup answer under refinement
+SERIES_NOTES = {
+    "uniform": "uniform meshes, ×2 vertices per level (shapes.paper_mesh; the box: grid × k)",
+    "graded": "spacing R/2 … R/16 within 1.25 R of the finger contact points, paper-resolution spacing elsewhere",
+    "graded_table": "the same spacing at the fingertips and around the resting table patch",
+    "step": "the squeeze increment halved (one mesh)",
+    "h": "the lift-test step h halved (one mesh)",
+    "seed": "meshes of the same spacing (gmsh seeds; the box: jittered grid)",
+    "reference": "the finest uniform level with the increment and h halved twice",
+    "adaptive": "pickup(..., accuracy=target): the adaptive loop",
+    "quick": "the scene's [quick] variant (fem-grasp run NAME --quick), one run",
+}
+
+
+def _level_label(sp: dict) -> str:
+    for k, fmt_ in (("target", "{:,} v target"), ("factor", "grid ×{}"), ("inner", "R/{:g}"), ("divisor", "÷{}"),
+                    ("seed", "seed {}")):
+        if k in sp:
+            v = sp[k]
+            if k == "inner":
+                v = round(1 / v, 3)
+            label = fmt_.format(v)
+            if k == "divisor" and "target" in sp:
+                label += f" at {sp['target']:,} v"
+            if k == "seed":
+                label += f" ({sp.get('target', sp.get('factor'))})"
+            if k == "target" and sp.get("series") == "adaptive":
+                label = f"accuracy {100 * v:g} %"
+            return label
+    return ""
+
+
+def _pct(x) -> Any:
+    if x is None or (isinstance(x, float) and (math.isnan(x))):
+        return None
+    if isinstance(x, float) and math.isinf(x):
+        return "verdict wrong"
+    return f"{100 * x:.3g} %"
+
+
+def grasp_convergence_section(gc: dict, images: dict) -> str:
+    """Section 6: the pickup answer (verdict, ρ*, forces, patches, w(ρ)) under refinement, per object."""
+    out = ["<h2>8. Convergence of the pickup answer</h2>",
+           "<p class='note'>The answer of Algorithm 1 on each shipped scene (tomato, orange, steam bun, football, foam "
+           "block) under the refinements below (<code>make converge</code>, <code>python -m verification.converge"
+           "</code>; cached runs in <code>verification/out/converge/cache</code>). ρ* is the squeeze depth at which the "
+           "lift starts; the finger force is Σ f·n̂ over both patches at lift-off; per finger: the resultant's norm, its "
+           "component along the finger's squeeze direction and its vertical component (N); patches: contact nodes of "
+           "finger 1 / finger 2 / table. Errors are against each object's reference (finest uniform mesh, increments "
+           "halved twice; its own uncertainty is stated). Times: meshing + pickup (assembly, rest, squeeze, lift), "
+           "one process, on a machine shared with other jobs (timings vary by up to 2×).</p>"]
+    out.append(img(images.get("converge_error_time"), "error against run time, log–log: ρ* (left), finger force "
+                                                       "(right); dotted lines 10 %, 5 %, 2 %"))
+    out.append(img(images.get("converge_liftable"), "liftable weight w(ρ) of the uniform levels"))
+    for name, obj in gc.get("objects", {}).items():
+        out.append(f"<h3>{html.escape(name)}</h3>")
+        ref = obj.get("reference")
+        if ref:
+            out.append(f"<p>Reference ({ref['vertices']:,} vertices): ρ* = {fmt(1e3 * ref['rho']['value'])} mm ± "
+                       f"{_pct(ref['rho']['error'])} ({html.escape(ref['rho']['method'])}), finger force "
+                       f"{fmt(ref['force']['value'])} N ± {_pct(ref['force']['error'])} "
+                       f"({html.escape(ref['force']['method'])}).</p>")
+        res = obj.get("resolution", {})
+        if res:
+            rows = []
+            for s_, per in res.items():
+                rows.append([s_] + [None if per.get(t) is None else
+                                    Markup(f"{per[t]['vertices']:,} v, {fmt(1e3 * per[t]['patch_spacing'])} mm, "
+                                           f"{fmt(per[t]['seconds'])} s") for t in ("0.1", "0.05", "0.02")])
+            out.append("<p class='note'>Cheapest level from which every finer level of the series is within the "
+                       "target (both ρ* and the finger force; vertices, spacing at the patches, time); – : not "
+                       "reached:</p>")
+            out.append(table(["series", "10 %", "5 %", "2 %"], rows))
+        for s_, rows in obj.get("series", {}).items():
+            body = []
+            for r in rows:
+                if "rho" not in r:
+                    body.append([_level_label(r["spec"]), r.get("vertices"), "timeout" if r["timeout"] else "error",
+                                 None, None, None, None, None, None, None, r.get("seconds")])
+                    continue
+                fg = r["fingers"]
+                body.append([_level_label(r["spec"]), r["vertices"], "picked up" if r["success"] else "NOT",
+                             1e3 * r["rho"], _pct(r.get("rho_error")), r["force"], _pct(r.get("force_error")),
+                             Markup(" / ".join(f"{f['resultant']:.3g}, {f['along_squeeze']:.3g}, {f['vertical']:.3g}"
+                                               for f in fg)),
+                             Markup(f"{fg[0]['nodes']} / {fg[1]['nodes']} / {r['table_nodes']}"),
+                             None if r.get("patch_spacing") is None else 1e3 * r["patch_spacing"], r.get("seconds")])
+            out.append(f"<p class='note'><b>{html.escape(s_)}</b>: {html.escape(SERIES_NOTES.get(s_, ''))}</p>")
+            out.append(table(["level", "vertices", "verdict", "ρ* (mm)", "error", "finger force (N)", "error",
+                              "per finger |F|, F·d̂, F_z (N)", "patches", "spacing at patch (mm)", "s"], body))
+        for key, sc in obj.get("scatter", {}).items():
+            out.append(f"<p class='note'>Seeds at {html.escape(key)}: {sc['picked_up']} of {sc['runs']} picked up; ρ* "
+                       f"{fmt(1e3 * (sc['rho_mean'] or math.nan))} mm ± {fmt(1e3 * (sc['rho_std'] or math.nan))} "
+                       f"(range {fmt(1e3 * (sc['rho_min'] or math.nan))}–{fmt(1e3 * (sc['rho_max'] or math.nan))}), "
+                       f"finger force {fmt(sc['force_mean'])} ± {fmt(sc['force_std'])} N.</p>")
+        if obj.get("flips"):
+            out.append("<p class='note'>Verdict flips and non-monotone jumps, with the slow lift test's verdict "
+                       "(weights raised in steps of h/8 from zero at every increment):</p>")
+            out.append(table(["series", "kind", "vertices", "ρ* (mm)", "diagnosis"],
+                             [[f["series"], f["kind"], f["row"]["vertices"], 1e3 * f["row"]["rho"],
+                               (f.get("diagnosis") or {}).get("verdict", "not diagnosed (too slow to re-run)")]
+                              for f in obj["flips"]]))
+    return "\n".join(out)

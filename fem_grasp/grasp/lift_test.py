@@ -184,12 +184,14 @@ class LiftTest:
                 k += 1
             w = w + (k - 1) * h
         else:
-            # The paper assumes w grows with ρ; if even w(ρ_{l−1}) is no longer held, step down by h.
+            # The paper assumes w grows with ρ.  w(ρ_{l−1}) + h is not held: keep w(ρ_{l−1}) if it still is, else
+            # step down by h until a weight is held (testing w(ρ_{l−1}) first: skipping it reported w − h at every
+            # other increment along a plateau of the holding capacity).
             while w > 0:
-                w = max(w - h, 0.0)
                 self.tests += 1
-                if w == 0.0 or hang(self.tracker, base.state, w).held:
+                if hang(self.tracker, base.state, w).held:
                     break
+                w = w - h if w - h > 1e-9 * h else 0.0  # (not 1e-17 N of round-off)
         self.liftable = w
         return w
 

@@ -303,6 +303,9 @@ class PickupResult:
     timings : wall time per phase, seconds
     lift_attempts : every simulated lift, in order (more than one when a lift failed and the squeeze
         went on, Algorithm 1 step 6)
+    lift_test_step : the lift-test step h used, newtons
+    accuracy : with ``pickup(..., accuracy=...)``, what the levels of :func:`fem_grasp.accuracy.converged_pickup`
+        found (target, estimated errors, levels), as in result.json; else None
     """
 
     success: bool
@@ -328,6 +331,8 @@ class PickupResult:
     step: float = 0.0
     lift_attempts: list[LiftAttempt] = field(default_factory=list)
     outcome: str = ""
+    lift_test_step: float = 0.0
+    accuracy: dict[str, Any] | None = None
 
     @property
     def table(self) -> TablePlane:
@@ -385,6 +390,7 @@ class PickupResult:
             "table_iii_measure": TABLE_III_MEASURE,
             "rigid": rigid, "timings": self.timings,
             "lift_attempts": [a.to_dict() for a in self.lift_attempts],
+            "lift_test_step": self.lift_test_step, "accuracy": self.accuracy,
             "reference_points": self.body.mesh.points.tolist(),
             "tets": self.body.mesh.tets.tolist(),
             "snapshots": [s.to_dict() for s in self.snapshots],
@@ -514,7 +520,8 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
            max_squeeze: float | None = None, step: float | None = None, backend: str = "sparse",
            rest_state: RestState | None = None, lift_test_step: float | None = None,
            max_lift: float | None = None, lift: bool = True, max_lift_attempts: int = 4,
-           placement_rule: str = DEFAULT_PLACEMENT_RULE) -> PickupResult:
+           placement_rule: str = DEFAULT_PLACEMENT_RULE, accuracy: float | None = None,
+           geometry: Any = None) -> PickupResult:
     """Run Algorithm 1: will two hemispherical fingers pick ``body`` up from the table?
 
     Parameters
@@ -540,12 +547,26 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
         finger, or friction cannot hold it), the squeeze resumes from the
         lift-start state and the lift is tried again at the next passing lift
         test (Algorithm 1 step 6, "go back to step 3"), up to this many lifts
+    accuracy : relative accuracy wanted of ρ* and the finger force (e.g. 0.05); None runs once on ``body``'s
+        mesh.  With a target, :func:`fem_grasp.accuracy.converged_pickup` refines the mesh at the contact
+        patches and the increments until two successive answers agree within it, and the result (the last
+        level's) carries the estimated error in ``result.accuracy``
+    geometry : what to remesh for ``accuracy`` (:class:`fem_grasp.remesh.Geometry`); default: the body's
+        boundary surface (:func:`fem_grasp.remesh.geometry_of_mesh`)
 
     Returns
     -------
     PickupResult
         ``success`` and ``reason``; see its attributes.  Failures are results.
     """
+    if accuracy is not None:
+        from .accuracy import converged_pickup
+
+        return converged_pickup(body, accuracy=accuracy, geometry=geometry, mu_finger=mu_finger, mu_table=mu_table,
+                                finger_radius=finger_radius, contacts=contacts, directions=directions, ratio=ratio,
+                                max_squeeze=max_squeeze, step=step, backend=backend, rest_state=rest_state,
+                                lift_test_step=lift_test_step, max_lift=max_lift, lift=lift,
+                                max_lift_attempts=max_lift_attempts, placement_rule=placement_rule)
     t_start = time.perf_counter()
     mu_f = check_friction(DEFAULT_FRICTION if mu_finger is None else mu_finger, "mu_finger")
     mu_t = mu_f if mu_table is None else check_friction(mu_table, "mu_table")
@@ -631,6 +652,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
     result.max_squeeze = float(max_squeeze)
     result.step = float(step)
     lt = LiftTest(hanging, posed.weight, lift_test_step)
+    result.lift_test_step = float(lt.step)
     t_squeeze = t0
     timings["squeeze"] = timings["lift_test"] = timings["lift"] = 0.0
     while True:

@@ -549,6 +549,8 @@ def result_summary(result: Any) -> dict[str, Any]:
         "max_liftable_weight": max((w for _, w in result.liftable), default=0.0), "weight": result.body.weight,
         "event_counts": result.event_counts(), "n_events": len(result.events), "n_snapshots": len(result.snapshots),
         "n_nodes": result.body.n_nodes, "n_tets": result.body.mesh.n_tets, "timings": dict(result.timings),
+        "accuracy_target": None if not getattr(result, "accuracy", None) else result.accuracy["target"],
+        "estimated_error": None if not getattr(result, "accuracy", None) else result.accuracy["estimated_error"],
     }
 
 
@@ -580,7 +582,11 @@ def write_result_json(out: str | Path, result: Any, scene: Any = None, series: d
                                          "sliding": rs.sliding},
         "result": res,
         "series": series,
+        # With pickup(..., accuracy=...): {"target", "estimated_error": {"squeeze_depth", "finger_force"},
+        # "converged", "levels": [...], ...} (fem_grasp.accuracy.AccuracyReport); None for a single run.
+        "accuracy": getattr(result, "accuracy", None),
     }
+    res.pop("accuracy", None)
     doc.update(extra or {})
     path = Path(out) / "result.json"
     atomic_write_text(path, json.dumps(json_safe(doc), indent=1, allow_nan=False))

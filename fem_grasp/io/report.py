@@ -475,6 +475,35 @@ def _row(k: str, v: Any) -> str:
     return f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"
 
 
+def _accuracy_html(acc: dict[str, Any] | None) -> str:
+    """The levels of ``pickup(..., accuracy=...)`` (:func:`fem_grasp.grasp.accuracy.converged_pickup`), as a table."""
+    if not acc:
+        return ""
+
+    def change(lv: dict[str, Any]) -> str:
+        c = lv.get("change")
+        return "—" if not c else f"{100 * c['squeeze_depth']:.2g} % / {100 * c['finger_force']:.2g} %"
+
+    rows = "".join(
+        f"<tr><td>{lv['level']}</td><td>{lv['vertices']:,}</td><td>{1e3 * lv['inner_size']:.3g}</td>"
+        f"<td>{1e3 * lv['outer_size']:.3g}</td><td>{1e3 * lv['step']:.3g}</td><td>{lv['lift_test_step']:.3g}</td>"
+        f"<td>{'picked up' if lv['success'] else 'not picked up'}</td><td>{1e3 * lv['squeeze_depth']:.4g}</td>"
+        f"<td>{lv['finger_force']:.4g}</td>"
+        f"<td>{lv['finger_nodes'][0]} / {lv['finger_nodes'][1]} / {lv['table_nodes']}</td>"
+        f"<td>{change(lv)}</td><td>{lv['seconds'] + lv['mesh_seconds']:.1f}</td></tr>" for lv in acc["levels"])
+    target = acc.get("target")
+    head = "" if target is None else f" (target {100 * target:g} %)"
+    return (f"<h2>Accuracy: {'converged' if acc['converged'] else 'NOT converged'}{head}</h2>"
+            f"<p>{html.escape(acc.get('note', ''))}. Each level remeshes "
+            f"{html.escape(acc.get('geometry', '') or 'the object')} with half the spacing at the contact patches and "
+            "halves the squeeze increment and the lift-test step h; the estimated error is the difference of the last "
+            "two levels.</p>"
+            "<table><tr><th>level</th><th>vertices</th><th>spacing at the patches (mm)</th><th>outer (mm)</th>"
+            "<th>increment (mm)</th><th>h (N)</th><th>verdict</th><th>ρ* (mm)</th><th>finger force (N)</th>"
+            "<th>contacts finger 1 / 2 / table</th><th>change of ρ* / force</th><th>s</th></tr>"
+            f"{rows}</table>")
+
+
 def _html(doc: dict[str, Any]) -> str:
     s, res, scene = doc["summary"], doc["result"], doc.get("scene") or {}
     ok = s["success"]
@@ -502,6 +531,15 @@ def _html(doc: dict[str, Any]) -> str:
              f"{g(doc['rest']['max_sag'], 1e3)} mm" + (" (from cache)" if doc.get("rest_from_cache") else "")),
         _row("time", ", ".join(f"{k} {v:.2f} s" for k, v in s["timings"].items())),
     ]
+    acc_html = _accuracy_html(doc.get("accuracy"))
+    if doc.get("accuracy"):
+        acc = doc["accuracy"]
+        e = acc["estimated_error"]
+        pct = lambda x: "unknown" if x is None else f"{100 * x:.2g} %"  # noqa: E731
+        target = "one run" if acc.get("target") is None else f"target {100 * acc['target']:g} %"
+        rows.insert(5, _row("accuracy", f"{target}: estimated error of ρ* {pct(e.get('squeeze_depth'))}, of the "
+                                        f"finger force {pct(e.get('finger_force'))}"
+                                        f" — {'converged' if acc['converged'] else 'NOT converged'}"))
     lifted = ("At the end: lifted off the table, drawn a little above the lift-off state (raising the fingers "
               "further moves the hanging object rigidly)." if ok else "At the end: where the pickup stopped.")
     pics = {
@@ -552,6 +590,7 @@ the time value is the finger path (m: ρ, then ρ + lift height); colour by <cod
 <code>elastic_displacement</code>; glyph <code>contact_force</code>; field data <code>phase</code>,
 <code>squeeze_depth</code>, <code>lift_height</code>, <code>liftable_weight</code> on every frame.
 <code>object.xdmf</code> holds the same series as XDMF/HDF5.</p>
+{acc_html}
 {figs}
 <h2>Events</h2>
 <table><tr><th>#</th><th>phase</th><th>kind</th><th>body</th><th>node</th><th>ρ (mm)</th><th>lift (mm)</th></tr>

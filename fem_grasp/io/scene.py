@@ -38,6 +38,10 @@ optional)::
     lift_test_step = "0.05 N"
     max_lift = "5 cm"
     lift = true
+    accuracy = 0.05           # relative accuracy of ρ* and the finger force: refine at the contact patches until
+                              # two successive levels agree within it (fem_grasp.accuracy); omit for one run
+    expected_error = 0.3      # how far a single run of this scene (no accuracy loop, e.g. its [quick] variant) is
+                              # from the converged answer, as measured by `make converge`: printed with its answer
 
     [quick]                   # overrides for `--quick`: same tables, merged over the above
     object = { vertices = 200 }
@@ -225,6 +229,8 @@ class Scene:
     quick: bool = False
     expect: str | None = None
     placement_rule: str = DEFAULT_PLACEMENT_RULE
+    accuracy: float | None = None
+    expected_error: float | None = None
 
     # ------------------------------------------------------------ building
     def load_mesh(self, cache_dir: Path | None = None) -> "TetMesh":
@@ -293,8 +299,19 @@ class Scene:
         kw = {"weight": self.weight} if self.weight is not None else {"density": self.density}
         return Body(mesh, self.young, self.poisson, gravity=self.gravity, **kw)
 
+    def geometry(self) -> "Any":
+        """What ``accuracy`` remeshes (:mod:`fem_grasp.mesh.remesh`): the paper shape, the box, the scan's surface;
+        None for a volume mesh file (the loop then remeshes the mesh's own boundary)."""
+        from ..mesh import remesh
+
+        return remesh.geometry_of_scene(self)
+
     def pickup_kwargs(self) -> dict[str, Any]:
-        """Keyword arguments of :func:`fem_grasp.grasp.pickup.pickup` (all but ``body`` and ``rest_state``)."""
+        """Keyword arguments of :func:`fem_grasp.grasp.pickup.pickup` (all but ``body`` and ``rest_state``).
+
+        ``accuracy`` is not among them: a caller that wants the converged answer passes
+        ``accuracy=scene.accuracy, geometry=scene.geometry()`` (the CLI does).
+        """
         return {"mu_finger": self.mu_finger, "mu_table": self.mu_table, "finger_radius": self.finger_radius,
                 "contacts": self.contacts, "directions": tuple(np.array(d, float) for d in self.directions),
                 "ratio": self.ratio, "max_squeeze": self.max_squeeze, "step": self.step, "backend": self.backend,
@@ -321,7 +338,8 @@ class Scene:
         Keys: ``young``, ``poisson``, ``weight``, ``mass``, ``density``, ``gravity``; ``mu`` (both
         coefficients), ``mu_finger``, ``mu_table``; ``finger_radius``; ``contacts`` ("auto", a placement rule
         or two node indices) or ``placement_rule``; ``directions``, ``ratio``; ``backend``, ``max_squeeze``,
-        ``step``, ``lift_test_step``, ``max_lift``, ``lift``; ``vertices`` (remesh).  Example:
+        ``step``, ``lift_test_step``, ``max_lift``, ``lift``; ``vertices`` (remesh); ``accuracy`` (0.05, "5%" or
+        None: refine until ρ* and the finger force agree to it, :mod:`fem_grasp.grasp.accuracy`).  Example:
         ``Scene.load("tomato").with_(young="15 kPa", mu=0.4)``.
 
         Raises
@@ -362,7 +380,8 @@ _SCHEMA: dict[str, dict[str, str]] = {
     "friction": {"finger": "float", "table": "float"},
     "fingers": {"radius": "length", "contacts": "contacts", "directions": "directions", "ratio": "float"},
     "solver": {"backend": "str", "max_squeeze": "length", "step": "length", "lift_test_step": "force",
-               "max_lift": "length", "lift": "bool"},
+               "max_lift": "length", "lift": "bool", "accuracy": "float",
+               "expected_error": "float"},
 }
 
 
@@ -635,6 +654,13 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
         raise SceneError(f"{s.where('backend')} must be \"sparse\" or \"spectral\", got {backend!r}")
     for key, unit in (("max_squeeze", "m"), ("step", "m"), ("lift_test_step", "N"), ("max_lift", "m")):
         check_quantity(s.where(key), s.get(key), unit)
+    accuracy = s.get("accuracy")
+    if accuracy is not None and not 0.0 < accuracy < 1.0:
+        raise SceneError(f"{s.where('accuracy')} is a relative error in (0, 1), e.g. 0.05 for 5 %; got {accuracy!r}")
+    expected_error = s.get("expected_error")
+    if expected_error is not None and not expected_error > 0:
+        raise SceneError(f"{s.where('expected_error')} is a relative error > 0 (inf: the verdict itself may be wrong); "
+                         f"got {expected_error!r}")
     step, max_sq = s.get("step"), s.get("max_squeeze")
     if step is not None and max_sq is not None and step > max_sq:
         raise SceneError(f"{s.where('step')} ({step:g} m) exceeds solver.max_squeeze ({max_sq:g} m)")
@@ -648,7 +674,9 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
                  contacts=contacts, directions=directions, ratio=float(ratio), backend=backend,
                  max_squeeze=max_sq, step=step, lift_test_step=s.get("lift_test_step"),
                  max_lift=s.get("max_lift"), lift=s.get("lift", True), description=top.get("description", ""),
-                 path=path, quick=quick, expect=expect, placement_rule=rule)
+                 path=path, quick=quick, expect=expect, placement_rule=rule,
+                 accuracy=None if accuracy is None else float(accuracy),
+                 expected_error=None if expected_error is None else float(expected_error))
 
 
 def load_scene(path: str | Path, quick: bool = False) -> Scene:
@@ -717,8 +745,31 @@ _CHANGES: dict[str, tuple[str, str]] = {
     "placement_rule": ("placement_rule", "rule"), "directions": ("directions", "directions"),
     "ratio": ("ratio", "ratio"), "backend": ("backend", "backend"), "max_squeeze": ("max_squeeze", "length"),
     "step": ("step", "length"), "lift_test_step": ("lift_test_step", "force"), "max_lift": ("max_lift", "length"),
-    "lift": ("lift", "bool"), "vertices": ("vertices", "int"),
+    "lift": ("lift", "bool"), "vertices": ("vertices", "int"), "accuracy": ("accuracy", "accuracy"),
 }
+
+
+def parse_accuracy(value: Any, where: str = "accuracy") -> float | None:
+    """An accuracy setting: a relative error (0.05), a percentage ("5%"), or off (None, "off": one run on the
+    scene's mesh).  Raises :class:`~fem_grasp.errors.SceneError` naming ``where`` for anything else."""
+    if value is None:
+        return None
+    if isinstance(value, str):
+        t = value.strip().lower()
+        if t in ("off", "none", "no"):
+            return None
+        try:
+            v = float(t[:-1]) / 100.0 if t.endswith("%") else float(t)
+        except ValueError:
+            raise SceneError(f"{where}: expected a relative error such as 0.05, a percentage such as 5%, or off; "
+                             f"got {value!r}") from None
+    elif isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise SceneError(f"{where}: expected a relative error such as 0.05, got {value!r}")
+    else:
+        v = float(value)
+    if not 0.0 < v < 1.0:
+        raise SceneError(f"{where}: a relative error in (0, 1) (e.g. 0.05 or 5%), got {value!r}")
+    return v
 
 
 def _with_changes(scene: Scene, changes: dict[str, Any]) -> Scene:
@@ -779,6 +830,8 @@ def _with_changes(scene: Scene, changes: dict[str, Any]) -> Scene:
             if not isinstance(value, bool):
                 raise SceneError(f"{w}: expected True or False, got {value!r}")
             new["lift"] = value
+        elif kind == "accuracy":
+            new["accuracy"] = parse_accuracy(value, w)
         elif kind == "int":  # vertices: remesh
             if isinstance(value, bool) or not isinstance(value, int) or value < 20:
                 raise SceneError(f"{w}: expected an integer ≥ 20, got {value!r}")
@@ -813,9 +866,25 @@ def pickup_scene(scene: Scene, cache_dir: Path | None = None, phase: Any = None)
         rs, cached = cached_rest(body, scene.mu_table, backend=scene.backend, down=scene.object.down,
                                  cache_dir=cache_dir)
     t_rest = time.perf_counter() - t0
-    with step("squeeze, lift test, lift"):
+    refine = scene.accuracy is not None and not scene.quick
+    with step("squeeze and lift, refining" if refine else "squeeze, lift test, lift"):
         try:
-            result = pickup(body, rest_state=rs, **scene.pickup_kwargs())
+            if refine:
+                from ..grasp.accuracy import converged_pickup
+
+                result = converged_pickup(body, accuracy=scene.accuracy, geometry=scene.geometry(), rest_state=rs,
+                                          **scene.pickup_kwargs())
+            else:
+                result = pickup(body, rest_state=rs, **scene.pickup_kwargs())
+                if scene.quick or scene.expected_error is not None:
+                    from ..grasp.accuracy import single_run_report
+
+                    # One run: not converged; the scene states how far such a run is from the converged answer
+                    # (its [quick] solver.expected_error, measured by the convergence study).
+                    result.accuracy = single_run_report(
+                        result, scene.accuracy, scene.expected_error,
+                        "--quick: one run on the coarse mesh, no refinement" if scene.quick else
+                        "one run on the scene's mesh (accuracy off)")
         except SceneError as exc:
             raise _in_scene(scene, exc) from None
     result.timings["rest"] = t_rest

@@ -15,7 +15,7 @@ import contextlib
 import logging
 import math
 from dataclasses import dataclass
-from typing import Any, Callable, Iterator
+from typing import Any, Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -62,19 +62,26 @@ class Refinement:
         return cls(tuple(tuple(float(x) for x in row) for row in np.asarray(centers, float)), 2.0 * r, 0.5 * r, r)
 
 
-def apply_refinement(gmsh: Any, refine: "Refinement | None", mesh_size: float) -> None:
-    """Set the background size field of the current model (no-op without a refinement)."""
+def apply_refinement(gmsh: Any, refine: "Refinement | Sequence[Refinement] | None", mesh_size: float) -> None:
+    """Set the background size field of the current model (no-op without a refinement).
+
+    ``refine`` may be one :class:`Refinement` or several (e.g. finer at the
+    fingertips than at the table): the size is the smallest any of them asks.
+    """
     if refine is None:
         return
     field = gmsh.model.mesh.field
     balls = []
-    for x, y, z in refine.centers:
-        f = field.add("Ball")
-        for key, value in (("Radius", refine.radius), ("Thickness", refine.thickness),
-                           ("VIn", min(refine.size, mesh_size)), ("VOut", mesh_size),
-                           ("XCenter", x), ("YCenter", y), ("ZCenter", z)):
-            field.setNumber(f, key, float(value))
-        balls.append(f)
+    for ref in ((refine,) if isinstance(refine, Refinement) else tuple(refine)):
+        for x, y, z in ref.centers:
+            f = field.add("Ball")
+            for key, value in (("Radius", ref.radius), ("Thickness", ref.thickness),
+                               ("VIn", min(ref.size, mesh_size)), ("VOut", mesh_size),
+                               ("XCenter", x), ("YCenter", y), ("ZCenter", z)):
+                field.setNumber(f, key, float(value))
+            balls.append(f)
+    if not balls:
+        return
     smallest = field.add("Min")
     field.setNumbers(smallest, "FieldsList", balls)
     field.setAsBackgroundMesh(smallest)

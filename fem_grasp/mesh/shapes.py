@@ -34,6 +34,7 @@ import functools
 import logging
 import math
 from dataclasses import dataclass
+from typing import Sequence
 
 import numpy as np
 
@@ -58,7 +59,7 @@ log = logging.getLogger(__name__)
 
 def ellipsoid(
     semi_axes: tuple[float, float, float], mesh_size: float, *, algorithm: str = "auto",
-    refine: Refinement | None = None,
+    refine: "Refinement | Sequence[Refinement] | None" = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Tetrahedral mesh of a solid ellipsoid centred on the origin.
 
@@ -70,7 +71,7 @@ def ellipsoid(
         Target edge length in metres (gmsh's ``Mesh.MeshSizeMax``).
     algorithm : {"auto", "meshadapt", "frontal-delaunay", "delaunay"}
         gmsh's surface algorithm; see :data:`AUTO_MESHADAPT_MAX_VERTICES`.
-    refine : Refinement, optional
+    refine : Refinement or a sequence of them, optional
         A finer mesh around some points (``mesh_size`` elsewhere).
 
     Returns
@@ -103,7 +104,7 @@ def ellipsoid(
 
 
 def fused_spheres(radii: tuple[float, float], distance: float, mesh_size: float, *, algorithm: str = "auto",
-                  refine: Refinement | None = None) -> tuple[np.ndarray, np.ndarray]:
+                  refine: "Refinement | Sequence[Refinement] | None" = None) -> tuple[np.ndarray, np.ndarray]:
     """Tetrahedral mesh of two overlapping solid spheres fused into one body (a peanut or a snowman).
 
     The spheres of radii r₁, r₂ are centred on the x axis at −d/2 and +d/2 and joined by a boolean
@@ -145,7 +146,7 @@ def fused_spheres(radii: tuple[float, float], distance: float, mesh_size: float,
 
 
 def dome(radius: float, height: float, mesh_size: float, *, algorithm: str = "auto",
-         refine: Refinement | None = None, equator: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+         refine: "Refinement | Sequence[Refinement] | None" = None, equator: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """Tetrahedral mesh of a steam-bun dome: a spheroid cut flat at its base.
 
     The solid is ``x² / r² + y² / r² + (z − e)² / h² <= 1, z >= 0`` with
@@ -166,7 +167,7 @@ def dome(radius: float, height: float, mesh_size: float, *, algorithm: str = "au
         Target edge length in metres.
     algorithm : {"auto", "meshadapt", "frontal-delaunay", "delaunay"}
         gmsh's surface algorithm, as for :func:`ellipsoid`.
-    refine : Refinement, optional
+    refine : Refinement or a sequence of them, optional
         A finer mesh around some points, as for :func:`ellipsoid`.
 
     Returns
@@ -238,7 +239,7 @@ class PaperShape:
     weight: float
 
     def build(self, mesh_size: float, algorithm: str = "auto",
-              refine: Refinement | None = None) -> tuple[np.ndarray, np.ndarray]:
+              refine: "Refinement | Sequence[Refinement] | None" = None) -> tuple[np.ndarray, np.ndarray]:
         """Mesh this shape with target edge length ``mesh_size`` (metres), finer where ``refine`` says."""
         if self.kind == "ellipsoid":
             a, b, c = self.dimensions
@@ -302,7 +303,7 @@ def paper_shape(name: str, mesh_size: float, *, algorithm: str = "auto") -> tupl
 
 
 def paper_mesh(name: str, target_vertices: int | None = None, rel_tol: float = 0.05, *,
-               refine: Refinement | None = None) -> "TetMesh":
+               refine: "Refinement | Sequence[Refinement] | None" = None) -> "TetMesh":
     """One of the paper's objects as a :class:`~fem_grasp.mesh.TetMesh` with a set vertex count.
 
     Parameters
@@ -313,7 +314,7 @@ def paper_mesh(name: str, target_vertices: int | None = None, rel_tol: float = 0
         ~60 000 take a few seconds per gmsh call (use for refinement series).
     rel_tol : float
         Relative tolerance on the vertex count.
-    refine : Refinement, optional
+    refine : Refinement or a sequence of them, optional
         A finer mesh around given points; the search then sets the outer mesh
         size (see :func:`fem_grasp.grasp.objects.graded_paper_mesh`).
 

@@ -1,0 +1,193 @@
+"""Accuracy as a setting (fem_grasp.grasp.accuracy, fem_grasp.mesh.remesh): estimates, the answer of a pickup, the adaptive
+loop on a cheap body, and the scene key / CLI flag / result.json block that carry it."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from fem_grasp import Body, box_mesh
+from fem_grasp.grasp.accuracy import answer_of, converged_pickup, estimate, relative_change
+from fem_grasp.grasp.pickup import pickup
+from fem_grasp.grasp.rest import rest
+from fem_grasp.mesh import remesh
+
+pytestmark = pytest.mark.gmsh
+pytest.importorskip("gmsh")
+
+BOX = remesh.BoxGeometry((-0.015, -0.02, 0.0), (0.015, 0.02, 0.03))
+FACE_CENTRES = np.array([[0.0, -0.02, 0.015], [0.0, 0.02, 0.015]])
+
+
+def _centre_nodes(mesh):
+    return tuple(int(k) for k in remesh.nearest_surface_nodes(mesh, FACE_CENTRES))
+
+
+# ------------------------------------------------------------ estimates
+def test_richardson_recovers_the_limit_and_the_order_of_a_smooth_sequence():
+    h = np.array([0.4, 0.2, 0.1])
+    q = 2.0 + 0.3 * h**1.5
+    est = estimate(q, h)
+    assert est["method"] == "richardson"
+    assert est["order"] == pytest.approx(1.5, abs=1e-6)
+    assert est["value"] == pytest.approx(2.0, abs=1e-9)
+    assert est["error"] == pytest.approx(0.3 * 0.1**1.5 / 2.0, rel=1e-6)  # the finest value's true error
+
+
+def test_a_non_monotone_sequence_gets_the_finest_value_with_the_scatter_as_band():
+    est = estimate([1.0, 1.3, 1.1], [0.4, 0.2, 0.1])
+    assert est["method"] == "band" and est["value"] == 1.1
+    assert est["error"] == pytest.approx(0.2 / 1.1)
+    assert estimate([1.0], [0.1])["error"] == math.inf
+    assert relative_change(1.0, 1.0) == 0.0 and relative_change(1.1, 1.0) == pytest.approx(0.1)
+
+
+# ------------------------------------------------------------ the answer
+@pytest.fixture(scope="module")
+def lifted():
+    body = Body(box_mesh((-0.015, -0.02, 0.0), (0.015, 0.02, 0.03), (3, 3, 3)), 2e4, 0.3, weight=0.3)
+    rs = rest(body, 0.5)
+    p, c = rs.body.mesh.points, rs.body.center_of_mass
+    contacts = tuple(int(np.argmin(np.linalg.norm(p - (c + [0, s, 0]), axis=1))) for s in (-0.02, 0.02))
+    return pickup(body, mu_finger=0.5, contacts=contacts, rest_state=rs, finger_radius=0.02)
+
+
+def test_at_lift_off_the_fingers_carry_the_weight_and_squeeze_inward(lifted):
+    assert lifted.success
+    a = answer_of(lifted)
+    f1, f2 = a.fingers
+    # off the table, the two resultants alone balance gravity: their vertical parts sum to mg
+    assert f1["vertical"] + f2["vertical"] == pytest.approx(a.weight, rel=1e-8)
+    # each finger pushes the object along its own squeeze direction (inward), and the patches are its contacts
+    assert f1["along_squeeze"] > 0 and f2["along_squeeze"] > 0
+    assert f1["nodes"] == len(lifted.final.contact_nodes["finger1"]) > 0
+    assert f1["resultant"] >= max(abs(f1["vertical"]), f1["along_squeeze"]) - 1e-12
+    assert a.squeeze_depth == lifted.squeeze_depth and a.finger_force == lifted.finger_normal_force
+    assert a.liftable[-1][1] >= a.weight * (1 - 1e-12)  # the lift test had passed
+    assert a.lift_test_step == pytest.approx(a.weight / 20)  # pickup's default h, now recorded
+
+
+# ------------------------------------------------------------ remeshing
+def test_a_graded_box_has_its_embedded_contact_points_as_nodes_and_is_finer_at_the_patch():
+    ref = remesh.patch_refinement(FACE_CENTRES[:1], 0.001, 0.003, 0.006)
+    mesh = BOX.build(0.006, ref, embed=FACE_CENTRES)
+    k = _centre_nodes(mesh)
+    assert np.abs(mesh.points[list(k)] - FACE_CENTRES).max() < 1e-12
+    assert mesh.volume == pytest.approx(0.03 * 0.04 * 0.03, rel=1e-9)
+    near, far = remesh.spacing(mesh, [k[0]]), remesh.spacing(mesh, [k[1]])
+    assert near < 0.4 * far  # 1 mm spacing at the refined centre, ~6 mm at the other
+
+
+def test_a_mesh_without_geometry_is_remeshed_from_its_boundary():
+    mesh = box_mesh((0, 0, 0), (0.03, 0.04, 0.03), (3, 4, 3))
+    geo = remesh.geometry_of_mesh(mesh)
+    finer = geo.build(0.004)
+    assert finer.n_points > 3 * mesh.n_points
+    assert finer.volume == pytest.approx(mesh.volume, rel=1e-9)  # flat faces stay flat
+
+
+# ------------------------------------------------------------ the adaptive loop
+TARGET = 0.05
+
+
+@pytest.fixture(scope="module")
+def levels():
+    """The loop at 5 % on the foam box (4×4×4 grid, 1 cm fingertips), each level run to the lift test's pass:
+    levels 0 and 1 differ by a factor two, levels 1 and 2 by about 2 %."""
+    body = Body(BOX.grid((4, 4, 4)), 2e4, 0.3, weight=0.3)
+    return converged_pickup(body, accuracy=TARGET, geometry=BOX, max_levels=2, contacts=_centre_nodes(body.mesh),
+                            mu_finger=0.5, finger_radius=0.01, lift=False)
+
+
+def test_each_level_halves_the_patch_spacing_and_resolves_rho_to_half_the_target(levels):
+    lv = levels.accuracy["levels"]
+    assert [x["level"] for x in lv] == [0, 1, 2]
+    for a, b in zip(lv, lv[1:]):
+        assert b["inner_size"] == pytest.approx(a["inner_size"] / 2)
+        assert b["vertices"] > a["vertices"] and sum(b["finger_nodes"]) > sum(a["finger_nodes"])
+        # the lift test finds ρ* up to one increment late: the increment takes at most half the target
+        assert b["step"] <= min(a["step"], 0.5 * TARGET * a["squeeze_depth"]) * (1 + 1e-12)
+        assert b["lift_test_step"] / b["step"] == pytest.approx(lv[0]["lift_test_step"] / lv[0]["step"])
+
+
+def test_two_agreeing_levels_stop_the_loop_and_report_their_difference(levels):
+    acc, lv = levels.accuracy, levels.accuracy["levels"]
+    q = lv[2]["step"] / lv[2]["squeeze_depth"]  # one increment, relative
+    assert max(lv[1]["change"].values()) + lv[1]["step"] / lv[1]["squeeze_depth"] > TARGET
+    assert acc["converged"] and max(acc["estimated_error"].values()) <= TARGET
+    assert acc["estimated_error"]["squeeze_depth"] == pytest.approx(lv[2]["change"]["squeeze_depth"] + q)
+    assert levels.squeeze_depth == lv[2]["squeeze_depth"]  # the answer is the last level's
+
+
+def test_the_estimated_error_brackets_the_error_against_a_finer_level(levels):
+    """Stopped after level 1, the loop would report the change from level 0 as the error of level 1: level 2,
+    finer, is within it; and the answer moves less from level 1 to 2 than from 0 to 1 (it converges)."""
+    lv = levels.accuracy["levels"]
+    for key in ("squeeze_depth", "finger_force"):
+        assert relative_change(lv[1][key], lv[2][key]) <= lv[1]["change"][key]
+        assert lv[2]["change"][key] < lv[1]["change"][key]
+
+
+def test_result_json_carries_the_accuracy_block(lifted, levels, tmp_path):
+    import copy
+
+    from fem_grasp.io.output import write_result_json
+
+    res = copy.copy(lifted)
+    res.accuracy = levels.accuracy
+    doc = json.loads(write_result_json(tmp_path, res).read_text())
+    acc = doc["accuracy"]
+    assert acc["target"] == TARGET and set(acc["estimated_error"]) == {"squeeze_depth", "finger_force"}
+    assert len(acc["levels"]) == 3 and acc["levels"][0]["vertices"] == 125
+    assert doc["summary"]["estimated_error"] == acc["estimated_error"]
+    assert "accuracy" not in doc["result"]  # once, at the top
+    assert json.loads(write_result_json(tmp_path, lifted).read_text())["accuracy"] is None
+
+
+def test_accuracy_must_be_a_relative_error():
+    body = Body(BOX.grid((2, 2, 2)), 2e4, 0.3, weight=0.3)
+    for bad in (0.0, 1.0, -0.1, "5%"):
+        with pytest.raises(ValueError, match="relative error"):
+            converged_pickup(body, accuracy=bad, geometry=BOX)
+
+
+# ------------------------------------------------------------ scene key and CLI flag
+def test_scene_key_and_cli_flag():
+    from fem_grasp.io.scene import SceneError, parse_accuracy, parse_scene
+
+    base = {"object": {"box": [0.03, 0.04, 0.03]}, "material": {"young": 2e4, "poisson": 0.3, "weight": 0.3},
+            "friction": {"finger": 0.5}}
+    assert parse_scene(base).accuracy is None
+    assert parse_scene(dict(base, solver={"accuracy": 0.05})).accuracy == 0.05
+    with pytest.raises(SceneError, match="solver.accuracy"):
+        parse_scene(dict(base, solver={"accuracy": 5.0}))
+    assert isinstance(parse_scene(base).geometry(), remesh.BoxGeometry)
+    assert parse_scene(dict(base, solver={"expected_error": float("inf")})).expected_error == float("inf")
+    with pytest.raises(SceneError, match="solver.expected_error"):
+        parse_scene(dict(base, solver={"expected_error": -1.0}))
+    assert parse_accuracy("5%", "--accuracy") == pytest.approx(0.05) and parse_accuracy("0.02") == 0.02
+    assert parse_accuracy("off") is None and parse_accuracy(None) is None
+    for bad in ("2", "x", "0", True):
+        with pytest.raises(SceneError, match="--accuracy"):
+            parse_accuracy(bad, "--accuracy")
+
+
+def test_quick_says_its_answer_is_not_converged_and_by_how_much(capsys, tmp_path):
+    """--quick runs once on the coarse mesh: the summary and result.json say it is not converged, with the error
+    the scene states for its quick variant (here a scene file of our own with a stated 40 %)."""
+    from fem_grasp.cli import main
+
+    scene = tmp_path / "box.toml"
+    scene.write_text('[object]\nbox = ["3 cm", "4 cm", "3 cm"]\ndivisions = [4, 4, 4]\n'
+                     '[material]\nyoung = "20 kPa"\npoisson = 0.3\nweight = "0.3 N"\n'
+                     '[friction]\nfinger = 0.5\n[fingers]\nradius = "1 cm"\ncontacts = [52, 72]\n'
+                     '[solver]\naccuracy = 0.05\nlift = false\n'
+                     '[quick]\nsolver = { expected_error = 0.4 }\n')
+    out = tmp_path / "o"
+    main(["run", str(scene), "--quick", "--no-cache", "--out", str(out)])
+    text = capsys.readouterr().out
+    assert "NOT CONVERGED" in text and "40 %" in text and "run without --quick" in text
+    acc = json.loads((out / "result.json").read_text())["accuracy"]
+    assert acc["converged"] is False and len(acc["levels"]) == 1 and acc["target"] == 0.05
+    assert acc["estimated_error"] == {"squeeze_depth": 0.4, "finger_force": 0.4}
