@@ -277,17 +277,21 @@ def body_of(scene, mesh):
 
 
 # ================================================================ one case
-#: Modules that do not change a single pickup's answer (the adaptive loop, input and output).
-_DIGEST_SKIP = {"accuracy.py", "cli.py", "report.py", "output.py", "paper.py", "scene.py", "__main__.py", "__init__.py"}
+#: Sources that do not change a pickup's answer: files, the CLI, the search, the accuracy loop (its records carry
+#: their levels).  Paths relative to the package.
+_DIGEST_SKIP = {"grasp/accuracy.py", "cli.py", "paper.py", "progress.py", "__main__.py"}
+_DIGEST_SKIP_DIRS = ("io/", "batch/")
 
 
 def code_digest() -> str:
     """Digest of the fem_grasp sources a pickup runs (records made with other code are flagged, ``--stale``
     reruns them)."""
     h = hashlib.sha256()
-    for f in sorted((ROOT / "fem_grasp").glob("*.py")):
-        if f.name not in _DIGEST_SKIP:
-            h.update(f.read_bytes())
+    pkg = ROOT / "fem_grasp"
+    for f in sorted(pkg.rglob("*.py")):
+        rel = f.relative_to(pkg).as_posix()
+        if rel not in _DIGEST_SKIP and not rel.startswith(_DIGEST_SKIP_DIRS) and not rel.endswith("__init__.py"):
+            h.update(rel.encode() + b"\0" + f.read_bytes())
     return h.hexdigest()[:12]
 
 
@@ -321,7 +325,7 @@ def run_case(spec: dict[str, Any], record_path: Path | None = None) -> dict[str,
                 part = dict(rec, partial=True, accuracy=report.to_dict(), seconds=time.perf_counter() - t0)
                 record_path.with_suffix(".partial").write_text(json.dumps(json_safe(part), indent=1))
 
-        res = accuracy.converged_pickup(body, accuracy=spec["target"], geometry=geometry_of(scene),
+        res = accuracy.converged_pickup(body, solve=pickup, accuracy=spec["target"], geometry=geometry_of(scene),
                                         max_levels=spec.get("max_levels", accuracy.MAX_LEVELS), on_level=partial,
                                         **scene.pickup_kwargs())
         rec["seconds"] = time.perf_counter() - t0

@@ -51,7 +51,7 @@ import logging
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
@@ -323,7 +323,7 @@ def _level_meshes(geometry: Any, fingers: np.ndarray, table: np.ndarray, inner: 
     return geometry.build(outer, [r for r in refs if r is not None], embed=embed)
 
 
-def converged_pickup(body: Any, *, accuracy: float = DEFAULT_ACCURACY, geometry: Any = None,
+def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = DEFAULT_ACCURACY, geometry: Any = None,
                      max_levels: int = MAX_LEVELS, max_seconds: float | None = None, rest_state: Any = None,
                      contacts: tuple[int, int] | None = None, step: float | None = None,
                      lift_test_step: float | None = None, on_level: Any = None, **kwargs: Any) -> Any:
@@ -333,6 +333,8 @@ def converged_pickup(body: Any, *, accuracy: float = DEFAULT_ACCURACY, geometry:
     ----------
     body : Body
         Level 0 runs on it as given; its mesh's frame is the geometry's.
+    solve : one run of Algorithm 1, :func:`fem_grasp.grasp.pickup.pickup` (which passes itself when called
+        with ``accuracy=``; taken as an argument so that this module sits above the pickup, not beside it)
     accuracy : relative accuracy wanted of ρ* and of the finger force Σ f·n̂ (0 < accuracy < 1)
     geometry : :class:`fem_grasp.mesh.remesh.Geometry` to remesh (default: ``body``'s boundary surface,
         :func:`fem_grasp.mesh.remesh.geometry_of_mesh`, which raises
@@ -355,8 +357,7 @@ def converged_pickup(body: Any, *, accuracy: float = DEFAULT_ACCURACY, geometry:
     """
     from ..elastic.body import Body
     from ..mesh.remesh import geometry_of_mesh, nearest_surface_nodes, spacing
-    from .pickup import pickup
-
+    pickup = solve
     if not (isinstance(accuracy, (int, float)) and 0.0 < float(accuracy) < 1.0):
         raise ValueError(f"accuracy must be a relative error in (0, 1), e.g. 0.05; got {accuracy!r}")
     accuracy = float(accuracy)

@@ -304,7 +304,7 @@ class PickupResult:
     lift_attempts : every simulated lift, in order (more than one when a lift failed and the squeeze
         went on, Algorithm 1 step 6)
     lift_test_step : the lift-test step h used, newtons
-    accuracy : with ``pickup(..., accuracy=...)``, what the levels of :func:`fem_grasp.accuracy.converged_pickup`
+    accuracy : with ``pickup(..., accuracy=...)``, what the levels of :func:`fem_grasp.grasp.accuracy.converged_pickup`
         found (target, estimated errors, levels), as in result.json; else None
     """
 
@@ -548,11 +548,11 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
         lift-start state and the lift is tried again at the next passing lift
         test (Algorithm 1 step 6, "go back to step 3"), up to this many lifts
     accuracy : relative accuracy wanted of ρ* and the finger force (e.g. 0.05); None runs once on ``body``'s
-        mesh.  With a target, :func:`fem_grasp.accuracy.converged_pickup` refines the mesh at the contact
+        mesh.  With a target, :func:`fem_grasp.grasp.accuracy.converged_pickup` refines the mesh at the contact
         patches and the increments until two successive answers agree within it, and the result (the last
         level's) carries the estimated error in ``result.accuracy``
-    geometry : what to remesh for ``accuracy`` (:class:`fem_grasp.remesh.Geometry`); default: the body's
-        boundary surface (:func:`fem_grasp.remesh.geometry_of_mesh`)
+    geometry : what to remesh for ``accuracy`` (:class:`fem_grasp.mesh.remesh.Geometry`); default: the body's
+        boundary surface (:func:`fem_grasp.mesh.remesh.geometry_of_mesh`)
 
     Returns
     -------
@@ -562,7 +562,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
     if accuracy is not None:
         from .accuracy import converged_pickup
 
-        return converged_pickup(body, accuracy=accuracy, geometry=geometry, mu_finger=mu_finger, mu_table=mu_table,
+        return converged_pickup(body, solve=pickup, accuracy=accuracy, geometry=geometry, mu_finger=mu_finger, mu_table=mu_table,
                                 finger_radius=finger_radius, contacts=contacts, directions=directions, ratio=ratio,
                                 max_squeeze=max_squeeze, step=step, backend=backend, rest_state=rest_state,
                                 lift_test_step=lift_test_step, max_lift=max_lift, lift=lift,

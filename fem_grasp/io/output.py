@@ -583,7 +583,7 @@ def write_result_json(out: str | Path, result: Any, scene: Any = None, series: d
         "result": res,
         "series": series,
         # With pickup(..., accuracy=...): {"target", "estimated_error": {"squeeze_depth", "finger_force"},
-        # "converged", "levels": [...], ...} (fem_grasp.accuracy.AccuracyReport); None for a single run.
+        # "converged", "levels": [...], ...} (fem_grasp.grasp.accuracy.AccuracyReport); None for a single run.
         "accuracy": getattr(result, "accuracy", None),
     }
     res.pop("accuracy", None)

@@ -39,7 +39,7 @@ optional)::
     max_lift = "5 cm"
     lift = true
     accuracy = 0.05           # relative accuracy of ρ* and the finger force: refine at the contact patches until
-                              # two successive levels agree within it (fem_grasp.accuracy); omit for one run
+                              # two successive levels agree within it (fem_grasp.grasp.accuracy); omit for one run
     expected_error = 0.3      # how far a single run of this scene (no accuracy loop, e.g. its [quick] variant) is
                               # from the converged answer, as measured by `make converge`: printed with its answer
 
@@ -870,10 +870,8 @@ def pickup_scene(scene: Scene, cache_dir: Path | None = None, phase: Any = None)
     with step("squeeze and lift, refining" if refine else "squeeze, lift test, lift"):
         try:
             if refine:
-                from ..grasp.accuracy import converged_pickup
-
-                result = converged_pickup(body, accuracy=scene.accuracy, geometry=scene.geometry(), rest_state=rs,
-                                          **scene.pickup_kwargs())
+                result = pickup(body, accuracy=scene.accuracy, geometry=scene.geometry(), rest_state=rs,
+                                **scene.pickup_kwargs())
             else:
                 result = pickup(body, rest_state=rs, **scene.pickup_kwargs())
                 if scene.quick or scene.expected_error is not None:

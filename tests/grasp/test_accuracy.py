@@ -96,7 +96,7 @@ def levels():
     """The loop at 5 % on the foam box (4×4×4 grid, 1 cm fingertips), each level run to the lift test's pass:
     levels 0 and 1 differ by a factor two, levels 1 and 2 by about 2 %."""
     body = Body(BOX.grid((4, 4, 4)), 2e4, 0.3, weight=0.3)
-    return converged_pickup(body, accuracy=TARGET, geometry=BOX, max_levels=2, contacts=_centre_nodes(body.mesh),
+    return converged_pickup(body, solve=pickup, accuracy=TARGET, geometry=BOX, max_levels=2, contacts=_centre_nodes(body.mesh),
                             mu_finger=0.5, finger_radius=0.01, lift=False)
 
 
@@ -149,7 +149,7 @@ def test_accuracy_must_be_a_relative_error():
     body = Body(BOX.grid((2, 2, 2)), 2e4, 0.3, weight=0.3)
     for bad in (0.0, 1.0, -0.1, "5%"):
         with pytest.raises(ValueError, match="relative error"):
-            converged_pickup(body, accuracy=bad, geometry=BOX)
+            converged_pickup(body, solve=pickup, accuracy=bad, geometry=BOX)
 
 
 # ------------------------------------------------------------ scene key and CLI flag

@@ -24,7 +24,7 @@ def scripted(monkeypatch):
     def hanging_state(tracker, state):
         return HangResult(0.0, True, "", object())
 
-    def hang(tracker, start, weight, *, max_depth=lift_test.MAX_HALVINGS):
+    def hang(tracker, start, weight, *, max_depth=lift_test.LOAD_HALVINGS):
         cap.calls += 1
         held = weight <= cap.limit * (1 + 1e-12)
         return HangResult(weight, held, "" if held else "slides", object())
