@@ -204,7 +204,7 @@ def table_points(scene, mesh) -> np.ndarray:
 
 def build_mesh(spec: dict[str, Any], scene) -> tuple[Any, dict[str, Any]]:
     """The mesh of one case (module notes)."""
-    from fem_grasp.mesh import remesh, shapes
+    from fem_grasp.mesh import gmsh_session, remesh, shapes
     from fem_grasp.mesh.tetmesh import TetMesh
 
     series = spec["series"]
@@ -225,13 +225,13 @@ def build_mesh(spec: dict[str, Any], scene) -> tuple[Any, dict[str, Any]]:
             mesh = jittered(geo.grid([d * k for d in scene.object.divisions]), spec["seed"])
         else:
             size = paper_size(scene.object.paper, spec["target"])
-            saved = shapes._GMSH_OPTIONS["Mesh.RandomSeed"]
-            shapes._GMSH_OPTIONS["Mesh.RandomSeed"] = int(spec["seed"])
+            saved = gmsh_session.GMSH_OPTIONS["Mesh.RandomSeed"]
+            gmsh_session.GMSH_OPTIONS["Mesh.RandomSeed"] = int(spec["seed"])
             try:
                 alg = "meshadapt" if spec["target"] <= shapes.AUTO_MESHADAPT_MAX_VERTICES else "frontal-delaunay"
                 mesh = TetMesh(*shapes.PAPER_SHAPES[scene.object.paper].build(size, alg))
             finally:
-                shapes._GMSH_OPTIONS["Mesh.RandomSeed"] = saved
+                gmsh_session.GMSH_OPTIONS["Mesh.RandomSeed"] = saved
             info["size"] = size
     elif series in ("graded", "graded_table"):
         r = scene.finger_radius

@@ -94,6 +94,12 @@ def test_compiled_and_plain_python_sweeps_agree(tmp_path):
         np.testing.assert_allclose(a[3], b[3], rtol=0, atol=1e-12 * np.abs(a[3]).max() + 1e-300)
 
 
+#: Compiled against plain-Python slip systems, relative to each array's largest entry: both Newton iterations stop
+#: once the scaled residual is <= 1e-12 (``slip_system.MixedSlipSystem.solve``), and rounding in another order can
+#: stop them one iterate apart; the slip systems' conditioning (up to ~1e3 here) turns that into ~1e-9.
+SLIP_SOLVE_AGREEMENT = 1e-9
+
+
 @NEEDS_NUMBA
 def test_compiled_and_plain_python_slip_systems_agree(tmp_path):
     compiled = slip_trials()
@@ -101,7 +107,7 @@ def test_compiled_and_plain_python_slip_systems_agree(tmp_path):
     assert len(compiled) == len(python) == 8
     for a, b in zip(compiled, python):
         for u, v in zip(a, b):
-            np.testing.assert_allclose(u, v, rtol=0, atol=1e-12 * np.abs(v).max())
+            np.testing.assert_allclose(u, v, rtol=0, atol=SLIP_SOLVE_AGREEMENT * np.abs(v).max())
 
 
 def empty_projections():

@@ -151,7 +151,10 @@ def test_the_xdmf_series_holds_the_same_frames_at_the_same_times(tmp_path):
     import subprocess
     import sys
 
-    pytest.importorskip("h5py")
+    import importlib.util
+
+    if importlib.util.find_spec("h5py") is None:  # not imported here: this process may hold dolfinx's HDF5
+        pytest.skip("h5py is not installed (the xdmf extra)")
     vtk = pytest.importorskip("vtk")
     from vtk.util.numpy_support import vtk_to_numpy
 
