@@ -32,7 +32,7 @@ last difference.  Where three levels are monotone with an observed order, the
 Richardson estimate is reported too (:func:`estimate`).
 
 Definitions (:class:`GraspAnswer`)
----------------------------------
+----------------------------------
 * ρ*: ``result.squeeze_depth``, the squeeze depth when the successful lift
   started (or where the squeeze stopped, on failure);
 * per finger, at the final snapshot (lift-off on success): the resultant
