@@ -188,3 +188,12 @@ def cli_run(scene: str, *flags: str) -> tuple[int, Path]:
 
 def cache_dir() -> Path:
     return _TMP / "cache"
+
+
+def box_scene_toml(divisions: tuple[int, int, int] = (2, 2, 2), rest: str = "", head: str = "") -> str:
+    """The scene file of the tests' soft box (3 x 4 x 3 cm, 20 kPa, ν 0.3, 0.3 N, μ 0.5 on the fingers and
+    the table): ``head`` before its tables (name, description), ``rest`` after them ([fingers], [solver], …)."""
+    d = ", ".join(str(int(k)) for k in divisions)
+    return (f"{head}[object]\nbox = [\"3 cm\", \"4 cm\", \"3 cm\"]\ndivisions = [{d}]\n"
+            "[material]\nyoung = \"20 kPa\"\npoisson = 0.3\nweight = \"0.3 N\"\n"
+            f"[friction]\nfinger = 0.5\ntable = 0.5\n{rest}")

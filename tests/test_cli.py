@@ -8,7 +8,7 @@ import pytest
 
 from fem_grasp.cli import main
 from fem_grasp.io.scene import shipped_scenes
-from tests.helpers import cache_dir, cli_run, icosphere, write_stl
+from tests.helpers import box_scene_toml, cache_dir, cli_run, icosphere, write_stl
 
 
 @pytest.mark.parametrize("scene", sorted(shipped_scenes()))
@@ -270,18 +270,7 @@ def test_verbose_logs_the_library_to_stderr(capsys, tmp_path):
 ])
 def test_errors_about_the_fingers_name_the_scene_file_and_key(capsys, tmp_path, line, key, words):
     scene = tmp_path / "box.toml"
-    scene.write_text(f"""[object]
-box = ["3 cm", "4 cm", "3 cm"]
-divisions = [2, 2, 2]
-[material]
-young = "20 kPa"
-poisson = 0.3
-weight = "0.3 N"
-[friction]
-finger = 0.5
-[fingers]
-{line}
-""")
+    scene.write_text(box_scene_toml((2, 2, 2), f"[fingers]\n{line}\n"))
     err = _bad(capsys, ["run", str(scene), "--no-cache"], f"{scene}: {key}", words)
     assert "internal error" not in err
 

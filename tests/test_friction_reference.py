@@ -25,6 +25,7 @@ if str(ROOT) not in sys.path:
 
 import dolfinx  # noqa: E402,F401  - a hard requirement, as for tests/test_verification.py
 
+from tests.helpers import box_scene_toml  # noqa: E402
 from verification import friction_reference as fr  # noqa: E402
 from verification.ref_contact import FREE, SLIP, STICK, ac_equations, ac_equations_numpy, incremental_residual  # noqa: E402
 
@@ -38,26 +39,8 @@ FORCE_AGREEMENT = 1e-2
 SELF_CHECK = {"gap": 1e-11, "penetration": 1e-10, "tensile": 0.0, "stick_excess": 0.0, "slip_cone": 1e-10,
               "slip_direction": 1e-7, "equilibrium": 1e-12}
 
-SCENE = """name = "reference_box"
-description = "the quick foam block, as a scene file the reference has never seen"
-
-[object]
-box = ["3 cm", "4 cm", "3 cm"]
-divisions = [4, 4, 4]
-
-[material]
-young = "20 kPa"
-poisson = 0.3
-weight = "0.3 N"
-
-[friction]
-finger = 0.5
-table = 0.5
-
-[fingers]
-radius = "1 cm"
-contacts = [52, 72]
-"""
+SCENE = box_scene_toml((4, 4, 4), '[fingers]\nradius = "1 cm"\ncontacts = [52, 72]\n',
+                       'name = "reference_box"\ndescription = "the quick foam block, as a scene file the reference has never seen"\n')
 
 
 @pytest.mark.parametrize("which", ["compiled", "numpy"])

@@ -17,6 +17,7 @@ from fem_grasp.batch import SearchError, read_results
 from fem_grasp.batch.engine import MANIFEST
 from fem_grasp.cli import main
 from fem_grasp.grasp import Candidate
+from tests.helpers import box_scene_toml
 
 pytest.importorskip("dask.distributed")
 pytest.importorskip("pyarrow")
@@ -27,25 +28,8 @@ SETTINGS = dict(mu_finger=0.5, mu_table=0.5, finger_radius=0.01, lift=False, ste
 #: Columns that differ between runs of the same candidate: wall times and the process that ran it.
 RUN_COLUMNS = ["time", "cpu_time", "setup_time", "worker"]
 
-BOX_SCENE = """
-name = "box"
-description = "a small soft box for the search tests"
-[object]
-box = ["3 cm", "4 cm", "3 cm"]
-divisions = [3, 3, 3]
-[material]
-young = "20 kPa"
-poisson = 0.3
-weight = "0.3 N"
-[friction]
-finger = 0.5
-table = 0.5
-[fingers]
-radius = "1 cm"
-[solver]
-step = "1 mm"
-lift = false
-"""
+BOX_SCENE = box_scene_toml((3, 3, 3), '[fingers]\nradius = "1 cm"\n[solver]\nstep = "1 mm"\nlift = false\n',
+                           'name = "box"\ndescription = "a small soft box for the search tests"\n')
 
 
 def small_box() -> Body:

@@ -148,10 +148,9 @@ def test_the_xdmf_series_holds_the_same_frames_at_the_same_times(tmp_path):
     """object.xdmf + object.h5 (h5py): one grid per frame with its deformed geometry, the same point, cell and
     field data, the same time values; read back with VTK's XDMF reader.  The run is a fresh process: h5py cannot
     load into one that has loaded dolfinx's HDF5 (as the verification tests do), and then writes no XDMF."""
+    import importlib.util
     import subprocess
     import sys
-
-    import importlib.util
 
     if importlib.util.find_spec("h5py") is None:  # not imported here: this process may hold dolfinx's HDF5
         pytest.skip("h5py is not installed (the xdmf extra)")
