@@ -21,6 +21,7 @@ import argparse
 import json
 import logging
 import math
+import multiprocessing
 import sys
 import time
 import traceback
@@ -158,7 +159,9 @@ def sweep(n: int, seed: int = 0, workers: int = 2, progress: Callable[[int, dict
 
     seeds = list(range(seed, seed + n))
     rows = []
-    with ProcessPoolExecutor(max_workers=workers) as pool:
+    # Fresh interpreters, not forks: a fork of a process that has loaded dolfinx (and so MPI), as the
+    # verification run has, hangs in its workers.
+    with ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn")) as pool:
         for row in bar(pool.map(_run_seed, seeds), total=n, desc="random scenes", unit="scene"):
             rows.append(row)
             if progress is not None:
