@@ -62,7 +62,9 @@ demo: setup
 	  echo "          out/$(DEMO_SCENE)/result.json   (summary, events, forces)"; \
 	  echo "Other scenes: $(PY) -m fem_grasp scenes;  quick variant: make demo DEMO_ARGS=--quick"
 
-# Cross-checks against dolfinx, convergence, Hertz, stability; writes verification/out/report.html.
+# Cross-checks against dolfinx, convergence, Hertz, stability, round-off, random scenes, the frictional-contact
+# reference and the pickup convergence study (hours from an empty cache); writes verification/out/report.html.
+# verify-quick: about 15 minutes.
 verify: setup
 	$(PY) -m verification.run
 

@@ -3,8 +3,11 @@
 Writes ``report.html``, the PNGs it embeds and ``summary.json`` (every number
 the report quotes) to ``verification/out/`` by default.  The full run takes
 about a quarter of an hour on a two-core machine before the frictional-contact
-stages (issue 24, :mod:`verification.friction_verify`), which add about
-three quarters of an hour; ``--quick`` stays within a few minutes.  The exit status is 1 if a stage failed or a headline check failed.
+stages (:mod:`verification.friction_verify`), which add about three quarters
+of an hour, the 500 random scenes (about 50 minutes on one core) and the
+pickup's convergence study (hours from an empty cache; ``make converge`` fills
+the same cache); ``--quick`` took 15 minutes on two cores (AMD EPYC, shared
+with a test run), every headline check passing.  The exit status is 1 if a stage failed or a headline check failed.
 """
 
 from __future__ import annotations
@@ -313,7 +316,7 @@ STAGES = 17
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m verification.run", description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="small meshes and fewer levels (< 3 minutes)")
+    parser.add_argument("--quick", action="store_true", help="small meshes and fewer levels (about 15 minutes)")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"output directory (default {DEFAULT_OUT})")
     parser.add_argument("-v", "--verbose", action="store_true", help="log progress of every solve")
     parser.add_argument("--log-file", metavar="FILE", help="also write the log (info and up) to FILE")
