@@ -83,7 +83,7 @@ def ref_lift_test(case: Case, state: StaticState, w_prev: float) -> dict[str, An
 
     ref.hang = spy
     try:
-        w = ref.liftable(state, w_prev)
+        w = ref.liftable(state)
     finally:
         del ref.hang
     return {"w": w, "trials": trials}

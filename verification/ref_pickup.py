@@ -20,15 +20,14 @@ finds.
   from the squeeze state (the *hanging base*, solved by continuation as the
   table's forces fade out, so that of the zero-weight states — a family when
   the body can turn about two load-bearing contacts — the one connected to
-  the squeeze state is taken).  Then the weights
-  w(ρ_{l−1}) + h, + 2h, … are applied in turn, each one static problem from
-  the previous hanging state (a weight jump, not a ramp — the rule of
-  fem_grasp's lift test, reimplemented here), until one is **not held**;
-  w(ρ_l) = the last held weight.  Held: a static state exists, each finger
-  keeps at least one contact and at least one of them sticks.  A weight with
-  no static state is retried through its midpoint, up to three halvings (the
-  same rule).  If even w(ρ_{l−1}) + h is not held, w steps down by h until a
-  weight is held from the base.  With fewer than three finger contacts, or
+  the squeeze state is taken).  Then the weights h, 2h, 3h, … are applied
+  in turn from zero, each one static problem from the previous hanging state
+  (the load path of fem_grasp's lift test, reimplemented here: friction is
+  path dependent), until one is **not held** or mg is reached; w(ρ_l) = the
+  last held weight.  Held: a static state exists, each finger keeps at least
+  one contact and at least one of them sticks.  A weight with no static state
+  is retried through its midpoint, up to three halvings (the same rule).
+  With fewer than three finger contacts, or
   collinear ones (Theorem 3), w = 0.  The test passes when w ≥ mg.
 * **Lift (§III-C, last paragraph).**  From the state at the passing ρ, both
   fingertips move up in increments of (fem_grasp's increment)/M; success when
@@ -344,27 +343,18 @@ class ReferencePickup:
         held, why = self._held(st)
         return held, why, st
 
-    def liftable(self, squeezed: StaticState, w_prev: float) -> float:
-        """w(ρ_l) from the squeeze state at ρ_l and w(ρ_{l−1}) (module notes)."""
+    def liftable(self, squeezed: StaticState) -> float:
+        """w(ρ_l) from the squeeze state at ρ_l: the weight raised from zero in steps of h (module notes)."""
         h = self.sc.lift_test_step
-        ok, _, base = self.hanging_base(squeezed)
+        ok, _, st = self.hanging_base(squeezed)
         if not ok:
             return 0.0
-        held, _, st = self.hang(base, w_prev + h)
-        w = w_prev
-        if held:
-            k = 2
-            while w_prev + (k - 1) * h < self.mg:
-                held, _, nxt = self.hang(st, w_prev + k * h)
-                if not held:
-                    break
-                st = nxt
-                k += 1
-            return w_prev + (k - 1) * h
-        while w > 0:
-            w = max(w - h, 0.0)
-            if w == 0.0 or self.hang(base, w)[0]:
+        w, k = 0.0, 1
+        while w < self.mg * (1.0 - 1e-12):
+            held, _, nxt = self.hang(st, k * h)
+            if not held:
                 break
+            w, st, k = k * h, nxt, k + 1
         return w
 
     # ----------------------------------------------------------------- run
@@ -420,7 +410,7 @@ class ReferencePickup:
                 out.reason = f"squeeze failed at ρ = {out.path[-1].rho:.4g} m: {exc}"
                 break
             rho = target
-            w = self.liftable(state, w)
+            w = self.liftable(state)
             out.liftable.append((rho, w))
             log.debug("reference ρ = %.6g: w = %.4g", rho, w)
             if w < self.mg * (1 - PASS_RTOL):

@@ -1,5 +1,6 @@
-"""The lift test's incremental rule (paper §III-B) on a scripted holding capacity: w(ρ) follows the weight the
-fingers can hold, to within one step h, and never drops below a weight that is still held."""
+"""The lift test's rule (paper §III-B) on a scripted holding capacity: w(ρ) follows the weight the fingers can
+hold, to within one step h, never drops below a weight that is still held, and is reached by loading from zero in
+steps of h (Coulomb friction is path dependent: a capacity only a gradual loading reaches is found)."""
 
 from dataclasses import dataclass
 
@@ -54,3 +55,37 @@ def test_w_follows_a_falling_and_rising_capacity_within_one_step(scripted):
         assert lt.update(None) == pytest.approx(expected)
         assert expected <= limit < expected + 0.1 or expected >= lt.weight
     assert lt.passed
+
+
+@dataclass
+class _Hanging:
+    """A scripted hanging state: the weight it holds."""
+
+    weight: float
+
+
+def test_the_weight_is_raised_from_zero_in_steps_of_h_each_from_the_state_before(monkeypatch):
+    """A grip that holds any weight reached in steps of at most h but slips under a larger jump (friction is
+    path dependent: the 893-vertex football held mg when loaded gradually, not by one jump to w + h).  The test
+    must find the whole capacity, at every squeeze increment, starting each time from zero weight."""
+    h, limit = 0.1, 1.3
+    calls = []
+
+    def hanging_state(tracker, state):
+        return HangResult(0.0, True, "", _Hanging(0.0))
+
+    def hang(tracker, start, weight, *, max_depth=lift_test.LOAD_HALVINGS):
+        calls.append((start.weight, weight))
+        held = weight <= limit and weight - start.weight <= h * (1 + 1e-9)
+        return HangResult(weight, held, "" if held else "slides", _Hanging(weight) if held else None)
+
+    monkeypatch.setattr(lift_test, "hanging_state", hanging_state)
+    monkeypatch.setattr(lift_test, "hang", hang)
+    lt = LiftTest(tracker=None, weight=1.0, step=h)
+    for _ in range(3):
+        calls.clear()
+        assert lt.update(None) == pytest.approx(1.0)
+        assert lt.passed
+        # h, 2h, …, mg, each from the weight held before it: no jump, and nothing beyond mg
+        assert [round(b, 9) for _, b in calls] == [round(h * k, 9) for k in range(1, 11)]
+        assert all(b - a == pytest.approx(h) for a, b in calls)
