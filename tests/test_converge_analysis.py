@@ -1,0 +1,101 @@
+"""The convergence study's analysis (``verification.converge.analysis``) on records whose answers are known by
+construction: the reference, each level's error against it, the cheapest resolution per target, the error of the
+liftable-weight curve, and the words a verdict flip is explained with."""
+
+import math
+
+import pytest
+
+from verification.converge.analysis import analyse, explain, flips, liftable_gap, liftable_slope, within
+
+WEIGHT = 1.0
+
+
+def _record(series, level, *, vertices, rho, force, success=True, step=1e-3, h=0.05, liftable=None, seconds=1.0,
+            bracket=None):
+    spec = {"object": "orange", "series": series, **level}
+    curve = liftable if liftable is not None else [[1e-3 * k, min(0.1 * k, 1.0)] for k in range(1, 11)]
+    return {"spec": spec, "vertices": vertices, "seconds": seconds, "pickup_seconds": seconds, "patch_spacing": 1.0 / vertices,
+            "bracket": bracket, "answer": {
+                "success": success, "reason": "" if success else "the lift test did not pass", "squeeze_depth": rho,
+                "finger_force": force, "fingers": [{"resultant": 1.0, "along_squeeze": 1.0, "vertical": 0.5, "nodes": 3}] * 2,
+                "table_nodes": 10, "max_liftable": max(w for _, w in curve), "weight": WEIGHT, "step": step,
+                "lift_test_step": h * WEIGHT, "liftable": curve}}
+
+
+def _study(records):
+    return analyse({str(i): r for i, r in enumerate(records)}, ("orange",), {})["objects"]["orange"]
+
+
+def test_errors_are_against_the_finest_level_and_the_cheapest_resolution_keeps_every_finer_level_within_it():
+    recs = [_record("uniform", {"target": 600}, vertices=600, rho=0.0130, force=8.0, seconds=2),
+            _record("uniform", {"target": 1200}, vertices=1200, rho=0.0108, force=6.3, seconds=5),
+            _record("uniform", {"target": 2400}, vertices=2400, rho=0.0104, force=6.1, seconds=11),
+            _record("uniform", {"target": 4800}, vertices=4800, rho=0.0100, force=6.0, seconds=30, bracket=[0.0099, 0.0101])]
+    obj = _study(recs)
+    ref = obj["reference"]
+    assert ref["success"] and ref["vertices"] == 4800
+    # one run: the bracket's midpoint with half its width
+    assert ref["rho"]["method"] == "bracket" and ref["rho"]["value"] == pytest.approx(0.0100)
+    rows = {r["vertices"]: r for r in obj["series"]["uniform"]}
+    assert rows[600]["rho_error"] == pytest.approx(0.30) and rows[600]["force_error"] == pytest.approx(2 / 6)
+    assert rows[2400]["rho_error"] == pytest.approx(0.04)
+    res = obj["resolution"]["uniform"]
+    assert res["0.1"]["vertices"] == 1200  # 8 % and 5 %, and every finer level within 10 %
+    assert res["0.05"]["vertices"] == 2400
+    assert res["0.02"]["vertices"] == 4800  # only the reference itself
+
+
+def test_a_level_with_the_wrong_verdict_is_never_within_a_target():
+    recs = [_record("uniform", {"target": 600}, vertices=600, rho=0.0100, force=6.0),
+            _record("uniform", {"target": 1200}, vertices=1200, rho=0.020, force=9.0, success=False),
+            _record("uniform", {"target": 2400}, vertices=2400, rho=0.0101, force=6.05)]
+    obj = _study(recs)
+    rows = {r["vertices"]: r for r in obj["series"]["uniform"]}
+    assert not rows[1200]["verdict_ok"] and math.isinf(rows[1200]["rho_error"])
+    assert obj["resolution"]["uniform"]["0.1"]["vertices"] == 2400  # 600 is within 1 %, but 1,200 flips after it
+    assert [f["kind"] for f in obj["flips"]] == ["verdict"]
+
+
+def test_a_reference_that_is_not_picked_up_measures_the_levels_by_their_liftable_weight():
+    low = [[1e-3 * k, min(0.1 * k, 0.8)] for k in range(1, 21)]  # peaks at 0.8 mg
+    lower = [[1e-3 * k, min(0.1 * k, 0.72)] for k in range(1, 21)]
+    recs = [_record("uniform", {"target": 600}, vertices=600, rho=0.006, force=4.0),  # picked up: wrong verdict
+            _record("uniform", {"target": 1200}, vertices=1200, rho=0.02, force=9.0, success=False, liftable=lower),
+            _record("uniform", {"target": 2400}, vertices=2400, rho=0.02, force=9.0, success=False, liftable=low)]
+    obj = _study(recs)
+    ref = obj["reference"]
+    assert not ref["success"] and ref["max_liftable"] == pytest.approx(0.8)
+    rows = {r["vertices"]: r for r in obj["series"]["uniform"]}
+    assert not rows[600]["verdict_ok"]
+    assert rows[1200]["verdict_ok"] and rows[1200]["w_error"] == pytest.approx(0.08)
+    assert not within(rows[1200], 0.05, picked=False) and within(rows[1200], 0.10, picked=False)
+    assert obj["resolution"]["uniform"]["0.1"]["vertices"] == 1200
+
+
+def test_the_liftable_weight_error_is_the_largest_gap_over_the_common_depths():
+    ref = [[0.0, 0.0], [2.0, 1.0], [4.0, 1.0]]
+    assert liftable_gap([[1.0, 0.5], [3.0, 0.7], [5.0, 0.0]], ref, weight=2.0) == pytest.approx(0.15)  # 0.3 at ρ = 3
+    assert math.isnan(liftable_gap([[5.0, 1.0]], ref, weight=1.0))  # no common depth
+    # the slope of w about ρ* (the secant over two increments): how far an error in w moves ρ*
+    assert liftable_slope([[1.0, 0.1], [2.0, 0.3], [3.0, 0.5], [4.0, 0.7]], 3.5) == pytest.approx(0.2)
+
+
+def test_jumps_that_reverse_the_trend_are_flagged():
+    recs = [_record("graded", {"inner": 0.5}, vertices=600, rho=0.010, force=6.0),
+            _record("graded", {"inner": 0.25}, vertices=1200, rho=0.014, force=8.0),
+            _record("graded", {"inner": 0.125}, vertices=2400, rho=0.011, force=6.5)]
+    obj = _study(recs)
+    found = flips(obj["series"])
+    assert [(f["kind"], f["row"]["vertices"]) for f in found] == [("jump", 1200)]
+
+
+def test_a_flip_is_explained_as_the_lift_test_step_or_as_a_physical_outcome_of_the_mesh():
+    row = {"step": 1e-3}
+    near = {"weight": 1.0, "slow_pass": 0.012, "test_pass": None, "slow_peak": 1.0,
+            "rows": [{"rho": 0.012, "test_w": 0.95, "slow_w": 1.0}]}
+    assert explain({"kind": "verdict", "row": row}, near).startswith("within the lift test's step h")
+    short = {"weight": 1.0, "slow_pass": None, "slow_peak": 0.8, "slow_peak_rho": 0.015, "peak_reason": "gross slip",
+             "rows": [{"rho": 0.015, "test_w": 0.75, "slow_w": 0.8}]}
+    text = explain({"kind": "verdict", "row": row}, short)
+    assert text.startswith("physical outcome of this mesh") and "0.80 mg" in text

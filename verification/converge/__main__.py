@@ -1,0 +1,51 @@
+"""``python -m verification.converge``: run or read the study, print its tables, write converge.json and the plots."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+
+from . import __doc__ as DOC
+from . import study
+from .cases import DEFAULT_OUT, OBJECTS
+from .report import markdown, print_tables
+from .runner import worker
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m verification.converge", description=DOC.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="a few levels per series (minutes)")
+    ap.add_argument("--out", type=Path, default=DEFAULT_OUT)
+    ap.add_argument("--objects", nargs="+", choices=OBJECTS, default=list(OBJECTS))
+    ap.add_argument("--series", nargs="+", help="run only these series (uniform graded graded_table seed step h "
+                                               "reference adaptive diagnose); the analysis reads every cached one")
+    ap.add_argument("--report-only", action="store_true", help="analyse and plot the cached records; compute nothing")
+    ap.add_argument("--stale", action="store_true", help="recompute records made with other fem_grasp sources")
+    ap.add_argument("--docs", type=Path, help="also copy the plots into this folder (the README's: docs/)")
+    ap.add_argument("--markdown", action="store_true", help="print the README's tables")
+    ap.add_argument("--worker", help=argparse.SUPPRESS)
+    ap.add_argument("--record", type=Path, help=argparse.SUPPRESS)
+    ap.add_argument("--memory-gib", type=float, default=9.0, help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.worker:
+        return worker(args.worker, args.record, args.memory_gib)
+    logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(name)s %(levelname)s %(message)s")
+    analysis = study(args.quick, args.out, tuple(args.objects), compute=not args.report_only, stale=args.stale,
+                     series_filter=set(args.series) if args.series else None)
+    print(markdown(analysis)) if args.markdown else print_tables(analysis)
+    print(f"\nwrote {args.out / 'converge.json'} and {', '.join(analysis['images'].values())}")
+    if args.docs:
+        import shutil
+
+        args.docs.mkdir(parents=True, exist_ok=True)
+        for name in analysis["images"].values():
+            shutil.copy(args.out / name, args.docs / name)
+        print(f"copied the plots into {args.docs}")
+    return 0
+
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,199 @@
+"""The study's plots (error against run time, w(ρ) overlaid) and tables (stdout, the README's markdown)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+def plots(analysis: dict[str, Any], out: Path) -> dict[str, str]:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    images = {}
+    names = list(analysis["objects"])
+    styles = {"uniform": ("o-", "#1f77b4", "uniform"), "graded": ("s-", "#d62728", "graded at the fingertips"),
+              "graded_table": ("^-", "#2ca02c", "graded at the fingertips and the table"),
+              "adaptive": ("*", "#9467bd", "adaptive (accuracy = 10/5/2 %)"),
+              "seed": ("x", "#7f7f7f", "seeds (same spacing)"), "reference": ("D", "k", "reference (step/2, /4)")}
+    fig, axes = plt.subplots(len(names), 2, figsize=(11, 3.2 * len(names)), squeeze=False)
+    for i, name in enumerate(names):
+        obj = analysis["objects"][name]
+        for j, (q, label) in enumerate((("rho", "ρ*"), ("force", "finger force Σ f·n̂"))):
+            ax = axes[i][j]
+            for r in obj["series"].get("adaptive", []):
+                pts = [v for v in (r.get("targets") or {}).values() if v]
+                if pts:
+                    e = [min(max(v[f"{q}_error"], 1e-4), 2.0) if math.isfinite(v[f"{q}_error"]) else 2.0 for v in pts]
+                    ax.loglog([v["seconds"] for v in pts], e, "*", color="#9467bd", ms=10,
+                              label="adaptive: pickup(accuracy = 10, 5, 2 %)")
+                    for v, ei in zip(pts, e):
+                        ax.annotate(f"level {v['level']}", (v["seconds"], ei), fontsize=6, color="#9467bd")
+            for s, (mk, col, lab) in styles.items():
+                if s == "adaptive":
+                    continue
+                rows = [r for r in obj["series"].get(s, []) if "rho" in r]
+                if not rows:
+                    continue
+                t = [r["seconds"] for r in rows]
+                e = [min(max(r[f"{q}_error"], 1e-4), 2.0) if math.isfinite(r[f"{q}_error"]) else 2.0 for r in rows]
+                ax.loglog(t, e, mk, color=col, label=lab, ms=5, fillstyle="none" if s == "seed" else "full")
+                for r, ti, ei in zip(rows, t, e):
+                    if not r["success"]:
+                        ax.annotate("fails", (ti, ei), fontsize=6, color=col)
+            for tgt in (0.1, 0.05, 0.02):
+                ax.axhline(tgt, color="k", lw=0.5, ls=":")
+            ax.set_title(f"{name}: {label}", fontsize=9)
+            ax.set_xlabel("run time: meshing + pickup (s)", fontsize=8)
+            ax.set_ylabel("relative error vs reference", fontsize=8)
+            ax.grid(True, which="both", alpha=0.3)
+            if i == 0 and j == 0:
+                ax.legend(fontsize=6)
+    fig.tight_layout()
+    p = out / "converge_error_time.png"
+    fig.savefig(p, dpi=100)
+    plt.close(fig)
+    images["converge_error_time"] = p.name
+
+    fig, axes = plt.subplots(1, len(names), figsize=(3.6 * len(names), 3.4), squeeze=False)
+    for i, name in enumerate(names):
+        ax = axes[0][i]
+        obj = analysis["objects"][name]
+        rows = [r for r in obj["series"].get("uniform", []) if "liftable" in r]
+        cmap = plt.get_cmap("viridis")
+        for k, r in enumerate(rows):
+            lv = np.array(r["liftable"]) if r["liftable"] else np.zeros((0, 2))
+            if len(lv):
+                ax.plot(1e3 * lv[:, 0], lv[:, 1], "-", color=cmap(k / max(len(rows) - 1, 1)), lw=1,
+                        label=f"{r['vertices']:,} v" + ("" if r["success"] else " (fails)"))
+        ref = [r for r in obj["series"].get("reference", []) if "liftable" in r and r["liftable"]]
+        if ref:
+            lv = np.array(ref[-1]["liftable"])
+            ax.plot(1e3 * lv[:, 0], lv[:, 1], "k--", lw=1, label="reference (finest, step/4)")
+        if rows:
+            ax.axhline(rows[0]["weight"], color="r", lw=0.8, ls=":", label="weight mg")
+        ax.set_title(f"{name}: w(ρ), uniform levels", fontsize=9)
+        ax.set_xlabel("squeeze depth ρ (mm)", fontsize=8)
+        ax.set_ylabel("liftable weight w (N)", fontsize=8)
+        ax.legend(fontsize=5)
+        ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    p = out / "converge_liftable.png"
+    fig.savefig(p, dpi=100)
+    plt.close(fig)
+    images["converge_liftable"] = p.name
+    return images
+
+
+def print_tables(analysis: dict[str, Any]) -> None:
+    for name, obj in analysis["objects"].items():
+        print(f"\n== {name}")
+        ref = obj.get("reference")
+        if ref:
+            print(f"reference: {reference_line(ref)}")
+        for s, rows in obj["series"].items():
+            print(f"  {s}:")
+            for r in rows:
+                if "rho" in r:
+                    fg = r["fingers"]
+                    print(f"    {str(r['spec'].get('target', r['spec'].get('factor', r['spec'].get('inner', r['spec'].get('divisor', r['spec'].get('seed')))))):>8} "
+                          f"{r['vertices'] or 0:>7,} v  {'ok ' if r['success'] else 'NO '} rho {1e3 * r['rho']:7.3f} mm "
+                          f"({100 * r['rho_error']:5.1f} %)  F {r['force']:7.3f} N ({100 * r['force_error']:5.1f} %)  "
+                          f"|F1| {fg[0]['resultant']:.3f} {fg[0]['along_squeeze']:.3f} {fg[0]['vertical']:.3f}  "
+                          f"w_max {r['max_liftable'] / r['weight']:.2f} mg (w error {100 * r.get('w_error', math.nan):4.1f} %)  "
+                          f"nodes {fg[0]['nodes']}/{fg[1]['nodes']}/{r['table_nodes']}  {r['seconds']:.1f} s")
+                else:
+                    print(f"    {r['spec']}: {'timeout' if r['timeout'] else 'error ' + r['error'][-200:]}")
+        for f in obj["flips"]:
+            d = f.get("diagnosis", {})
+            print(f"  flip ({f['series']}, {f['kind']}) at {f['row']['vertices']} vertices: {d.get('verdict', '(not diagnosed)')}")
+
+
+def reference_line(ref: dict[str, Any]) -> str:
+    """The reference in words: its mesh, its increments, and ρ* and Σ f·n̂ with their bands, or, where the finest
+    level does not pick the object up, the largest weight it holds."""
+    def band(est: dict[str, Any]) -> str:
+        e = est["error"]
+        return f"{100 * e:.1f} % ({est['method']})" if math.isfinite(e) else f"unknown ({est['method']}: one run)"
+
+    head = (f"{ref['vertices']:,} vertices, squeeze increment {1e3 * ref['step']:.3g} mm, lift-test step "
+            f"{ref['h'] / ref['weight']:.3g} mg")
+    if not ref["success"]:
+        return (f"{head}: NOT picked up; the fingers hold at most {ref['max_liftable'] / ref['weight']:.2f} mg "
+                f"(w(ρ) peaks below the weight)")
+    slope = ref.get("slope")
+    cond = (f"; dw/dρ = {slope * 1e-3 / ref['weight']:.3g} mg/mm at ρ*, so an error of h in w moves ρ* by "
+            f"{1e3 * ref['h'] / slope:.2g} mm" if slope and slope > 0 else "")
+    return (f"{head}: ρ* = {1e3 * ref['rho']['value']:.2f} mm ± {band(ref['rho'])}, finger force "
+            f"{ref['force']['value']:.3f} N ± {band(ref['force'])}{cond}")
+
+
+def markdown(analysis: dict[str, Any]) -> str:
+    """The README's tables (``--markdown``): per object the reference, the uniform and graded levels, the cheapest
+    resolution for 10 / 5 / 2 %, and the adaptive loop."""
+    def pct(x: Any) -> str:
+        if x is None or (isinstance(x, float) and math.isnan(x)):
+            return "–"
+        return "wrong verdict" if math.isinf(x) else f"{100 * x:.1f} %"
+
+    def mm(x: Any) -> str:
+        return "–" if x is None else f"{1e3 * x:.2f}"
+
+    lines = []
+    for name, obj in analysis["objects"].items():
+        ref = obj.get("reference")
+        lines.append(f"\n**{name}** — " + (f"reference: {reference_line(ref)}" if ref else "no reference"))
+        lines.append("")
+        lines.append("| series | level | vertices | spacing at patch (mm) | verdict | ρ* (mm) | error | Σ f·n̂ (N) | error | "
+                     "max w / mg | w(ρ) error / mg | patches f1/f2/table | time (s) |")
+        lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+        for s_ in ("uniform", "graded", "graded_table", "step", "h", "quick"):
+            for r in obj["series"].get(s_, []):
+                sp = r["spec"]
+                lvl = next((f"{k} {sp[k]:g}" if k != "inner" else f"R/{1 / sp[k]:g}") for k in
+                           ("target", "factor", "inner", "divisor") if k in sp) if s_ != "quick" else "[quick]"
+                if "rho" not in r:
+                    lines.append(f"| {s_} | {lvl} | {r.get('vertices') or '–'} | – | "
+                                 f"{'timeout' if r['timeout'] else 'error'} | | | | | | | | {r['seconds']:.0f} |")
+                    continue
+                fg = r["fingers"]
+                lines.append(f"| {s_} | {lvl} | {r['vertices']:,} | {mm(r.get('patch_spacing'))} | "
+                             f"{'picked up' if r['success'] else 'NOT'} | {mm(r['rho'])} | {pct(r.get('rho_error'))} | "
+                             f"{r['force']:.3f} | {pct(r.get('force_error'))} | {r['max_liftable'] / r['weight']:.2f} | "
+                             f"{pct(r.get('w_error'))} | {fg[0]['nodes']}/{fg[1]['nodes']}/"
+                             f"{r['table_nodes']} | {r['seconds']:.0f} |")
+        for key, sc in obj.get("scatter", {}).items():
+            if sc["rho_mean"] is not None:
+                lines.append(f"\nSeeds at {key}: {sc['picked_up']}/{sc['runs']} picked up, ρ* {mm(sc['rho_mean'])} ± "
+                             f"{mm(sc['rho_std'])} mm (range {mm(sc['rho_min'])}–{mm(sc['rho_max'])}), finger force "
+                             f"{sc['force_mean']:.3f} ± {sc['force_std']:.3f} N.")
+            else:
+                lines.append(f"\nSeeds at {key}: {sc['picked_up']}/{sc['runs']} picked up.")
+    lines.append("\nTime to a 10 % / 5 % / 2 % answer (the reference's verdict, and both ρ* and Σ f·n̂ within the target "
+                 "of the reference's; where the reference is not picked up, the largest weight held within the target × "
+                 "mg), from the first level of a series after which every finer one stays within it:\n")
+    lines.append("| object | target | uniform | graded | graded + table | adaptive (levels, its estimate) |")
+    lines.append("|---|---|---|---|---|---|")
+    for name, obj in analysis["objects"].items():
+        ad = next((r for r in obj["series"].get("adaptive", []) if r.get("targets")), None)
+        for t in ("0.1", "0.05", "0.02"):
+            cells = []
+            for s_ in ("uniform", "graded", "graded_table"):
+                v = obj["resolution"].get(s_, {}).get(t)
+                cells.append("not reached" if v is None else f"{v['seconds']:.0f} s ({v['vertices']:,} v)")
+            a = None if ad is None else ad["targets"].get(t)
+            if a is None:
+                cells.append("not reached" if ad is not None else "–")
+            else:
+                est = max(a["estimated_error"].values())
+                picked = bool(obj.get("reference") and obj["reference"]["success"])
+                err = max(a["rho_error"], a["force_error"]) if picked or not a.get("verdict_ok", True) else a["w_error"]
+                cells.append(f"{a['seconds']:.0f} s ({a['level'] + 1} levels; error {pct(err)}, estimate {pct(est)})")
+            lines.append(f"| {name} | {100 * float(t):g} % | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
