@@ -45,8 +45,9 @@ def test_shipped_scenes_parse_full_and_quick_and_paper_ones_carry_table_one():
             row = objects.TABLE_I[name]
             assert (full.weight, full.poisson, full.mu_finger, full.mu_table) == (row.weight, row.poisson,
                                                                                   row.friction, row.friction)
-            # the effective modulus (README, "Units"): 10 kPa, 20 kPa for the orange and the bun (their scenes say why)
-            assert full.young == (2 if name in ("orange", "steam_bun") else 1) * objects.EFFECTIVE_YOUNG_ESTIMATE
+            # the effective modulus (README, "Units"): 10 kPa for the football, 20 kPa for the others (their scenes
+            # say why)
+            assert full.young == (1 if name == "football" else 2) * objects.EFFECTIVE_YOUNG_ESTIMATE
             assert full.placement_rule == objects.PAPER_PLACEMENT_RULE and full.contacts is None
             assert full.max_squeeze == objects.PAPER_MAX_SQUEEZE.get(name)  # the meshes are graded for these
             assert full.pickup_kwargs()["placement_rule"] == objects.PAPER_PLACEMENT_RULE

@@ -60,9 +60,9 @@ from pathlib import Path
 from typing import Any
 
 from .analysis import analyse, attach_diagnoses, diagnosis_cases
-from .cases import CONFIGS, DEFAULT_OUT, OBJECTS, adaptive_cases, case_key, cases, code_digest, dependent_cases
 from .report import plots
 from .runner import load_records, run_case, run_rounds, run_series
+from .specs import CONFIGS, DEFAULT_OUT, OBJECTS, adaptive_cases, case_key, cases, code_digest, dependent_cases
 
 __all__ = ["CONFIGS", "DEFAULT_OUT", "OBJECTS", "case_key", "code_digest", "run_case", "study"]
 

@@ -9,9 +9,9 @@ from pathlib import Path
 
 from . import __doc__ as DOC
 from . import study
-from .cases import DEFAULT_OUT, OBJECTS
 from .report import markdown, print_tables
 from .runner import worker
+from .specs import DEFAULT_OUT, OBJECTS
 
 
 def main(argv: list[str] | None = None) -> int:

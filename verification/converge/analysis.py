@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from .cases import case_key
+from .specs import case_key
 
 
 def _err(q: float | None, ref: float | None) -> float:

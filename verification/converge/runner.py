@@ -14,7 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from .cases import (
+from .slow_lift import diagnose
+from .specs import (
     RECORD_FORMAT,
     ROOT,
     body_of,
@@ -23,9 +24,9 @@ from .cases import (
     code_digest,
     geometry_of,
     pickup_kwargs,
+    scene_digest,
     scene_of,
 )
-from .slow_lift import diagnose
 
 
 def _bracket(liftable: list) -> list[float] | None:
@@ -42,7 +43,8 @@ def run_case(spec: dict[str, Any], record_path: Path | None = None) -> dict[str,
     from fem_grasp.mesh import remesh
 
     scene = scene_of(spec["object"], quick=spec["series"] == "quick")
-    rec: dict[str, Any] = {"spec": spec, "format": RECORD_FORMAT, "code": code_digest()}
+    rec: dict[str, Any] = {"spec": spec, "format": RECORD_FORMAT, "code": code_digest(),
+                           "scene": scene_digest(spec["object"])}
     if spec["series"] == "adaptive":
         t0 = time.perf_counter()
         body = scene.body()
@@ -94,11 +96,18 @@ def run_case(spec: dict[str, Any], record_path: Path | None = None) -> dict[str,
 
 
 def load_records(cache: Path) -> dict[str, dict]:
+    """The cached records, less those made for a shipped scene that has changed since (:func:`scene_digest`)."""
     out = {}
+    scenes: dict[str, str] = {}
     for f in sorted(cache.glob("*.json")):
         try:
             rec = json.loads(f.read_text())
         except (OSError, ValueError):
+            continue
+        name = rec["spec"]["object"]
+        if name not in scenes:
+            scenes[name] = scene_digest(name)
+        if rec.get("scene", scenes[name]) != scenes[name]:
             continue
         out[f.stem] = rec
     return out
@@ -149,11 +158,13 @@ def _run_one(spec: dict[str, Any], cache: Path, records: dict[str, dict], cfg: d
         try:
             proc = subprocess.run(cmd, cwd=ROOT, env=_worker_env(), timeout=timeout, capture_output=True, text=True)
             if proc.returncode != 0 or not path.exists():
-                rec = {"spec": spec, "format": RECORD_FORMAT, "code": digest, "error": proc.stderr[-2000:],
+                rec = {"spec": spec, "format": RECORD_FORMAT, "code": digest, "scene": scene_digest(spec["object"]),
+                       "error": proc.stderr[-2000:],
                        "seconds": time.perf_counter() - t0}
                 path.write_text(json.dumps(rec, indent=1))
         except subprocess.TimeoutExpired:
-            rec = {"spec": spec, "format": RECORD_FORMAT, "code": digest, "timeout": True, "seconds": timeout}
+            rec = {"spec": spec, "format": RECORD_FORMAT, "code": digest, "scene": scene_digest(spec["object"]),
+                   "timeout": True, "seconds": timeout}
             part = path.with_suffix(".partial")
             if part.exists():  # the adaptive loop's levels so far
                 rec.update({k: v for k, v in json.loads(part.read_text()).items() if k in ("accuracy",)})

@@ -249,6 +249,21 @@ def code_digest() -> str:
     return h.hexdigest()[:12]
 
 
+def scene_digest(name: str) -> str:
+    """Digest of what a case's answer depends on besides the code: the shipped scene's file (its modulus, weight,
+    friction, …) and, for a paper object, its committed mesh.  A record made for another scene is never reused,
+    whatever ``--stale`` says (a changed scene is another problem, not a stale answer)."""
+    from fem_grasp.io.scene import resolve_scene
+
+    h = hashlib.sha256()
+    path = Path(resolve_scene(name))
+    h.update(path.read_bytes())
+    mesh = ROOT / "meshes" / f"{name}.vtu"
+    if mesh.exists():
+        h.update(mesh.read_bytes())
+    return h.hexdigest()[:12]
+
+
 def case_key(spec: dict[str, Any]) -> str:
     return hashlib.sha256(json.dumps([RECORD_FORMAT, spec], sort_keys=True).encode()).hexdigest()[:16]
 
