@@ -145,6 +145,19 @@ def test_result_json_carries_the_accuracy_block(lifted, levels, tmp_path):
     assert json.loads(write_result_json(tmp_path, lifted).read_text())["accuracy"] is None
 
 
+def test_a_level_that_would_crowd_a_fingertip_with_contacts_is_not_run():
+    """The cap on a fingertip's contacts (the contact algebra is dense in them): with level 0's patches of 1-2
+    contacts and a cap of 3, level 1 (about four times as many) is not run, and the answer is level 0's, not
+    converged, with the reason in the note."""
+    body = Body(BOX.grid((2, 2, 2)), 2e4, 0.3, weight=0.3)
+    res = converged_pickup(body, solve=pickup, accuracy=TARGET, geometry=BOX, max_finger_contacts=3,
+                           contacts=_centre_nodes(body.mesh), mu_finger=0.5, finger_radius=0.01, lift=False)
+    acc = res.accuracy
+    assert len(acc["levels"]) == 1 and not acc["converged"]
+    assert "contacts on a fingertip" in acc["note"] and math.isinf(max(acc["estimated_error"].values()))
+    assert res.body.n_nodes == body.n_nodes
+
+
 def test_accuracy_must_be_a_relative_error():
     body = Body(BOX.grid((2, 2, 2)), 2e4, 0.3, weight=0.3)
     for bad in (0.0, 1.0, -0.1, "5%"):
