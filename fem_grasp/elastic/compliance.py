@@ -69,6 +69,10 @@ SOLVER_ENV = "FEM_GRASP_SOLVER"
 #: ``make bench``, section ``columns``, 31k vertices: 10.7 ms per column in batches of 90, 12.2 in batches of
 #: 30, 40 for one node's three).
 PREFETCH_NODES = 30
+#: The right-hand sides and solutions of one multi-column solve take at most about this many bytes; more columns
+#: are solved in blocks.  (The steam bun's flat base puts 2,714 nodes on the table at 21k vertices: their 8,142
+#: columns at once needed two dense 129k × 8,142 arrays, 7.8 GiB each.)
+SOLVE_BLOCK_BYTES = 512 * 2**20
 
 
 def cholmod_available() -> bool:
@@ -370,6 +374,12 @@ class Compliance:
         bad = [k for k in new if not 0 <= k < self.n_nodes]
         if bad:
             raise ValueError(f"node {bad[0]} is not a node of the body (0 … {self.n_nodes - 1})")
+        block = max(1, SOLVE_BLOCK_BYTES // (2 * 8 * 3 * len(self.free)))  # nodes per solve: rhs + solution
+        for start in range(0, len(new), block):
+            self._solve_columns(new[start:start + block])
+
+    def _solve_columns(self, new: list[int]) -> None:
+        """Solve for and cache the columns of the nodes ``new`` (none cached yet) in one multi-column solve."""
         # The unit loads (Qᵀ of them when rotated) on the free DOFs only, and only the kept rows of the
         # solution: at 100k vertices each (3n, 90) array is 225 MB.
         unit = np.eye(3) if self._rotation is None else self._rotation.T

@@ -164,6 +164,24 @@ def test_prefetch_fills_up_with_the_likely_next_contacts_in_one_solve(body):
     assert calls == [3, 9] and not comp.is_cached(50)
 
 
+def test_many_columns_are_solved_in_blocks_of_bounded_memory(body, monkeypatch):
+    """More columns than SOLVE_BLOCK_BYTES allows at once (a flat base of thousands of table contacts) are
+    solved block by block, each block's right-hand sides and solution within the bound, with the same columns."""
+    comp = cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver="superlu")
+    single = cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver="superlu")
+    per_node = 2 * 8 * 3 * len(comp.free)  # bytes of one node's right-hand sides and solution
+    monkeypatch.setattr(cp, "SOLVE_BLOCK_BYTES", 2 * per_node)
+    calls = []
+    inner = comp._solve
+    comp._solve = lambda b: calls.append(b.shape[1]) or inner(b)
+    nodes = [3, 9, 40, 41, 57]
+    comp.prefetch(nodes)
+    assert calls == [6, 6, 3] and all(comp.is_cached(k) for k in nodes)
+    for k in nodes:
+        ref = single.node_columns([k])
+        np.testing.assert_allclose(comp.node_columns([k]), ref, rtol=0, atol=1e-12 * np.abs(ref).max())
+
+
 @pytest.mark.parametrize("rows", [False, True])
 def test_columns_of_grounded_nodes_equal_the_compliance_applied_to_unit_loads(body, rows):
     """Columns are solved on the free DOFs only (no padded (3n, k) copies); the grounded DOFs' rows and
