@@ -379,10 +379,9 @@ def grasp_convergence_section(gc: dict, images: dict) -> str:
         out.append(f"<h3>{html.escape(name)}</h3>")
         ref = obj.get("reference")
         if ref:
-            out.append(f"<p>Reference ({ref['vertices']:,} vertices): ρ* = {fmt(1e3 * ref['rho']['value'])} mm ± "
-                       f"{_pct(ref['rho']['error'])} ({html.escape(ref['rho']['method'])}), finger force "
-                       f"{fmt(ref['force']['value'])} N ± {_pct(ref['force']['error'])} "
-                       f"({html.escape(ref['force']['method'])}).</p>")
+            from .converge.report import reference_line
+
+            out.append(f"<p>Reference: {html.escape(reference_line(ref))}.</p>")
         res = obj.get("resolution", {})
         if res:
             rows = []
@@ -391,7 +390,8 @@ def grasp_convergence_section(gc: dict, images: dict) -> str:
                                     Markup(f"{per[t]['vertices']:,} v, {fmt(1e3 * per[t]['patch_spacing'])} mm, "
                                            f"{fmt(per[t]['seconds'])} s") for t in ("0.1", "0.05", "0.02")])
             out.append("<p class='note'>Cheapest level from which every finer level of the series is within the "
-                       "target (both ρ* and the finger force; vertices, spacing at the patches, time); – : not "
+                       "target (the reference's verdict, and both ρ* and the finger force; where the reference is not "
+                       "picked up, the largest weight held; vertices, spacing at the patches, time); – : not "
                        "reached:</p>")
             out.append(table(["series", "10 %", "5 %", "2 %"], rows))
         for s_, rows in obj.get("series", {}).items():
@@ -399,18 +399,20 @@ def grasp_convergence_section(gc: dict, images: dict) -> str:
             for r in rows:
                 if "rho" not in r:
                     body.append([_level_label(r["spec"]), r.get("vertices"), "timeout" if r["timeout"] else "error",
-                                 None, None, None, None, None, None, None, r.get("seconds")])
+                                 None, None, None, None, None, None, None, None, None, r.get("seconds")])
                     continue
                 fg = r["fingers"]
                 body.append([_level_label(r["spec"]), r["vertices"], "picked up" if r["success"] else "NOT",
                              1e3 * r["rho"], _pct(r.get("rho_error")), r["force"], _pct(r.get("force_error")),
+                             r["max_liftable"] / r["weight"], _pct(r.get("w_error")),
                              Markup(" / ".join(f"{f['resultant']:.3g}, {f['along_squeeze']:.3g}, {f['vertical']:.3g}"
                                                for f in fg)),
                              Markup(f"{fg[0]['nodes']} / {fg[1]['nodes']} / {r['table_nodes']}"),
                              None if r.get("patch_spacing") is None else 1e3 * r["patch_spacing"], r.get("seconds")])
             out.append(f"<p class='note'><b>{html.escape(s_)}</b>: {html.escape(SERIES_NOTES.get(s_, ''))}</p>")
             out.append(table(["level", "vertices", "verdict", "ρ* (mm)", "error", "finger force (N)", "error",
-                              "per finger |F|, F·d̂, F_z (N)", "patches", "spacing at patch (mm)", "s"], body))
+                              "max w / mg", "w(ρ) error / mg", "per finger |F|, F·d̂, F_z (N)", "patches",
+                              "spacing at patch (mm)", "s"], body))
         for key, sc in obj.get("scatter", {}).items():
             out.append(f"<p class='note'>Seeds at {html.escape(key)}: {sc['picked_up']} of {sc['runs']} picked up; ρ* "
                        f"{fmt(1e3 * (sc['rho_mean'] or math.nan))} mm ± {fmt(1e3 * (sc['rho_std'] or math.nan))} "

@@ -118,8 +118,9 @@ def reference_line(ref: dict[str, Any]) -> str:
     """The reference in words: its mesh, its increments, and ρ* and Σ f·n̂ with their bands, or, where the finest
     level does not pick the object up, the largest weight it holds."""
     def band(est: dict[str, Any]) -> str:
-        e = est["error"]
-        return f"{100 * e:.1f} % ({est['method']})" if math.isfinite(e) else f"unknown ({est['method']}: one run)"
+        e = est.get("error")  # inf is null in converge.json
+        return (f"{100 * e:.1f} % ({est['method']})" if e is not None and math.isfinite(e) else
+                f"unknown ({est['method']}: one run)")
 
     head = (f"{ref['vertices']:,} vertices, squeeze increment {1e3 * ref['step']:.3g} mm, lift-test step "
             f"{ref['h'] / ref['weight']:.3g} mg")
