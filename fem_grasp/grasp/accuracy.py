@@ -349,7 +349,7 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         :class:`~fem_grasp.mesh.remesh.NoGeometryError` when that surface is not closed and manifold)
     max_levels : refinements tried after level 0
     max_finger_contacts : a level whose fingertip patches would hold more contacts than this (predicted from the
-        level before: × ``LEVEL_RATIO``² per halving of the spacing) is not run (:data:`MAX_FINGER_CONTACTS`)
+        level before: times the square of ``LEVEL_RATIO`` per halving of the spacing) is not run (:data:`MAX_FINGER_CONTACTS`)
     max_seconds : stop refining once the levels so far took this long (the answer is then reported
         unconverged, with the last difference as its estimated error)
     rest_state : a resting state of ``body`` (level 0 only)
