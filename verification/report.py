@@ -332,6 +332,8 @@ SERIES_NOTES = {
     "reference": "the finest uniform level with the increment and h halved twice",
     "adaptive": "pickup(..., accuracy=target): the adaptive loop",
     "quick": "the scene's [quick] variant (fem-grasp run NAME --quick), one run",
+    "shipped": "the scene as shipped (fem-grasp run NAME), one run on its committed mesh: its error is what the scene "
+               "states as [solver] expected_error",
 }
 
 

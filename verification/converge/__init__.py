@@ -32,8 +32,9 @@ and the liftable weight w(ρ) — is computed under
 ``adaptive``
     :func:`fem_grasp.grasp.accuracy.converged_pickup` at 2 % (the answers at 10 % and 5 % are that run stopped
     earlier: the loop is deterministic);
-``quick``
-    the scene's ``[quick]`` variant, one run (its error is what the scene states as ``expected_error``).
+``shipped`` / ``quick``
+    the scene as shipped (its committed mesh) and its ``[quick]`` variant, one run each (their errors are what
+    the scene states as ``expected_error``, printed by ``--scene-errors``).
 
 Each run is a subprocess (its own memory, a time cap, peak memory measured)
 whose record is cached as JSON under ``verification/out/converge/cache`` (a

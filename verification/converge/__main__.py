@@ -9,7 +9,7 @@ from pathlib import Path
 
 from . import __doc__ as DOC
 from . import study
-from .report import markdown, print_tables
+from .report import markdown, print_scene_errors, print_tables
 from .runner import worker
 from .specs import DEFAULT_OUT, OBJECTS
 
@@ -25,6 +25,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--stale", action="store_true", help="recompute records made with other fem_grasp sources")
     ap.add_argument("--docs", type=Path, help="also copy the plots into this folder (the README's: docs/)")
     ap.add_argument("--markdown", action="store_true", help="print the README's tables")
+    ap.add_argument("--scene-errors", action="store_true",
+                    help="print the shipped scenes' errors against the reference (their [solver] expected_error)")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     ap.add_argument("--record", type=Path, help=argparse.SUPPRESS)
     ap.add_argument("--memory-gib", type=float, default=9.0, help=argparse.SUPPRESS)
@@ -35,6 +37,8 @@ def main(argv: list[str] | None = None) -> int:
     analysis = study(args.quick, args.out, tuple(args.objects), compute=not args.report_only, stale=args.stale,
                      series_filter=set(args.series) if args.series else None)
     print(markdown(analysis)) if args.markdown else print_tables(analysis)
+    if args.scene_errors:
+        print_scene_errors(analysis)
     print(f"\nwrote {args.out / 'converge.json'} and {', '.join(analysis['images'].values())}")
     if args.docs:
         import shutil

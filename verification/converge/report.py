@@ -153,11 +153,12 @@ def markdown(analysis: dict[str, Any]) -> str:
         lines.append("| series | level | vertices | spacing at patch (mm) | verdict | ρ* (mm) | error | Σ f·n̂ (N) | error | "
                      "max w / mg | w(ρ) error / mg | patches f1/f2/table | time (s) |")
         lines.append("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
-        for s_ in ("uniform", "graded", "graded_table", "step", "h", "quick"):
+        for s_ in ("shipped", "quick", "uniform", "graded", "graded_table", "step", "h"):
             for r in obj["series"].get(s_, []):
                 sp = r["spec"]
                 lvl = next((f"{k} {sp[k]:g}" if k != "inner" else f"R/{1 / sp[k]:g}") for k in
-                           ("target", "factor", "inner", "divisor") if k in sp) if s_ != "quick" else "[quick]"
+                           ("target", "factor", "inner", "divisor") if k in sp) if s_ not in ("quick", "shipped") \
+                    else {"quick": "[quick]", "shipped": "the scene"}[s_]
                 if "rho" not in r:
                     lines.append(f"| {s_} | {lvl} | {r.get('vertices') or '–'} | – | "
                                  f"{'timeout' if r['timeout'] else 'error'} | | | | | | | | {r['seconds']:.0f} |")
@@ -198,3 +199,38 @@ def markdown(analysis: dict[str, Any]) -> str:
             lines.append(f"| {name} | {100 * float(t):g} % | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
+
+def scene_errors(analysis: dict[str, Any]) -> list[dict[str, Any]]:
+    """Per object, the shipped scene's run and its ``[quick]`` variant's against the reference: verdict, ρ*, Σ f·n̂,
+    their errors and the error a scene should state (``[solver] expected_error``: the larger of the two, rounded
+    up to 5 %; inf where the verdict differs from the reference's)."""
+    rows = []
+    for name, obj in analysis["objects"].items():
+        for series in ("shipped", "quick"):
+            for r in obj["series"].get(series, []):
+                if "rho" not in r:
+                    continue
+                err = max(r.get("rho_error", math.nan), r.get("force_error", math.nan))
+                if not r.get("verdict_ok", True):
+                    err = math.inf
+                stated = err if not math.isfinite(err) else math.ceil(20 * err - 1e-9) / 20
+                rows.append({"object": name, "series": series, "vertices": r["vertices"], "success": r["success"],
+                             "rho": r["rho"], "force": r["force"], "rho_error": r.get("rho_error"),
+                             "force_error": r.get("force_error"), "expected_error": stated})
+    return rows
+
+
+def print_scene_errors(analysis: dict[str, Any]) -> None:
+    print("\n== the shipped scenes against the reference (what [solver] expected_error states)")
+    for r in scene_errors(analysis):
+        e = r["expected_error"]
+        print(f"  {r['object']:<11} {'' if r['series'] == 'shipped' else '[quick]':<8} {r['vertices']:>6,} v  "
+              f"{'picked up' if r['success'] else 'NOT      '}  rho {1e3 * r['rho']:7.3f} mm  force {r['force']:.3f} N  "
+              f"errors {_pct(r['rho_error'])} / {_pct(r['force_error'])}  ->  expected_error = "
+              f"{'inf' if not math.isfinite(e) else f'{e:g}'}")
+
+
+def _pct(x: Any) -> str:
+    if x is None or (isinstance(x, float) and math.isnan(x)):
+        return "–"
+    return "wrong verdict" if math.isinf(x) else f"{100 * x:.1f} %"

@@ -164,7 +164,7 @@ def build_mesh(spec: dict[str, Any], scene) -> tuple[Any, dict[str, Any]]:
     box = scene.object.kind == "box"
     geo = geometry_of(scene)
     info: dict[str, Any] = {}
-    if series == "quick":
+    if series in ("quick", "shipped"):  # the scene's own mesh ([quick]: its coarse one)
         mesh = scene.load_mesh()
     elif series in ("uniform", "step", "h", "reference"):
         if box:
@@ -283,6 +283,7 @@ def cases(cfg: dict[str, Any], objects: tuple[str, ...], records: dict[str, dict
                    if t <= cfg["uniform_max_vertices"]]
         out.append(uni)
         out.append([{"object": name, "series": "quick"}])
+        out.append([{"object": name, "series": "shipped"}])
         inner = list(cfg["graded_inner"]) + list(cfg.get("graded_inner_extra", {}).get(name, []))
         out.append([{"object": name, "series": "graded", "inner": i} for i in inner])
         out.append([{"object": name, "series": "graded_table", "inner": i} for i in cfg["graded_table_inner"]])
