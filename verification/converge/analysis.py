@@ -69,6 +69,24 @@ def liftable_slope(curve: list, rho: float) -> float | None:
     return float((a[k, 1] - a[k - 2, 1]) / d) if d > 0 else None
 
 
+def mesh_band(series: dict[str, list[dict]], fine: dict[str, Any], reference: dict[str, Any]) -> dict[str, Any]:
+    """How far the other fine meshes are from the reference: per quantity, the largest relative difference between
+    the reference's value and the next-finest uniform level and the finest graded and graded + table levels (those
+    that pick the object up).  The reference's own band covers only its increments; this one says whether the
+    meshes agree, which a converged answer needs."""
+    uni = sorted((r for r in series.get("uniform", []) if r.get("success") and r is not fine),
+                 key=lambda r: r["vertices"])
+    others = uni[-1:] + [max((r for r in series.get(s, []) if r.get("success")), key=lambda r: r["vertices"],
+                             default=None) for s in ("graded", "graded_table")]
+    others = [r for r in others if r is not None]
+    out: dict[str, Any] = {"levels": [{"series": r["series"], "vertices": r["vertices"], "rho": r["rho"],
+                                       "force": r["force"]} for r in others]}
+    for q in ("rho", "force"):
+        ref = reference[q]["value"]
+        out[q] = max((abs(r[q] - ref) / abs(ref) for r in others), default=math.nan) if ref else math.nan
+    return out
+
+
 def within(row: dict[str, Any], target: float, picked: bool) -> bool:
     """A run is within ``target`` of the reference: same verdict, and ρ* and Σ f·n̂ within it (a reference that
     picks the object up) or its w(ρ) within target × mg (one that does not)."""
@@ -136,6 +154,7 @@ def analyse(records: dict[str, dict], objects: tuple[str, ...], cfg: dict[str, A
                         reference["rho"] = {"value": 0.5 * (br[0] + br[1]), "error": (br[1] - br[0]) / (br[0] + br[1]),
                                             "method": "bracket", "order": None}
                 reference["slope"] = liftable_slope(reference["liftable"], reference["rho"]["value"])
+                reference["mesh_band"] = mesh_band(series, fine, reference)
         obj["reference"] = reference
         picked = bool(reference and reference["success"])
         rho_ref = reference["rho"]["value"] if picked else None
