@@ -99,3 +99,14 @@ def test_a_flip_is_explained_as_the_lift_test_step_or_as_a_physical_outcome_of_t
              "rows": [{"rho": 0.015, "test_w": 0.75, "slow_w": 0.8}]}
     text = explain({"kind": "verdict", "row": row}, short)
     assert text.startswith("physical outcome of this mesh") and "0.80 mg" in text
+
+
+def test_the_reference_states_how_far_the_finest_levels_of_the_other_series_are_from_it():
+    recs = [_record("uniform", {"target": 1200}, vertices=1200, rho=0.0110, force=6.6),
+            _record("uniform", {"target": 4800}, vertices=4800, rho=0.0100, force=6.0, bracket=[0.0099, 0.0101]),
+            _record("graded", {"inner": 0.5}, vertices=700, rho=0.0130, force=9.0),  # coarser: not the finest graded
+            _record("graded", {"inner": 0.25}, vertices=1400, rho=0.0092, force=6.3),
+            _record("graded_table", {"inner": 0.5}, vertices=800, rho=0.0, force=0.0, success=False)]  # not picked up
+    band = _study(recs)["reference"]["mesh_band"]
+    assert [(x["series"], x["vertices"]) for x in band["levels"]] == [("uniform", 1200), ("graded", 1400)]
+    assert band["rho"] == pytest.approx(0.10) and band["force"] == pytest.approx(0.10)
