@@ -47,6 +47,7 @@ largest force change in 1000 sweeps) are reported too.
 from __future__ import annotations
 
 import logging
+import warnings
 from dataclasses import dataclass
 from typing import Callable
 
@@ -208,8 +209,11 @@ def _polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, stat
         fresh = lu is None
         try:
             if fresh:
-                with blas_threads_for(len(r)):
+                with blas_threads_for(len(r)), warnings.catch_warnings():
+                    warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)  # a zero pivot is checked below
                     lu = scipy.linalg.lu_factor(jac, check_finite=False)
+                if not np.all(np.diagonal(lu[0])):
+                    return None  # exactly singular, as numpy's solve would say
             step = -scipy.linalg.lu_solve(lu, r, check_finite=False)
         except (np.linalg.LinAlgError, ValueError):
             return None
