@@ -110,3 +110,21 @@ def test_the_reference_states_how_far_the_finest_levels_of_the_other_series_are_
     band = _study(recs)["reference"]["mesh_band"]
     assert [(x["series"], x["vertices"]) for x in band["levels"]] == [("uniform", 1200), ("graded", 1400)]
     assert band["rho"] == pytest.approx(0.10) and band["force"] == pytest.approx(0.10)
+
+
+def test_records_made_for_another_version_of_a_scene_are_not_read(tmp_path):
+    """A cached run is an answer to one problem: when a shipped scene's file (its modulus, say) or its committed
+    mesh changes, the records made for the old one are left out, whatever their code digest says."""
+    import json
+
+    from verification.converge.runner import load_records
+    from verification.converge.specs import scene_digest
+
+    now = scene_digest("orange")
+    for key, scene in (("current", now), ("old", "0" * 12), ("unstamped", None)):
+        rec = _record("uniform", {"target": 600}, vertices=600, rho=0.01, force=6.0)
+        if scene is not None:
+            rec["scene"] = scene
+        (tmp_path / f"{key}.json").write_text(json.dumps(rec))
+    assert sorted(load_records(tmp_path)) == ["current", "unstamped"]
+    assert scene_digest("tomato") != now and scene_digest("orange") == now
