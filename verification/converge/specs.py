@@ -46,7 +46,7 @@ CONFIGS: dict[str, dict[str, Any]] = {
         "seeds": 5, "seed_factors": [1], "seed_factors_extra": {"orange": [4]}, "box_seed_factors": [1, 2],
         "graded_inner_extra": {"orange": [1 / 16], "foam_block": [1 / 16]},
         "reference_divisors": [1, 2, 4], "reference_max_seconds": 900,
-        "adaptive_target": 0.02, "adaptive_max_levels": 2, "adaptive_timeout": 5400, "early_levels": 4,
+        "adaptive_target": 0.02, "adaptive_max_levels": 2, "adaptive_timeout": 2700, "early_levels": 4,
         "case_timeout": 2400, "memory_gib": 9.0, "diagnose_max_seconds": 150,
     },
     "quick": {
