@@ -144,41 +144,40 @@ def run_rounds(all_series: list[list[dict[str, Any]]], cache: Path, records: dic
 def _run_one(spec: dict[str, Any], cache: Path, records: dict[str, dict], cfg: dict[str, Any], stale: bool) -> bool:
     """Run one case unless cached; False when it timed out."""
     digest = code_digest()
-    if True:
-        key = case_key(spec)
-        rec = records.get(key)
-        if rec is not None and not (stale and rec.get("code") != digest):
-            return not rec.get("timeout")
-        path = cache / f"{key}.json"
-        timeout = cfg["adaptive_timeout"] if spec["series"] == "adaptive" else cfg["case_timeout"]
-        t0 = time.perf_counter()
-        print(f"  {spec}", flush=True)
-        cmd = [sys.executable, "-m", "verification.converge", "--worker", json.dumps(spec), "--record", str(path),
-               "--memory-gib", str(cfg["memory_gib"])]
-        try:
-            proc = subprocess.run(cmd, cwd=ROOT, env=_worker_env(), timeout=timeout, capture_output=True, text=True)
-            if proc.returncode != 0 or not path.exists():
-                rec = {"spec": spec, "format": RECORD_FORMAT, "code": digest, "scene": scene_digest(spec["object"]),
-                       "error": proc.stderr[-2000:],
-                       "seconds": time.perf_counter() - t0}
-                path.write_text(json.dumps(rec, indent=1))
-        except subprocess.TimeoutExpired:
-            rec = {"spec": spec, "format": RECORD_FORMAT, "code": digest, "scene": scene_digest(spec["object"]),
-                   "timeout": True, "seconds": timeout}
-            part = path.with_suffix(".partial")
-            if part.exists():  # the adaptive loop's levels so far
-                rec.update({k: v for k, v in json.loads(part.read_text()).items() if k in ("accuracy",)})
-            path.write_text(json.dumps(rec, indent=1))
-        rec = json.loads(path.read_text())
-        records[key] = rec
-        if "answer" in rec:
-            a = rec["answer"]
-            print(f"    {rec.get('vertices')} vertices: {'picked up' if a['success'] else 'NOT picked up'} "
-                  f"rho {1e3 * a['squeeze_depth']:.3f} mm, finger force {a['finger_force']:.3f} N, "
-                  f"{rec['seconds']:.1f} s", flush=True)
-        else:
-            print(f"    {'timeout' if rec.get('timeout') else 'error'} after {rec['seconds']:.0f} s", flush=True)
+    key = case_key(spec)
+    rec = records.get(key)
+    if rec is not None and not (stale and rec.get("code") != digest):
         return not rec.get("timeout")
+    path = cache / f"{key}.json"
+    timeout = cfg["adaptive_timeout"] if spec["series"] == "adaptive" else cfg["case_timeout"]
+    t0 = time.perf_counter()
+    print(f"  {spec}", flush=True)
+    cmd = [sys.executable, "-m", "verification.converge", "--worker", json.dumps(spec), "--record", str(path),
+           "--memory-gib", str(cfg["memory_gib"])]
+    try:
+        proc = subprocess.run(cmd, cwd=ROOT, env=_worker_env(), timeout=timeout, capture_output=True, text=True)
+        if proc.returncode != 0 or not path.exists():
+            rec = {"spec": spec, "format": RECORD_FORMAT, "code": digest, "scene": scene_digest(spec["object"]),
+                   "error": proc.stderr[-2000:],
+                   "seconds": time.perf_counter() - t0}
+            path.write_text(json.dumps(rec, indent=1))
+    except subprocess.TimeoutExpired:
+        rec = {"spec": spec, "format": RECORD_FORMAT, "code": digest, "scene": scene_digest(spec["object"]),
+               "timeout": True, "seconds": timeout}
+        part = path.with_suffix(".partial")
+        if part.exists():  # the adaptive loop's levels so far
+            rec.update({k: v for k, v in json.loads(part.read_text()).items() if k in ("accuracy",)})
+        path.write_text(json.dumps(rec, indent=1))
+    rec = json.loads(path.read_text())
+    records[key] = rec
+    if "answer" in rec:
+        a = rec["answer"]
+        print(f"    {rec.get('vertices')} vertices: {'picked up' if a['success'] else 'NOT picked up'} "
+              f"rho {1e3 * a['squeeze_depth']:.3f} mm, finger force {a['finger_force']:.3f} N, "
+              f"{rec['seconds']:.1f} s", flush=True)
+    else:
+        print(f"    {'timeout' if rec.get('timeout') else 'error'} after {rec['seconds']:.0f} s", flush=True)
+    return not rec.get("timeout")
 
 
 def worker(spec_json: str, record: Path, memory_gib: float) -> int:
