@@ -3,6 +3,8 @@ construction: the reference, each level's error against it, the cheapest resolut
 liftable-weight curve, and the words a verdict flip is explained with."""
 
 import math
+import re
+from pathlib import Path
 
 import pytest
 
@@ -128,3 +130,22 @@ def test_records_made_for_another_version_of_a_scene_are_not_read(tmp_path):
         (tmp_path / f"{key}.json").write_text(json.dumps(rec))
     assert sorted(load_records(tmp_path)) == ["current", "unstamped"]
     assert scene_digest("tomato") != now and scene_digest("orange") == now
+
+
+def test_a_scene_s_comments_and_stated_error_are_not_its_problem(tmp_path):
+    """Writing the study's findings into a scene (its comments, ``[solver] expected_error``) keeps the records
+    made for it; a changed modulus does not."""
+    from fem_grasp.io.scene import resolve_scene
+    from verification.converge.specs import scene_problem
+
+    text = Path(resolve_scene("orange")).read_text()
+    edited = text.replace("[solver]\n", "[solver]\n# a new comment\n")
+    edited = re.sub(r"^expected_error = [^\n]*", "expected_error = 0.01   # restated", edited, flags=re.M)
+    softer = re.sub(r'^young = "[^"]*"', 'young = "5 kPa"', text, flags=re.M)
+    assert edited != text and softer != text
+    paths = {}
+    for key, body in (("shipped", text), ("edited", edited), ("softer", softer)):
+        paths[key] = tmp_path / f"{key}.toml"
+        paths[key].write_text(body)
+    assert scene_problem(paths["edited"]) == scene_problem(paths["shipped"])
+    assert scene_problem(paths["softer"]) != scene_problem(paths["shipped"])

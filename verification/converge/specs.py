@@ -249,15 +249,33 @@ def code_digest() -> str:
     return h.hexdigest()[:12]
 
 
+#: Scene keys that describe a run's answer instead of setting its problem: editing them (or any comment)
+#: keeps the study's records.
+_DIGEST_SKIP_SCENE_KEYS = ("expected_error",)
+
+
+def scene_problem(path: Path) -> dict[str, Any]:
+    """The problem a scene file sets: its parsed TOML (comments gone) less :data:`_DIGEST_SKIP_SCENE_KEYS`."""
+    import tomllib
+
+    def strip(d: Any) -> Any:
+        if isinstance(d, dict):
+            return {k: strip(v) for k, v in d.items() if k not in _DIGEST_SKIP_SCENE_KEYS}
+        return d
+
+    return strip(tomllib.loads(Path(path).read_text()))
+
+
 def scene_digest(name: str) -> str:
-    """Digest of what a case's answer depends on besides the code: the shipped scene's file (its modulus, weight,
-    friction, …) and, for a paper object, its committed mesh.  A record made for another scene is never reused,
-    whatever ``--stale`` says (a changed scene is another problem, not a stale answer)."""
+    """Digest of what a case's answer depends on besides the code: the problem the shipped scene sets (its
+    modulus, weight, friction, …; :func:`scene_problem`) and, for a paper object, its committed mesh.  A record
+    made for another problem is never reused, whatever ``--stale`` says (a changed scene is another problem,
+    not a stale answer)."""
     from fem_grasp.io.scene import resolve_scene
 
     h = hashlib.sha256()
-    path = Path(resolve_scene(name))
-    h.update(path.read_bytes())
+    problem = scene_problem(Path(resolve_scene(name)))
+    h.update(json.dumps(problem, sort_keys=True, default=repr).encode())
     mesh = ROOT / "meshes" / f"{name}.vtu"
     if mesh.exists():
         h.update(mesh.read_bytes())
