@@ -285,6 +285,13 @@ def attach_diagnoses(analysis: dict[str, Any], records: dict[str, dict]) -> None
                 f["diagnosis"]["verdict"] = explain(f, d)
 
 
+def _cause(reason: str) -> str:
+    """The cause in a lift test's failure message: the part after its last "not found: " (the failed search's
+    own words are the cause, the lines before it only say which search failed)."""
+    head, sep, cause = reason.rpartition("not found: ")
+    return cause if sep else reason
+
+
 def explain(flip: dict[str, Any], d: dict[str, Any]) -> str:
     """One sentence: is the flip the lift test's step h (the peak of w(ρ) within h of mg), a physical outcome of
     that mesh (even a slower loading holds less than mg), or a jump of the discretised w(ρ) itself?"""
@@ -311,7 +318,7 @@ def explain(flip: dict[str, Any], d: dict[str, Any]) -> str:
                       f" ({'above' if patch['failing_above_centre'] else 'below'} the fingertip's centre)")
         return (f"physical outcome of this mesh: even loaded in steps of h/8 the fingers hold at most {peak:.3g} N "
                 f"= {peak / w:.2f} mg (at ρ = {1e3 * (d.get('slow_peak_rho') or 0):.2f} mm{where}; "
-                f"{(d.get('peak_reason') or '')[:140]})")
+                f"{_cause(d.get('peak_reason') or '')})")
     tp, sp = d.get("test_pass"), d.get("slow_pass")
     if tp is not None and sp is not None and abs(tp - sp) <= 1.01 * (r.get("step") or 0):
         return (f"the slow lift test passes at {1e3 * sp:.2f} mm too (the library's at {1e3 * tp:.2f} mm): the jump is "
