@@ -182,6 +182,13 @@ def markdown(analysis: dict[str, Any]) -> str:
                              f"{sc['force_mean']:.3f} ± {sc['force_std']:.3f} N.")
             else:
                 lines.append(f"\nSeeds at {key}: {sc['picked_up']}/{sc['runs']} picked up.")
+        if obj["flips"]:
+            lines.append("\nVerdict flips and jumps against the trend, each with its diagnosis (a slow lift test in steps "
+                         "of h/8 at every increment):\n")
+            for f in obj["flips"]:
+                d = f.get("diagnosis", {})
+                lines.append(f"* {f['series']}, {f['kind']} at {f['row']['vertices']:,} vertices: "
+                             f"{d.get('verdict', 'not diagnosed (beyond the diagnosis time limit)')}")
     lines.append("\nTime to a 10 % / 5 % / 2 % answer (the reference's verdict, and both ρ* and Σ f·n̂ within the target "
                  "of the reference's; where the reference is not picked up, the largest weight held within the target × "
                  "mg), from the first level of a series after which every finer one stays within it:\n")
