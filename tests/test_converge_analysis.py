@@ -149,3 +149,17 @@ def test_a_scene_s_comments_and_stated_error_are_not_its_problem(tmp_path):
         paths[key].write_text(body)
     assert scene_problem(paths["edited"]) == scene_problem(paths["shipped"])
     assert scene_problem(paths["softer"]) != scene_problem(paths["shipped"])
+
+
+def test_the_reference_is_on_the_mesh_its_increments_were_refined_on():
+    """When the refined increments ran on a coarser uniform level than the finest (the finest was too slow to
+    rerun), the reference is that level's, and the finest uniform level counts in the mesh band."""
+    recs = [_record("uniform", {"target": 1200}, vertices=1200, rho=0.0110, force=6.6),
+            _record("uniform", {"target": 4800}, vertices=4800, rho=0.0100, force=6.0),
+            _record("uniform", {"target": 9600}, vertices=9600, rho=0.0150, force=9.0),
+            _record("reference", {"target": 4800, "divisor": 2}, vertices=4800, rho=0.0098, force=5.9, step=5e-4,
+                    bracket=[0.0097, 0.0099])]
+    ref = _study(recs)["reference"]
+    assert ref["vertices"] == 4800 and ref["rho"]["value"] == pytest.approx(0.0098)
+    assert ("uniform", 9600) in [(x["series"], x["vertices"]) for x in ref["mesh_band"]["levels"]]
+    assert ref["mesh_band"]["rho"] == pytest.approx(0.0150 / 0.0098 - 1)

@@ -129,8 +129,13 @@ def analyse(records: dict[str, dict], objects: tuple[str, ...], cfg: dict[str, A
         ref_rows = [r for r in series.get("uniform", []) if "rho" in r]
         reference = None
         if ref_rows:
-            fine = max(ref_rows, key=lambda r: r["vertices"])
-            chain = [fine] + [r for r in series.get("reference", []) if "rho" in r]
+            refined = [r for r in series.get("reference", []) if "rho" in r]
+            # the increments are refined on one uniform mesh (the finest that ran fast enough): the chain starts
+            # there, and finer uniform levels, if any, count in the mesh band
+            on = [r for r in ref_rows if refined and all(r["spec"].get(k) == refined[0]["spec"].get(k)
+                                                         for k in ("target", "factor"))]
+            fine = on[0] if on else max(ref_rows, key=lambda r: r["vertices"])
+            chain = [fine] + refined
             chain.sort(key=lambda r: -r["step"])
             ok = [r for r in chain if r["success"]]
             # the verdict of the finest increments decides; w(ρ) is the finest run's
