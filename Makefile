@@ -104,7 +104,8 @@ search: setup
 # Issue #7 benchmarks: contact solve against dolfinx, cost against vertex count (1k-100k), per-object pickups,
 # sparse against spectral, compiled against plain kernels, column batches, the floor of the method (flops
 # against the dense peak; about 10 GiB at 100k), the placement search serially and on Dask (section search), and
-# the time to a 10/5/2 % answer (section converge, from the cached study of `make converge`);
+# the time to a 10/5/2 % answer (section converge, from the cached study of `make converge`), and the pickup
+# engine against a baseline commit side by side (section tracker, #27; BENCH_ARGS="--only tracker --baseline REV");
 # tables on stdout and bench/out/bench.json
 # (long: shorter with BENCH_ARGS="--max-vertices 10000").
 bench: setup

@@ -62,6 +62,12 @@ Sections (``--only NAME``, repeatable; default all):
     are those of ``python -m verification.converge`` (``make converge``), one
     subprocess each, read from its cache (and computed into it when missing:
     hours from an empty cache).
+``tracker``
+    Issue #27: each shipped paper scene's pickup (and the foam block's) with
+    a baseline commit's fem_grasp and with this checkout's, in two worker
+    processes taking turns: medians after the first call, their ratio, and
+    whether the answers are the same (events, ρ* to 1e-9, forces to 1e-9 mg)
+    (:mod:`bench.tracker`; ``--baseline REV``).
 
 Medians over ``--reps`` repetitions.  Prints tables and writes
 ``bench/out/bench.json`` (sections run earlier are kept when ``--only`` runs
@@ -91,7 +97,7 @@ log = logging.getLogger("bench")
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "bench" / "out" / "bench.json"
-SECTIONS = ("solve", "scaling", "objects", "spectral", "jit", "columns", "floor", "search", "converge")
+SECTIONS = ("solve", "scaling", "objects", "spectral", "jit", "columns", "floor", "search", "converge", "tracker")
 SOLVE_SIZES = (10000, 50000)
 SCALING_SIZES = (1000, 3000, 10000, 30000, 50000, 100000)
 #: SuperLU above this many vertices takes minutes and gigabytes: not timed.
@@ -679,6 +685,12 @@ def print_converge(sec: dict[str, Any]) -> None:
 
 
 # -------------------------------------------------------------------- main
+def _print_tracker(sec: dict[str, Any]) -> None:
+    from bench.tracker import print_tracker
+
+    print_tracker(sec)
+
+
 def print_search(sec: dict[str, Any]) -> None:
     from bench.search import print_search as show
 
@@ -687,7 +699,8 @@ def print_search(sec: dict[str, Any]) -> None:
 
 PRINTERS = {"solve": print_solve, "scaling": print_scaling, "objects": print_objects, "spectral": print_spectral,
             "jit": print_jit, "columns": print_columns, "floor": print_floor, "search": print_search,
-            "converge": print_converge}
+            "converge": print_converge, "tracker": _print_tracker}
+
 
 
 def main(argv: list[str] | None = None) -> dict[str, Any]:
@@ -704,6 +717,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--out", type=Path, default=OUT)
     ap.add_argument("--converge-quick", action="store_true",
                     help="section converge: read (or compute) the quick study of verification.converge")
+    ap.add_argument("--baseline", default=None,
+                    help="section tracker: the commit to compare this checkout against (default: main before #27)")
     ap.add_argument("--worker-scaling", type=int, help=argparse.SUPPRESS)
     ap.add_argument("--worker-floor", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
@@ -743,6 +758,10 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             data["search"] = section_search(args.search_candidates)
         elif name == "converge":
             data["converge"] = section_converge(args.converge_quick)
+        elif name == "tracker":
+            from bench.tracker import DEFAULT_BASELINE, section_tracker
+
+            data["tracker"] = section_tracker(args.baseline or DEFAULT_BASELINE, args.reps)
         elif name == "floor":
             data["floor"] = section_floor([s for s in SCALING_SIZES if s <= args.max_vertices], args.reps,
                                           data.get("scaling"))

@@ -1,4 +1,6 @@
-"""The profiling command of issue #7 (bench/profile.py) runs and counts what it says it counts."""
+"""The benchmarks' own commands (bench/profile.py, bench/replay.py, bench/tracker.py) run and measure what they say."""
+
+import pytest
 
 from bench import profile
 from fem_grasp.contact import tracking
@@ -101,3 +103,40 @@ def test_the_nodes_a_pickup_touched_all_have_their_compliance_columns():
             assert set(nodes.tolist()) <= set(touched.tolist())
     assert all(comp.is_cached(int(k)) for k in touched)
     assert 0 < len(touched) <= comp.cached_nodes
+
+
+def _fingerprint(rho=0.01, events=(("A", 3, "finger1", "squeeze"),), forces=None, success=True):
+    return {"success": success, "reason": "", "rho": rho, "events": [list(e) for e in events], "weight": 2.0,
+            "forces": forces if forces is not None else {"finger1": [[0.0, 1.0, 0.5]], "table": [[0.0, 0.0, 1.0]]}}
+
+
+def test_the_same_answer_is_the_same_events_and_numbers_to_the_promised_tolerances():
+    """#27's "same answer": identical verdict and events, ρ* to 1e-9 relative, final forces to 1e-9 mg."""
+    from bench.tracker import SAME_FORCE, SAME_RHO, compare
+
+    base = _fingerprint()
+    assert compare(base, _fingerprint())["same"]
+    assert compare(base, _fingerprint(rho=0.01 * (1 + 0.5 * SAME_RHO)))["same"]
+    assert not compare(base, _fingerprint(rho=0.01 * (1 + 10 * SAME_RHO)))["same"]
+    moved = {"finger1": [[0.0, 1.0 + 10 * SAME_FORCE * 2.0, 0.5]], "table": [[0.0, 0.0, 1.0]]}
+    far = compare(base, _fingerprint(forces=moved))
+    assert not far["same"] and far["force_mg"] == pytest.approx(10 * SAME_FORCE)
+    other = compare(base, _fingerprint(events=(("A", 4, "finger1", "squeeze"),)))
+    assert not other["same"] and not other["same_events"]
+    one_more = {"finger1": [[0.0, 1.0, 0.5], [0.0, 0.1, 0.0]], "table": [[0.0, 0.0, 1.0]]}
+    assert compare(base, _fingerprint(forces=one_more))["force_mg"] == float("inf")
+    assert not compare(base, _fingerprint(success=False))["same_verdict"]
+
+
+def test_the_tracker_section_runs_a_baseline_commit_beside_this_checkout(tmp_path):
+    """Two worker processes, one on the exported baseline tree (it checks which fem_grasp it imported), time the
+    same scene in turns; against this checkout's own commit the answers are the same and repeatable."""
+    from bench.tracker import section_tracker
+
+    sec = section_tracker("HEAD", reps=1, scenes=("foam_block",), warm_up=None, quick=True, export_to=tmp_path)
+    (row,) = sec["rows"]
+    assert (tmp_path / f"baseline-{sec['baseline'][:12]}" / "fem_grasp" / "__init__.py").exists()
+    assert row["answer"]["same"] and row["repeatable"] and row["answer"]["events"][0] > 0
+    assert len(row["baseline"]["times"]) == len(row["current"]["times"]) == 2 and row["ratio"] > 0
+    with pytest.raises(SystemExit, match="not a commit"):
+        section_tracker("no-such-commit", export_to=tmp_path)

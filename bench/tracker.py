@@ -1,0 +1,223 @@
+"""The ``tracker`` section of ``make bench`` (issue #27): the pickup engine against a baseline commit, side by side.
+
+Two worker processes, one importing fem_grasp from this checkout and one from a baseline commit (exported with
+``git archive`` into ``bench/out/baseline-<sha>``), take turns on the same scenes: for each scene a first call
+(the body's assembly and factorisation included, the numba kernels already loaded by a warm-up on another scene)
+and then ``reps`` pickups, alternating baseline and current so both see the same load on a shared machine.
+Per scene the table gives the medians, their ratio, the first calls, and whether the answers are the same:
+identical event sequences and verdicts, ρ* to :data:`SAME_RHO` relative, final contact forces to
+:data:`SAME_FORCE` of the weight (the targets of #27).
+
+``python -m bench.tracker --baseline REV`` runs it alone; ``python -m bench.bench --only tracker`` (``make bench``)
+runs it as a section of the benchmark and keeps it in ``bench/out/bench.json``.  The worker protocol (one JSON
+line per request on stdin, one per answer on stdout) is :func:`serve`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import os
+import statistics
+import subprocess
+import sys
+import tarfile
+import time
+from pathlib import Path
+from typing import Any
+
+log = logging.getLogger("bench")
+
+__all__ = ["SCENES", "SAME_FORCE", "SAME_RHO", "compare", "fingerprint", "print_tracker", "section_tracker",
+           "serve"]
+
+ROOT = Path(__file__).resolve().parent.parent
+#: The shipped paper scenes and the foam block (the box the tests use most).
+SCENES = ("tomato", "orange", "steam_bun", "football", "foam_block")
+#: The baseline of #27: main before the new engine's work began (the convergence study's last change).
+DEFAULT_BASELINE = "8d4802882b8d0ef62be1f91ccaf5e132eca56f11"
+#: "The same answer" (#27): ρ* to 1e-9 relative ...
+SAME_RHO = 1e-9
+#: ... and final contact forces to 1e-9 of mg.
+SAME_FORCE = 1e-9
+
+
+# ------------------------------------------------------------------ worker side
+def fingerprint(result: Any) -> dict[str, Any]:
+    """What "the same answer" compares: verdict, events (kind, node, contact body, phase), ρ*, the final contact
+    forces per node, the weight."""
+    import numpy as np
+
+    final = result.final
+    forces = ({str(k): np.asarray(v, dtype=float).reshape(-1, 3).tolist() for k, v in final.contact_forces.items()}
+              if final is not None else {})
+    return {"success": bool(result.success), "reason": result.reason, "rho": float(result.squeeze_depth),
+            "events": [[e.kind, int(e.node), e.contact, e.phase] for e in result.events], "forces": forces,
+            "weight": float(result.body.weight)}
+
+
+def _pickup(name: str, quick: bool = False) -> dict[str, Any]:
+    from fem_grasp.io.scene import load_scene, resolve_scene
+
+    scene = load_scene(resolve_scene(name), quick=quick)
+    t0 = time.perf_counter()
+    result = scene.run(cache_dir=None)
+    seconds = time.perf_counter() - t0
+    return {"seconds": seconds, "fingerprint": fingerprint(result)}
+
+
+def serve() -> int:
+    """Answer ``{"scene": NAME, "quick": false}`` lines with ``{"seconds": …, "fingerprint": …}`` lines until stdin closes; the
+    first line out says which fem_grasp this process imported."""
+    logging.basicConfig(level=logging.WARNING)
+    import fem_grasp
+
+    print(json.dumps({"fem_grasp": str(Path(fem_grasp.__file__).resolve().parent)}), flush=True)
+    for line in sys.stdin:
+        request = json.loads(line)
+        try:
+            answer = _pickup(request["scene"], bool(request.get("quick")))
+        except Exception as exc:  # noqa: BLE001 - reported to the parent, which names the tree and the scene
+            answer = {"error": f"{type(exc).__name__}: {exc}"}
+        print(json.dumps(answer), flush=True)
+    return 0
+
+
+# ------------------------------------------------------------------ parent side
+def compare(base: dict[str, Any], new: dict[str, Any]) -> dict[str, Any]:
+    """How far two fingerprints are apart: same verdict, same events, |Δρ*|/ρ*, max |Δf| over the final contact
+    forces (per obstacle, node by node; a different number of contacts on one is infinitely far) / mg, and
+    whether that is "the same answer"."""
+    import numpy as np
+
+    same_events = base["events"] == new["events"]
+    rho = abs(new["rho"] - base["rho"]) / max(abs(base["rho"]), 1e-300)
+    force = 0.0
+    for obstacle in set(base["forces"]) | set(new["forces"]):
+        a = np.asarray(base["forces"].get(obstacle, []), dtype=float).reshape(-1, 3)
+        b = np.asarray(new["forces"].get(obstacle, []), dtype=float).reshape(-1, 3)
+        if a.shape != b.shape:
+            force = float("inf")
+        elif a.size:
+            force = max(force, float(np.abs(a - b).max()) / base["weight"])
+    same = (base["success"] == new["success"] and same_events and rho <= SAME_RHO and force <= SAME_FORCE)
+    return {"same_verdict": base["success"] == new["success"], "same_events": same_events,
+            "events": [len(base["events"]), len(new["events"])], "rho_rel": rho, "force_mg": force, "same": same}
+
+
+def export_baseline(rev: str, into: Path | None = None) -> tuple[str, Path]:
+    """The baseline's sources, exported once per commit into ``bench/out/baseline-<sha>`` (or ``into``) with
+    ``git archive``."""
+    proc = subprocess.run(["git", "rev-parse", "--verify", f"{rev}^{{commit}}"], cwd=ROOT, capture_output=True,
+                          text=True)
+    if proc.returncode != 0:
+        raise SystemExit(f"bench tracker: {rev!r} is not a commit of this repository ({proc.stderr.strip()})")
+    sha = proc.stdout.strip()
+    tree = (into or ROOT / "bench" / "out") / f"baseline-{sha[:12]}"
+    if not (tree / "fem_grasp" / "__init__.py").exists():
+        tree.mkdir(parents=True, exist_ok=True)
+        tar = tree.with_suffix(".tar")
+        # the package and the committed paper meshes it loads (grasp.objects.MESH_DIR)
+        subprocess.run(["git", "archive", "--format=tar", "-o", str(tar), sha, "fem_grasp", "meshes"], cwd=ROOT,
+                       check=True)
+        with tarfile.open(tar) as t:
+            t.extractall(tree)
+        tar.unlink()
+    return sha, tree
+
+
+class _Worker:
+    def __init__(self, label: str, tree: Path):
+        # run as a script, not with -m: -m puts the working directory first on sys.path, and this checkout's
+        # fem_grasp would shadow the baseline's
+        env = dict(os.environ, PYTHONPATH=str(tree))
+        self.label = label
+        self.proc = subprocess.Popen([sys.executable, str(Path(__file__).resolve()), "--serve"], cwd=tree, env=env,
+                                     stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        hello = json.loads(self.proc.stdout.readline())
+        if Path(hello["fem_grasp"]) != (tree / "fem_grasp").resolve():
+            self.close()
+            raise RuntimeError(f"the {label} worker imported fem_grasp from {hello['fem_grasp']}, not from {tree}")
+
+    def pickup(self, scene: str, quick: bool = False) -> dict[str, Any]:
+        self.proc.stdin.write(json.dumps({"scene": scene, "quick": quick}) + "\n")
+        self.proc.stdin.flush()
+        answer = json.loads(self.proc.stdout.readline())
+        if "error" in answer:
+            raise RuntimeError(f"{self.label}, {scene}: {answer['error']}")
+        return answer
+
+    def close(self) -> None:
+        if self.proc.stdin:
+            self.proc.stdin.close()
+        self.proc.wait(timeout=60)
+
+
+def section_tracker(baseline: str = DEFAULT_BASELINE, reps: int = 3, scenes: tuple[str, ...] = SCENES,
+                    warm_up: str | None = "foam_block", quick: bool = False,
+                    export_to: Path | None = None) -> dict[str, Any]:
+    """Time the shipped scenes' pickups (their ``[quick]`` variants with ``quick``) with the baseline's fem_grasp
+    and this checkout's, interleaved (module notes); medians of ``reps`` after the first call."""
+    sha, tree = export_baseline(baseline, export_to)
+    workers = {"baseline": _Worker("baseline", tree), "current": _Worker("current", ROOT)}
+    try:
+        for w in workers.values():  # numba's kernels loaded (or compiled) before any scene is timed
+            if warm_up:
+                w.pickup(warm_up, quick=True)
+        rows = []
+        for scene in scenes:
+            runs: dict[str, list[dict[str, Any]]] = {"baseline": [], "current": []}
+            for _ in range(reps + 1):
+                for label, w in workers.items():
+                    runs[label].append(w.pickup(scene, quick))
+            row: dict[str, Any] = {"scene": scene}
+            for label, rs in runs.items():
+                row[label] = {"first": rs[0]["seconds"], "median": statistics.median(r["seconds"] for r in rs[1:]),
+                              "times": [r["seconds"] for r in rs]}
+            row["ratio"] = row["baseline"]["median"] / row["current"]["median"]
+            row["answer"] = compare(runs["baseline"][0]["fingerprint"], runs["current"][0]["fingerprint"])
+            # every repetition of one tree gives its first answer (the engine is deterministic)
+            row["repeatable"] = all(compare(rs[0]["fingerprint"], r["fingerprint"])["same"]
+                                    for rs in runs.values() for r in rs[1:])
+            rows.append(row)
+            log.info("tracker %s: %.3f s -> %.3f s (x%.2f), same answer %s", scene, row["baseline"]["median"],
+                     row["current"]["median"], row["ratio"], row["answer"]["same"])
+    finally:
+        for w in workers.values():
+            w.close()
+    return {"baseline": sha, "reps": reps, "quick": quick, "rows": rows, "same_rho": SAME_RHO,
+            "same_force": SAME_FORCE}
+
+
+def print_tracker(sec: dict[str, Any]) -> None:
+    print(f"\n== tracker: baseline {sec['baseline'][:12]} against this checkout, interleaved, medians of "
+          f"{sec['reps']} after the first call (s)")
+    print(f"{'scene':<11} {'baseline':>9} {'current':>9} {'speed-up':>9} {'first b/c':>13}  same answer "
+          f"(events, |dρ*|/ρ*, max |df|/mg)")
+    for r in sec["rows"]:
+        a = r["answer"]
+        print(f"{r['scene']:<11} {r['baseline']['median']:9.3f} {r['current']['median']:9.3f} {r['ratio']:8.2f}x "
+              f"{r['baseline']['first']:6.2f}/{r['current']['first']:<6.2f}  {'yes' if a['same'] else 'NO '} "
+              f"({'same' if a['same_events'] else 'different'} {a['events'][1]} events, {a['rho_rel']:.1e}, "
+              f"{a['force_mg']:.1e}){'' if r['repeatable'] else '  (not repeatable)'}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m bench.tracker", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--baseline", default=DEFAULT_BASELINE,
+                    help=f"commit to compare against (default {DEFAULT_BASELINE[:12]}, main before #27's engine)")
+    ap.add_argument("--reps", type=int, default=3)
+    ap.add_argument("--scenes", nargs="+", default=list(SCENES))
+    ap.add_argument("--quick", action="store_true", help="the scenes' [quick] variants")
+    ap.add_argument("--serve", action="store_true", help=argparse.SUPPRESS)
+    args = ap.parse_args(argv)
+    if args.serve:
+        return serve()
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
+    print_tracker(section_tracker(args.baseline, args.reps, tuple(args.scenes), quick=args.quick))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
