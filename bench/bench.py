@@ -644,7 +644,8 @@ def section_converge(quick: bool = False) -> dict[str, Any]:
         for r in obj["series"].get("adaptive", []):
             for t, v in (r.get("targets") or {}).items():
                 if v is None:
-                    adaptive[t] = {"timeout": bool(r.get("timeout")), "seconds": r.get("seconds")}
+                    # the loop ran (or was cut) without its estimate meeting this target
+                    adaptive[t] = {"reached": False, "timeout": bool(r.get("timeout")), "seconds": r.get("seconds")}
                     continue
                 est = v["estimated_error"]
                 err = {"squeeze_depth": v["rho_error"], "finger_force": v["force_error"]}
@@ -664,6 +665,8 @@ def print_converge(sec: dict[str, Any]) -> None:
     def cell(v: Any) -> str:
         if not v:
             return "not reached"
+        if v.get("reached") is False:
+            return f"not reached, {'cut at ' if v.get('timeout') else ''}{v['seconds']:.0f} s"
         if v.get("timeout"):
             return "timeout"
         extra = f" ({v['vertices']:,} v)" if v.get("vertices") else ""
