@@ -66,8 +66,9 @@ Sections (``--only NAME``, repeatable; default all):
     Issue #27: each shipped paper scene's pickup (and the foam block's) with
     a baseline commit's fem_grasp and with this checkout's, in two worker
     processes taking turns: medians after the first call, their ratio, and
-    whether the answers are the same (events, ρ* to 1e-9, forces to 1e-9 mg)
-    (:mod:`bench.tracker`; ``--baseline REV``).
+    whether the answers are the same (events, ρ* to 1e-9, forces to 1e-9 mg);
+    then the uniform orange at 10k and 100k vertices (up to
+    ``--max-vertices``) (:mod:`bench.tracker`; ``--baseline REV``).
 
 Medians over ``--reps`` repetitions.  Prints tables and writes
 ``bench/out/bench.json`` (sections run earlier are kept when ``--only`` runs
@@ -99,6 +100,8 @@ ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "bench" / "out" / "bench.json"
 SECTIONS = ("solve", "scaling", "objects", "spectral", "jit", "columns", "floor", "search", "converge", "tracker")
 SOLVE_SIZES = (10000, 50000)
+#: The uniform oranges of #27's targets (10k: ≥ 5× faster; 100k reported), in the tracker section.
+TRACKER_LARGE = (10000, 100000)
 SCALING_SIZES = (1000, 3000, 10000, 30000, 50000, 100000)
 #: SuperLU above this many vertices takes minutes and gigabytes: not timed.
 SUPERLU_MAX_VERTICES = 20000
@@ -764,7 +767,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         elif name == "tracker":
             from bench.tracker import DEFAULT_BASELINE, section_tracker
 
-            data["tracker"] = section_tracker(args.baseline or DEFAULT_BASELINE, args.reps)
+            data["tracker"] = section_tracker(args.baseline or DEFAULT_BASELINE, args.reps,
+                                              large=tuple(s for s in TRACKER_LARGE if s <= args.max_vertices))
         elif name == "floor":
             data["floor"] = section_floor([s for s in SCALING_SIZES if s <= args.max_vertices], args.reps,
                                           data.get("scaling"))

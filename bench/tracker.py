@@ -37,6 +37,8 @@ ROOT = Path(__file__).resolve().parent.parent
 SCENES = ("tomato", "orange", "steam_bun", "football", "foam_block")
 #: The baseline of #27: main before the new engine's work began (the convergence study's last change).
 DEFAULT_BASELINE = "8d4802882b8d0ef62be1f91ccaf5e132eca56f11"
+#: The orange scene's modulus, for the uniform oranges of ``--large`` (as in the scaling section).
+ORANGE_YOUNG = 2e4
 #: "The same answer" (#27): ρ* to 1e-9 relative ...
 SAME_RHO = 1e-9
 #: ... and final contact forces to 1e-9 of mg.
@@ -67,6 +69,27 @@ def _pickup(name: str, quick: bool = False) -> dict[str, Any]:
     return {"seconds": seconds, "fingerprint": fingerprint(result)}
 
 
+def _orange_pickup(path: str) -> dict[str, Any]:
+    """The scaling section's uniform orange (a gmsh mesh saved by the parent) at the orange scene's 20 kPa, Table I
+    ν and weight, pickup()'s default friction and the paper scenes' placement rule, rest included."""
+    import numpy as np
+
+    from fem_grasp import Body, pickup, rest
+    from fem_grasp.grasp import objects
+    from fem_grasp.grasp.pickup import DEFAULT_FRICTION
+    from fem_grasp.mesh.tetmesh import TetMesh
+
+    with np.load(path) as data:
+        mesh = TetMesh(data["points"], data["tets"])
+    row = objects.paper_object("orange")
+    t0 = time.perf_counter()
+    body = Body(mesh, ORANGE_YOUNG, row.poisson, weight=row.weight)
+    resting = rest(body, DEFAULT_FRICTION)
+    result = pickup(body, mu_finger=DEFAULT_FRICTION, mu_table=DEFAULT_FRICTION, rest_state=resting,
+                    placement_rule=objects.PAPER_PLACEMENT_RULE)
+    return {"seconds": time.perf_counter() - t0, "fingerprint": fingerprint(result)}
+
+
 def serve() -> int:
     """Answer ``{"scene": NAME, "quick": false}`` lines with ``{"seconds": …, "fingerprint": …}`` lines until stdin closes; the
     first line out says which fem_grasp this process imported."""
@@ -77,7 +100,8 @@ def serve() -> int:
     for line in sys.stdin:
         request = json.loads(line)
         try:
-            answer = _pickup(request["scene"], bool(request.get("quick")))
+            answer = (_orange_pickup(request["mesh"]) if "mesh" in request else
+                      _pickup(request["scene"], bool(request.get("quick"))))
         except Exception as exc:  # noqa: BLE001 - reported to the parent, which names the tree and the scene
             answer = {"error": f"{type(exc).__name__}: {exc}"}
         print(json.dumps(answer), flush=True)
@@ -140,8 +164,9 @@ class _Worker:
             self.close()
             raise RuntimeError(f"the {label} worker imported fem_grasp from {hello['fem_grasp']}, not from {tree}")
 
-    def pickup(self, scene: str, quick: bool = False) -> dict[str, Any]:
-        self.proc.stdin.write(json.dumps({"scene": scene, "quick": quick}) + "\n")
+    def pickup(self, scene: str, quick: bool = False, mesh: Path | None = None) -> dict[str, Any]:
+        request = {"scene": scene, "quick": quick} if mesh is None else {"mesh": str(mesh)}
+        self.proc.stdin.write(json.dumps(request) + "\n")
         self.proc.stdin.flush()
         answer = json.loads(self.proc.stdout.readline())
         if "error" in answer:
@@ -156,9 +181,11 @@ class _Worker:
 
 def section_tracker(baseline: str = DEFAULT_BASELINE, reps: int = 3, scenes: tuple[str, ...] = SCENES,
                     warm_up: str | None = "foam_block", quick: bool = False,
-                    export_to: Path | None = None) -> dict[str, Any]:
+                    export_to: Path | None = None, large: tuple[int, ...] = (),
+                    mesh_cache: Path | None = None) -> dict[str, Any]:
     """Time the shipped scenes' pickups (their ``[quick]`` variants with ``quick``) with the baseline's fem_grasp
-    and this checkout's, interleaved (module notes); medians of ``reps`` after the first call."""
+    and this checkout's, interleaved (module notes); medians of ``reps`` after the first call.  ``large``: also
+    the uniform orange of about that many vertices (the scaling section's, rest included), one row each."""
     sha, tree = export_baseline(baseline, export_to)
     workers = {"baseline": _Worker("baseline", tree), "current": _Worker("current", ROOT)}
     try:
@@ -166,11 +193,19 @@ def section_tracker(baseline: str = DEFAULT_BASELINE, reps: int = 3, scenes: tup
             if warm_up:
                 w.pickup(warm_up, quick=True)
         rows = []
-        for scene in scenes:
+        cases: list[tuple[str, Path | None]] = [(scene, None) for scene in scenes]
+        if large:
+            from bench.meshes import CACHE, cached_mesh
+
+            cache = mesh_cache or CACHE
+            for size in large:
+                cached_mesh("orange", size, cache)  # gmsh once, then both trees read the same file
+                cases.append((f"orange {size / 1000:g}k", cache / f"orange_{int(size)}.npz"))
+        for scene, mesh in cases:
             runs: dict[str, list[dict[str, Any]]] = {"baseline": [], "current": []}
             for _ in range(reps + 1):
                 for label, w in workers.items():
-                    runs[label].append(w.pickup(scene, quick))
+                    runs[label].append(w.pickup(scene, quick, mesh))
             row: dict[str, Any] = {"scene": scene}
             for label, rs in runs.items():
                 row[label] = {"first": rs[0]["seconds"], "median": statistics.median(r["seconds"] for r in rs[1:]),
@@ -210,12 +245,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--scenes", nargs="+", default=list(SCENES))
     ap.add_argument("--quick", action="store_true", help="the scenes' [quick] variants")
+    ap.add_argument("--large", type=int, nargs="*", default=[],
+                    help="also the uniform orange of about these many vertices (e.g. 10000 100000)")
     ap.add_argument("--serve", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.serve:
         return serve()
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
-    print_tracker(section_tracker(args.baseline, args.reps, tuple(args.scenes), quick=args.quick))
+    print_tracker(section_tracker(args.baseline, args.reps, tuple(args.scenes), quick=args.quick,
+                                  large=tuple(args.large)))
     return 0
 
 

@@ -133,10 +133,12 @@ def test_the_tracker_section_runs_a_baseline_commit_beside_this_checkout(tmp_pat
     same scene in turns; against this checkout's own commit the answers are the same and repeatable."""
     from bench.tracker import section_tracker
 
-    sec = section_tracker("HEAD", reps=1, scenes=("foam_block",), warm_up=None, quick=True, export_to=tmp_path)
-    (row,) = sec["rows"]
+    sec = section_tracker("HEAD", reps=1, scenes=("foam_block",), warm_up=None, quick=True, export_to=tmp_path,
+                          large=(400,), mesh_cache=tmp_path / "meshes")
+    assert [r["scene"] for r in sec["rows"]] == ["foam_block", "orange 0.4k"]  # a scene, and a uniform orange
     assert (tmp_path / f"baseline-{sec['baseline'][:12]}" / "fem_grasp" / "__init__.py").exists()
-    assert row["answer"]["same"] and row["repeatable"] and row["answer"]["events"][0] > 0
-    assert len(row["baseline"]["times"]) == len(row["current"]["times"]) == 2 and row["ratio"] > 0
+    for row in sec["rows"]:
+        assert row["answer"]["same"] and row["repeatable"] and row["answer"]["events"][0] > 0
+        assert len(row["baseline"]["times"]) == len(row["current"]["times"]) == 2 and row["ratio"] > 0
     with pytest.raises(SystemExit, match="not a commit"):
         section_tracker("no-such-commit", export_to=tmp_path)
