@@ -99,15 +99,22 @@ def within(row: dict[str, Any], target: float, picked: bool) -> bool:
 
 def adaptive_at(acc: dict[str, Any], target: float) -> dict[str, Any] | None:
     """What ``pickup(..., accuracy=target)`` returns, read off a run of the loop at a finer target: the first level
-    ≥ 1 whose change from the one before is within ``target`` with the same verdict; its cumulative time."""
+    ≥ 1 with the verdict of the one before whose estimated error meets ``target`` — by the loop's own rule
+    (:func:`fem_grasp.grasp.accuracy.estimated_error`: the change from the level before plus one squeeze
+    increment, relative) — and its cumulative time.  The finer target's run took finer increments, so the time is
+    an upper bound on that of a run at ``target``."""
     levels = acc.get("levels", [])
     seconds = 0.0
     for i, lv in enumerate(levels):
         seconds += (lv.get("seconds") or 0.0) + (lv.get("mesh_seconds") or 0.0)
         ch = lv.get("change")
-        if i and ch and levels[i - 1]["success"] == lv["success"] and max(ch.values()) <= target:
-            return {"level": lv, "seconds": seconds, "estimated_error": {k: ch[k] for k in ("squeeze_depth",
-                                                                                          "finger_force")}}
+        if not i or not ch or levels[i - 1]["success"] != lv["success"]:
+            continue
+        rho = lv.get("squeeze_depth") or 0.0
+        q = lv["step"] / rho if lv["success"] and rho > 0 and lv.get("step") else 0.0
+        est = {k: ch[k] + q for k in ("squeeze_depth", "finger_force")}
+        if max(est.values()) <= target:
+            return {"level": lv, "seconds": seconds, "estimated_error": est}
     return None
 
 
