@@ -60,7 +60,7 @@ from typing import Any
 
 import numpy as np
 
-from .ref_contact import FINGER1, FINGER2, NAMES, SLIP, STICK, TABLE, StaticState
+from .ref_contact import FINGER1, FINGER2, NAMES, SLIP, STICK, TABLE, TOL_NEWTON, StaticState
 from .ref_pickup import ReferencePickup, Scenario
 
 log = logging.getLogger(__name__)
@@ -454,13 +454,22 @@ def compare_rest(case: Case, levels: tuple[int, ...] = REST_LEVELS) -> dict[str,
     return {"rows": rows, "_states": states}
 
 
+#: The slip direction is checked only on slips this many times the Newton tolerance (× diameter): Newton stops
+#: with the contact equations met to TOL_NEWTON × diameter, so a slip of size |s| has its direction only to an
+#: angle of about TOL_NEWTON × diameter / |s| (1 + cos of half its square): at 1e4 × the tolerance that is
+#: 5e-9, below the check's 1e-7.  Smaller slips (the lift test's small load steps make slips of 1e-14 to 1e-13
+#: diameters) have no resolved direction.
+SLIP_DIRECTION_RESOLVED = 1e4 * TOL_NEWTON
+
+
 def self_check(ref: ReferencePickup, states: list[StaticState]) -> dict[str, float]:
     """The contact laws on the reference's own states (each figure is a worst case over all states).
 
     gap : max |g| / diameter over contacts; penetration : max(−g)/diameter over the other surface nodes;
     tensile : max(−f·n̂)/F_s; stick_excess : max (|f_t| − μ f·n̂)/F_s over sticking contacts;
     slip_cone : max ||f_t| − μ f·n̂|/F_s over sliding ones; slip_direction : max (1 + f_t·ŝ/(|f_t||ŝ|)) over
-    sliding ones with |ŝ| > 0 (0 when friction opposes the slip exactly); equilibrium : max |Qᵀ(f + λg)|/mg.
+    sliding ones whose slip the solve resolves (|ŝ| > :data:`SLIP_DIRECTION_RESOLVED` × diameter; 0 when friction
+    opposes the slip exactly); equilibrium : max |Qᵀ(f + λg)|/mg.
     """
     body = ref.body
     mg = ref.mg
@@ -493,7 +502,7 @@ def self_check(ref: ReferencePickup, states: list[StaticState]) -> dict[str, flo
             if slip.any():
                 worst["slip_cone"] = max(worst["slip_cone"], float(np.abs(ftn - mu * fn)[slip].max()) / fs)
                 sn = np.linalg.norm(st.slips, axis=1)
-                ok = slip & (sn > 1e-14 * diam) & (ftn > 0)
+                ok = slip & (sn > SLIP_DIRECTION_RESOLVED * diam) & (ftn > 0)
                 if ok.any():
                     cos = np.einsum("ki,ki->k", ft[ok], st.slips[ok]) / (ftn[ok] * sn[ok])
                     worst["slip_direction"] = max(worst["slip_direction"], float((1 + cos).max()))
