@@ -99,10 +99,14 @@ def within(row: dict[str, Any], target: float, picked: bool) -> bool:
 
 def adaptive_at(acc: dict[str, Any], target: float) -> dict[str, Any] | None:
     """What ``pickup(..., accuracy=target)`` returns, read off a run of the loop at a finer target: the first level
-    ≥ 1 with the verdict of the one before whose estimated error meets ``target`` — by the loop's own rule
+    ≥ 1 with the verdict of the one before whose estimated error meets ``target`` by the loop's own rule
     (:func:`fem_grasp.grasp.accuracy.estimated_error`: the change from the level before plus one squeeze
-    increment, relative) — and its cumulative time.  The finer target's run took finer increments, so the time is
+    increment, relative), and its cumulative time.  The finer target's run took finer increments, so the time is
     an upper bound on that of a run at ``target``."""
+    from types import SimpleNamespace
+
+    from fem_grasp.grasp.accuracy import estimated_error
+
     levels = acc.get("levels", [])
     seconds = 0.0
     for i, lv in enumerate(levels):
@@ -110,11 +114,13 @@ def adaptive_at(acc: dict[str, Any], target: float) -> dict[str, Any] | None:
         ch = lv.get("change")
         if not i or not ch or levels[i - 1]["success"] != lv["success"]:
             continue
-        rho = lv.get("squeeze_depth") or 0.0
-        q = lv["step"] / rho if lv["success"] and rho > 0 and lv.get("step") else 0.0
-        est = {k: ch[k] + q for k in ("squeeze_depth", "finger_force")}
+        # a level's record holds what estimated_error reads of its GraspAnswer
+        answer = SimpleNamespace(success=lv["success"], reason=lv.get("reason", ""),
+                                 squeeze_depth=lv.get("squeeze_depth") or 0.0, step=lv.get("step") or 0.0)
+        est = estimated_error(ch, answer)
         if max(est.values()) <= target:
-            return {"level": lv, "seconds": seconds, "estimated_error": est}
+            return {"level": lv, "seconds": seconds,
+                    "estimated_error": {k: est[k] for k in ("squeeze_depth", "finger_force")}}
     return None
 
 
