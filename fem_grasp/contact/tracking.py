@@ -151,6 +151,9 @@ RESPONSE_CACHE_BYTES = 256 * 2**20
 #: Gravity's own fields (contacts held at zero) kept per tracker for states below full load (the lift test's
 #: hanging weights revisit a few contact sets).
 ZERO_FIELD_CACHE = 16
+#: Full-gravity fields of the latest contact displacements kept per tracker (whole body and surface; see
+#: ``Tracker._at_load``): a lift-test weight and the implicit step's last round reuse them.
+LATEST_FIELDS = 4
 #: A sliding contact whose normal force falls below this fraction of the force floor sticks (event D): the
 #: factor ten below the floor of event C is a hysteresis against C/D chatter of lightly loaded nodes.
 STICK_HYSTERESIS = 0.1
@@ -330,6 +333,7 @@ class Tracker:
         self._responses: dict[tuple[int, ...], ContactResponse] = {}
         self._zero_fields: dict[tuple[int, ...], np.ndarray] = {}
         self._zero_surface_fields: dict[tuple[int, ...], np.ndarray] = {}
+        self._latest_full: dict[tuple, np.ndarray] = {}
         self.solves = 0
         #: Slip forms tried in order: False = great circle (the paper's), True = free direction.
         self.forms: tuple[bool, ...] = (False, True)
@@ -387,14 +391,23 @@ class Tracker:
                  zero_fields: dict) -> np.ndarray:
         """solve(response, disp) at gravity factor λ: the full-gravity solution less (1 − λ) times gravity's
         own (contacts held at zero), the latter cached per contact set."""
-        resp = self.response(nodes)
-        full = solve(resp, disp)
+        key = tuple(int(k) for k in nodes)
+        # The lift test's ramp asks again for the field of the contact displacements it has just settled (at
+        # the next weight) and an implicit step for the field of its last round: the full-gravity solution
+        # of the latest displacements is kept (the same numbers as a re-solve).
+        memo = (id(zero_fields), key, np.asarray(disp, float).tobytes())
+        full = self._latest_full.get(memo)
+        if full is None:
+            full = solve(self.response(nodes), disp)
+            full.setflags(write=False)
+            self._latest_full[memo] = full
+            while len(self._latest_full) > LATEST_FIELDS:
+                self._latest_full.pop(next(iter(self._latest_full)))
         if load == 1.0:
             return full
-        key = tuple(int(k) for k in nodes)
         zero = zero_fields.get(key)
         if zero is None:
-            zero = solve(resp, np.zeros_like(disp))
+            zero = solve(self.response(nodes), np.zeros_like(disp))
             if len(zero_fields) >= ZERO_FIELD_CACHE:
                 zero_fields.pop(next(iter(zero_fields)))
             zero_fields[key] = zero
