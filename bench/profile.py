@@ -7,7 +7,8 @@ counts, around the two solvers that dominate it:
   lift test and of implicit increments: calls that find a static state and
   calls that fail, with their times;
 * the slip systems of the event tracking
-  (:meth:`fem_grasp.contact.tracking.MixedSlipSystem.solve`): Newton solves and
+  (``solve`` of :class:`~fem_grasp.contact.slip_system.CompiledSlipSystem`, or of
+  :class:`~fem_grasp.contact.slip_system.MixedSlipSystem` on the reference path): Newton solves and
   Newton-homotopy paths, by outcome;
 * the trial states of the event tracking (:meth:`fem_grasp.contact.tracking.Tracker.trial`,
   one slip-system solve and surface field each) per event.
@@ -56,7 +57,10 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     relax_stats: dict[str, list[float]] = collections.defaultdict(lambda: [0, 0.0])
     slip_stats: dict[tuple[str, str, str], list[float]] = collections.defaultdict(lambda: [0, 0.0])
     relax = tracking.relax_contacts
-    solve = tracking.MixedSlipSystem.solve
+    # The slip systems the trackers build (compiled where numba is installed; the homotopy of a compiled system is
+    # its reference's, counted once, as the compiled system's).
+    system = tracking.CompiledSlipSystem if tracking.COMPILED_TRIALS else tracking.MixedSlipSystem
+    solve = system.solve
     trial = tracking.Tracker.trial
     trials = [0]
 
@@ -91,7 +95,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
 
     limit = getattr(tracking, "one_blas_thread", None)
     tracking.relax_contacts = counted_relax
-    tracking.MixedSlipSystem.solve = counted_solve
+    system.solve = counted_solve
     tracking.Tracker.trial = counted_trial
     if args.free_blas and limit is not None:
         tracking.one_blas_thread = contextlib.nullcontext
@@ -120,7 +124,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     finally:
         prof.disable()
         tracking.relax_contacts = relax
-        tracking.MixedSlipSystem.solve = solve
+        system.solve = solve
         tracking.Tracker.trial = trial
         if limit is not None:
             tracking.one_blas_thread = limit
@@ -134,7 +138,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     print("return mappings (relax_contacts):")
     for key, (n, t) in sorted(relax_stats.items()):
         print(f"  {key:>22s}: {int(n):5d} calls, {t:7.2f} s, {t / max(n, 1) * 1e3:7.1f} ms each")
-    print("slip systems (MixedSlipSystem.solve):")
+    print(f"slip systems ({system.__name__}.solve):")
     for (meth, form, outcome), (n, t) in sorted(slip_stats.items(), key=lambda kv: -kv[1][1]):
         print(f"  {meth:>8s} {form:>14s} {outcome:>7s}: {int(n):6d} calls, {t:7.2f} s")
     out = io.StringIO()

@@ -127,7 +127,20 @@ def compare(base: dict[str, Any], new: dict[str, Any]) -> dict[str, Any]:
             force = max(force, float(np.abs(a - b).max()) / base["weight"])
     same = (base["success"] == new["success"] and same_events and rho <= SAME_RHO and force <= SAME_FORCE)
     return {"same_verdict": base["success"] == new["success"], "same_events": same_events,
-            "events": [len(base["events"]), len(new["events"])], "rho_rel": rho, "force_mg": force, "same": same}
+            "events": [len(base["events"]), len(new["events"])], "rho_rel": rho, "force_mg": force, "same": same,
+            "event_changes": event_changes(base["events"], new["events"])}
+
+
+def event_changes(base: list, new: list) -> list[dict[str, Any]]:
+    """Where two event sequences differ (difflib's edit script): each change's position in the baseline and the
+    events it removes and adds, e.g. a node released, re-touching the table and released again at one
+    parameter (a branch point: see the README's speed section)."""
+    import difflib
+
+    a, b = [tuple(e) for e in base], [tuple(e) for e in new]
+    return [{"at": i1, "removed": [list(e) for e in a[i1:i2]], "added": [list(e) for e in b[j1:j2]]}
+            for tag, i1, i2, j1, j2 in difflib.SequenceMatcher(None, a, b, autojunk=False).get_opcodes()
+            if tag != "equal"]
 
 
 def export_baseline(rev: str, into: Path | None = None) -> tuple[str, Path]:
@@ -236,6 +249,10 @@ def print_tracker(sec: dict[str, Any]) -> None:
               f"{r['baseline']['first']:6.2f}/{r['current']['first']:<6.2f}  {'yes' if a['same'] else 'NO '} "
               f"({'same' if a['same_events'] else 'different'} {a['events'][1]} events, {a['rho_rel']:.1e}, "
               f"{a['force_mg']:.1e}){'' if r['repeatable'] else '  (not repeatable)'}")
+        for ch in a.get("event_changes", []):
+            def fmt(evs):
+                return ", ".join(f"{k} {n} {c}" for k, n, c, _ in evs) or "nothing"
+            print(f"{'':<11} event {ch['at']}: baseline {fmt(ch['removed'])}; current {fmt(ch['added'])}")
 
 
 def main(argv: list[str] | None = None) -> int:

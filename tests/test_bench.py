@@ -19,6 +19,7 @@ def test_profile_counts_the_return_mappings_and_slip_solves_of_a_pickup(capsys):
     # the solvers are restored afterwards
     assert tracking.relax_contacts.__name__ == "relax_contacts"
     assert tracking.MixedSlipSystem.solve.__name__ == "solve"
+    assert tracking.CompiledSlipSystem.solve.__name__ == "solve"
     assert tracking.Tracker.trial.__name__ == "trial"
     assert tracking.one_blas_thread.__name__ == "one_blas_thread"
 
@@ -126,6 +127,17 @@ def test_the_same_answer_is_the_same_events_and_numbers_to_the_promised_toleranc
     one_more = {"finger1": [[0.0, 1.0, 0.5], [0.0, 0.1, 0.0]], "table": [[0.0, 0.0, 1.0]]}
     assert compare(base, _fingerprint(forces=one_more))["force_mg"] == float("inf")
     assert not compare(base, _fingerprint(success=False))["same_verdict"]
+
+
+def test_different_event_sequences_are_reported_as_the_events_one_removes_and_the_other_adds():
+    """A release, re-touch and release of one node at one parameter (the tomato's branch point in the lift)."""
+    from bench.tracker import event_changes
+
+    base = [["C", 1, "table", "lift"], ["B", 260, "table", "lift"], ["D", 284, "table", "lift"]]
+    new = base[:2] + [["A", 260, "table", "lift"], ["B", 260, "table", "lift"]] + base[2:]
+    assert event_changes(base, base) == []
+    assert event_changes(base, new) == [{"at": 2, "removed": [], "added": new[2:4]}]
+    assert event_changes(new, base) == [{"at": 2, "removed": new[2:4], "added": []}]
 
 
 def test_the_tracker_section_runs_a_baseline_commit_beside_this_checkout(tmp_path):

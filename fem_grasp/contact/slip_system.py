@@ -23,11 +23,11 @@ import numpy as np
 import scipy.linalg as la
 
 from . import homotopy
-from .kernels import slip_newton
+from .kernels import slip_newton, slip_trial
 from .kernels.jit import sample_contacts, warm_up_sample
 from .obstacles import FINGER1, TABLE, cross_rows, great_circle_axes, tangent_bases
 
-__all__ = ["HOMOTOPY_TOL", "MixedSlipSystem", "REVERSED_FRICTION", "SINGULAR_PIVOT", "SLIP_HOMOTOPY_MIN_STEP",
+__all__ = ["CompiledSlipSystem", "HOMOTOPY_TOL", "MixedSlipSystem", "REVERSED_FRICTION", "SINGULAR_PIVOT", "SLIP_HOMOTOPY_MIN_STEP",
            "SLIP_HOMOTOPY_STEPS", "SlipFailure"]
 
 #: The slip-rate Jacobian is taken as singular (a friction limit: no rates) when its smallest LU pivot is
@@ -275,6 +275,11 @@ class MixedSlipSystem:
             return np.full(len(self.sliding), np.nan)
         return -np.einsum("ki,ki->k", self._friction_directions(x), np.einsum("kij,j->ki", self.d_map, dx))
 
+    def outcome(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """What an increment reads at the root x: (forces (m, 3), displacement changes (m, 3), slip amounts (p,),
+        slip rates (p,))."""
+        return self.forces(x), self.displacements(x), self.amounts(x), self.rates(x)
+
     def admissible(self, x: np.ndarray) -> bool:
         """No compressive sliding contact has its friction reversed (the far root through the cone's axis).
 
@@ -363,6 +368,99 @@ class MixedSlipSystem:
                           f"{int(self.sliding[j])}, held force {self.own[j]:.3g} N): " + "; ".join(attempts))
 
 
+class CompiledSlipSystem:
+    """:class:`MixedSlipSystem` assembled, solved by Newton's method and read out in compiled kernels
+    (:mod:`~fem_grasp.contact.kernels.slip_trial`): the same unknowns, scales, tolerances and messages, three
+    kernel calls per increment instead of about a hundred numpy operations.  The Newton-homotopy fallback is
+    :class:`MixedSlipSystem`'s, built from the same inputs when it is needed (its unknowns are the same).
+
+    Parameters are those of :class:`MixedSlipSystem`.
+    """
+
+    def __init__(self, stiffness: np.ndarray, held_forces: np.ndarray, force_rate: np.ndarray,
+                 sliding: np.ndarray, kinds: np.ndarray, mu: np.ndarray, directions: np.ndarray,
+                 radii_vectors: np.ndarray, up: np.ndarray, radius: float, free: bool = False) -> None:
+        self._inputs = (stiffness, held_forces, force_rate, sliding, kinds, mu, directions, radii_vectors, up,
+                        radius, free)
+        self.free = bool(free)
+        self.sliding = np.ascontiguousarray(sliding, dtype=np.int64)
+        self.kinds = np.ascontiguousarray(kinds, dtype=np.int64)
+        self.mu = np.ascontiguousarray(mu, dtype=float)
+        self.t_held = np.ascontiguousarray(directions, dtype=float)
+        self.fh = np.ascontiguousarray(held_forces, dtype=float)
+        self.df = np.ascontiguousarray(force_rate, dtype=float)
+        (self.g, self.dmap, self.n0, self.kappa, self.sph, self.xscale, self.row_scale, self.row_noise,
+         self.own) = slip_trial.assemble(np.ascontiguousarray(stiffness, dtype=float), self.fh, self.sliding,
+                                         self.kinds, self.mu, self.t_held,
+                                         np.ascontiguousarray(radii_vectors, dtype=float).reshape(-1, 3),
+                                         np.ascontiguousarray(up, dtype=float), float(radius), self.free)
+        self.n = self.g.shape[1]
+        p = len(self.sliding)
+        rows = (3 * self.sliding[:, None] + np.arange(3)).reshape(-1)
+        self.base_sl = self.fh.reshape(-1)[rows]
+        self.g_sl = np.ascontiguousarray(self.g[rows])
+        self.sphere_rows = np.flatnonzero(self.kinds != TABLE)
+        self.align_rows = np.arange(p) if self.free else np.zeros(0, dtype=np.int64)
+        self._reference: MixedSlipSystem | None = None
+
+    @property
+    def reference(self) -> MixedSlipSystem:
+        """The same system as a :class:`MixedSlipSystem` (built at first use: the homotopy fallback)."""
+        if self._reference is None:
+            self._reference = MixedSlipSystem(*self._inputs)
+        return self._reference
+
+    def _newton(self, y: np.ndarray, tol: float) -> tuple[bool, bool, np.ndarray]:
+        with np.errstate(over="ignore", invalid="ignore"):
+            return slip_trial.newton_root(np.array(y, dtype=float), np.maximum(tol, self.row_noise), self.xscale,
+                                          self.row_scale, self.base_sl, self.g_sl, self.dmap, self.n0, self.kappa,
+                                          self.mu, self.sph, self.free, self.t_held, 40)
+
+    def solve(self, tol: float = 1e-12, methods: Sequence[str] = ("newton", "homotopy"),
+              start: np.ndarray | None = None) -> np.ndarray:
+        """As :meth:`MixedSlipSystem.solve` (the homotopy is the reference's); raises :class:`SlipFailure`."""
+        if self.n == 0:
+            return np.zeros(0)
+        if "homotopy" in methods:
+            if "newton" in methods:
+                try:
+                    return self.solve(tol, ("newton",), start)
+                except SlipFailure:
+                    pass
+            return self.reference.solve(tol, ("homotopy",))
+        attempts: list[str] = []
+        last = None  # the latest root Newton found (admissible or not), as MixedSlipSystem.solve reports it
+        found, ok, x = self._newton(np.zeros(self.n), tol)
+        if found and ok:
+            return x
+        last = x if found else None
+        attempts.append("Newton reached a non-physical root" if found else "Newton did not converge")
+        if start is not None and len(start) == self.n and np.isfinite(start).all():
+            found, ok, x = self._newton(start / self.xscale, tol)
+            if found and ok:
+                return x
+            last = x if found else None
+            attempts.append("Newton from the nearby root did not converge")
+        with np.errstate(over="ignore", invalid="ignore"):
+            r = np.abs(self.row_scale * slip_newton.residual(np.zeros(self.n) if last is None else last,
+                                                             self.base_sl, self.g_sl, self.dmap, self.n0,
+                                                             self.kappa, self.mu, self.sph, self.free))
+        p, n_sph = len(self.sliding), len(self.sphere_rows)
+        worst = int(np.argmax(r))
+        j = worst if worst < p else (int(self.sphere_rows[worst - p]) if worst < p + n_sph
+                                     else int(self.align_rows[worst - p - n_sph]))
+        raise SlipFailure(f"no admissible slip for {p} sliding node(s) "
+                          f"({'free' if self.free else 'great-circle'} form; worst row {worst} at contact "
+                          f"{int(self.sliding[j])}, held force {self.own[j]:.3g} N): " + "; ".join(attempts))
+
+    def outcome(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """As :meth:`MixedSlipSystem.outcome`, in one kernel call."""
+        with np.errstate(over="ignore", invalid="ignore"):
+            return slip_trial.outcome(np.ascontiguousarray(x, dtype=float), self.fh, self.g, self.sliding, self.df,
+                                      self.base_sl, self.g_sl, self.dmap, self.n0, self.kappa, self.mu, self.sph,
+                                      self.free, self.t_held, self.row_scale)
+
+
 @warm_up_sample
 def _compile_the_slip_systems() -> None:
     """The slip systems of both forms, one table and one fingertip node: Newton, and the residual and Jacobian
@@ -375,3 +473,11 @@ def _compile_the_slip_systems() -> None:
         system._newton(system.x0 / system.xscale, 1e-12)  # root or not: only the compilation matters
         system.residual(system.x0)
         system.jacobian(system.x0)
+        compiled = CompiledSlipSystem(100.0 * np.eye(6), s["forces"], np.zeros((2, 3)), np.array([0, 1]),
+                                      np.array([TABLE, FINGER1]), s["mu"],
+                                      np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]),
+                                      s["positions"] - [np.zeros(3), s["centre"]], s["up"], 0.01, free)
+        try:
+            compiled.outcome(compiled.solve(methods=("newton",)))
+        except SlipFailure:
+            compiled.outcome(np.zeros(compiled.n))

@@ -123,7 +123,8 @@ from ..errors import CollinearContactError, RelaxationFailure, TrackingError
 from ..threads import one_blas_thread
 from .obstacles import FINGER1, FINGER2, OBSTACLES, TABLE, Fingertip, TablePlane
 from .relaxation import RELEASE, SLIDE, relax_contacts
-from .slip_system import MixedSlipSystem, SlipFailure
+from .kernels import jit
+from .slip_system import CompiledSlipSystem, MixedSlipSystem, SlipFailure
 
 __all__ = ["FINGER1", "FINGER2", "OBSTACLES", "TABLE", "ContactEvent", "ContactState", "MixedSlipSystem", "Parameter",
            "SlipFailure", "Tracker", "TrackingError", "run"]
@@ -151,6 +152,9 @@ RESPONSE_CACHE_BYTES = 256 * 2**20
 #: Gravity's own fields (contacts held at zero) kept per tracker for states below full load (the lift test's
 #: hanging weights revisit a few contact sets).
 ZERO_FIELD_CACHE = 16
+#: Trackers assemble, solve and read out their slip systems with compiled kernels (:class:`CompiledSlipSystem`)
+#: where numba is installed; False: with :class:`MixedSlipSystem` (numpy), the reference path the tests compare.
+COMPILED_TRIALS = jit.ENABLED
 #: Full-gravity fields of the latest contact displacements kept per tracker (whole body and surface; see
 #: ``Tracker._at_load``): a lift-test weight and the implicit step's last round reuse them.
 LATEST_FIELDS = 4
@@ -201,6 +205,11 @@ def _where(param: "Parameter | str", state: Any) -> str:
     if str(param) == "lift_height":
         return f"lift height {1e3 * value:.6g} mm"
     return f"gravity load λ = {value:.6g}"
+
+
+def _key(nodes: np.ndarray) -> tuple[int, ...]:
+    """A contact set's key in the tracker's caches: its node indices, in order."""
+    return tuple(np.asarray(nodes).tolist())
 
 
 # ======================================================================= state
@@ -335,6 +344,9 @@ class Tracker:
         self._zero_surface_fields: dict[tuple[int, ...], np.ndarray] = {}
         self._latest_full: dict[tuple, np.ndarray] = {}
         self.solves = 0
+        #: The slip systems are assembled, solved and read out by compiled kernels (:class:`CompiledSlipSystem`);
+        #: False: by :class:`MixedSlipSystem` (numpy; the reference path the tests compare with).
+        self.compiled = COMPILED_TRIALS
         #: Slip forms tried in order: False = great circle (the paper's), True = free direction.
         self.forms: tuple[bool, ...] = (False, True)
         #: The last increment was implicit (the next one tries the rate problem with Newton only).
@@ -353,7 +365,7 @@ class Tracker:
 
     # ------------------------------------------------------------ responses
     def response(self, nodes: np.ndarray) -> ContactResponse:
-        key = tuple(int(k) for k in nodes)
+        key = _key(nodes)
         resp = self._responses.get(key)
         if resp is None:
             try:
@@ -391,7 +403,7 @@ class Tracker:
                  zero_fields: dict) -> np.ndarray:
         """solve(response, disp) at gravity factor λ: the full-gravity solution less (1 − λ) times gravity's
         own (contacts held at zero), the latter cached per contact set."""
-        key = tuple(int(k) for k in nodes)
+        key = _key(nodes)
         # The lift test's ramp asks again for the field of the contact displacements it has just settled (at
         # the next weight) and an implicit step for the field of its last round: the full-gravity solution
         # of the latest displacements is kept (the same numbers as a re-solve).
@@ -427,12 +439,13 @@ class Tracker:
         return (*self.fingertips(centers), self.table)
 
     def normals(self, owner: np.ndarray, positions: np.ndarray, centers: np.ndarray) -> np.ndarray:
-        """(m, 3) inward normals of contacts at ``positions`` (m, 3)."""
+        """(m, 3) inward normals of contacts at ``positions`` (m, 3): ``up`` on the table, (p − O)/|p − O| on a
+        fingertip (:meth:`Fingertip.inward_normals`, without building the obstacles at every trial)."""
         out = np.broadcast_to(self.up, positions.shape).copy()
-        for f, tip in enumerate(self.fingertips(centers)):
-            sel = owner == f
-            if sel.any():
-                out[sel] = tip.inward_normals(positions[sel])
+        tip = owner != TABLE
+        if tip.any():
+            d = positions[tip] - np.asarray(centers, float)[owner[tip]]
+            out[tip] = d / np.linalg.norm(d, axis=1, keepdims=True)
         return out
 
     # --------------------------------------------------------------- states
@@ -510,8 +523,9 @@ class Tracker:
                                                                    key=lambda fr: dt >= fails.get(fr, np.inf))
             for free in order:
                 if free not in systems:
-                    systems[free] = MixedSlipSystem(c, fh, dfh, sl, kinds, self.mu[kinds], t_hat, r, self.up,
-                                                    self.radius, free)
+                    system_type = CompiledSlipSystem if self.compiled else MixedSlipSystem
+                    systems[free] = system_type(c, fh, dfh, sl, kinds, self.mu[kinds], t_hat, r, self.up,
+                                                self.radius, free)
                 near = None
                 if method == "newton" and self._same_motion(warm_key, self._warm_key) and self._warm.get(free):
                     near = min(self._warm[free], key=lambda e: abs(e[0] - dt))[1]
@@ -530,16 +544,15 @@ class Tracker:
         if not self._same_motion(warm_key, self._warm_key):
             self._warm_key, self._warm = warm_key, {}
         self._warm.setdefault(system.free, []).append((dt, x))
-        rates_s = system.rates(x)
+        forces, change, amounts_s, rates_s = system.outcome(x)
         if not np.isfinite(rates_s).all():
             raise SlipFailure("the slip system is singular (a limit of friction is reached)")
-        disp = disp_h + system.displacements(x)
-        forces = system.forces(x)
+        disp = disp_h + change
         surface = self.points[self.surface] + self.surface_field(base.nodes, disp, load)
         normals = self.normals(base.owner, self.points[base.nodes] + disp, centers)
         amounts = np.zeros(m)
         rates = np.zeros(m)
-        amounts[sl] = system.amounts(x)
+        amounts[sl] = amounts_s
         rates[sl] = rates_s
         kw = {} if param == Parameter.LOAD else {param: getattr(base, param) + dt}
         state = replace(base, load=load, centers=centers, disp=disp, forces=forces, normals=normals,
@@ -558,9 +571,11 @@ class Tracker:
         """(s, 3) signed distance of each surface node (at ``surface_positions``) from ℱ₁, ℱ₂ and 𝒫 (inf for
         no table)."""
         gaps = np.full((len(surface_positions), 3), np.inf)
-        for code, obstacle in enumerate(self.obstacles(centers)):
-            if obstacle is not None:
-                gaps[:, code] = obstacle.signed_distance(surface_positions)
+        # The obstacles' signed_distance, without building them at every trial.
+        for code in (FINGER1, FINGER2):
+            gaps[:, code] = np.linalg.norm(surface_positions - centers[code], axis=1) - self.radius
+        if self.table is not None:
+            gaps[:, TABLE] = surface_positions @ self.table.up - self.table.height
         return gaps
 
     def force_scale(self, state: ContactState) -> float:

@@ -135,7 +135,8 @@ def test_warm_up_compiles_every_entry_point(tmp_path):
     from fem_grasp.contact.warm_up import entry_points, warm_up
 
     points = entry_points()
-    assert set(points) == {"fem_grasp.contact.kernels.gauss_seidel", "fem_grasp.contact.kernels.slip_newton"}
+    assert set(points) == {"fem_grasp.contact.kernels.gauss_seidel", "fem_grasp.contact.kernels.slip_newton",
+                           "fem_grasp.contact.kernels.slip_trial"}
     for module, names in points.items():
         mod = importlib.import_module(module)
         assert names and all(callable(getattr(mod, n)) for n in names)

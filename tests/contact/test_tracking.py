@@ -9,6 +9,7 @@ import pytest
 
 from fem_grasp import Body
 from fem_grasp.contact.obstacles import Fingertip
+from fem_grasp.contact.slip_system import CompiledSlipSystem
 from fem_grasp.contact.tracking import FINGER1, TABLE, MixedSlipSystem, Tracker
 from fem_grasp.grasp.rest import rest
 from tests.helpers import RADIUS, WEIGHT, box_squeezed_3mm, central_difference_jacobian, face_centres, pickup_box
@@ -137,13 +138,12 @@ def test_warm_started_slip_roots_are_the_homotopy_roots(free, monkeypatch):
     by_homotopy = tracker().trial(state, big, vel, methods=("homotopy",))
     warm = tracker()
     seen = []
-    orig = MixedSlipSystem.solve
+    for system in (MixedSlipSystem, CompiledSlipSystem):  # the reference path and the compiled one
+        def solve(self, *a, start=None, _orig=system.solve, **k):
+            seen.append(start is not None)
+            return _orig(self, *a, start=start, **k)
 
-    def solve(self, *a, start=None, **k):
-        seen.append(start is not None)
-        return orig(self, *a, start=start, **k)
-
-    monkeypatch.setattr(MixedSlipSystem, "solve", solve)
+        monkeypatch.setattr(system, "solve", solve)
     for k in range(1, 9):
         stepped = warm.trial(state, big * k / 8, vel, methods=("newton",))
     assert seen[0] is False and all(seen[1:])  # every later trial had the previous root to start from
@@ -196,7 +196,8 @@ def test_a_slip_form_whose_newton_failed_at_a_smaller_step_is_tried_last(monkeyp
 
     _, t, state, vel = box_squeezed_3mm()
     order = []
-    orig = MixedSlipSystem.solve
+    system = CompiledSlipSystem if t.compiled else MixedSlipSystem
+    orig = system.solve
 
     def solve(self, *a, methods=("newton", "homotopy"), **k):
         order.append(self.free)
@@ -204,7 +205,7 @@ def test_a_slip_form_whose_newton_failed_at_a_smaller_step_is_tried_last(monkeyp
             raise SlipFailure("great circle made to fail")
         return orig(self, *a, methods=methods, **k)
 
-    monkeypatch.setattr(MixedSlipSystem, "solve", solve)
+    monkeypatch.setattr(system, "solve", solve)
     t.trial(state, 2e-4, vel, methods=("newton",))
     assert order == [False, True]
     order.clear()
