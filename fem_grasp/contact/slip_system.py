@@ -368,11 +368,29 @@ class MixedSlipSystem:
                           f"{int(self.sliding[j])}, held force {self.own[j]:.3g} N): " + "; ".join(attempts))
 
 
+def _homotopy_message(reason: int, detail: int, t: float, value: float) -> str:
+    """:class:`~fem_grasp.contact.homotopy.HomotopyError`'s message for an outcome of
+    :func:`~fem_grasp.contact.kernels.slip_trial.homotopy`."""
+    def message(name: str, t: float, extra: str) -> str:
+        return f"{name}: {homotopy._REASONS[name]} at t = {t:.6g} ({extra})"
+
+    name = slip_trial.HOMOTOPY_REASONS[reason]
+    if name == "polish_failed":
+        inner = slip_trial.HOMOTOPY_REASONS[detail]
+        extra = {"diverged": "non-finite residual" if value < 0 else f"||x|| > {value:.3g}",
+                 "singular_jacobian": slip_trial.SINGULAR_DETAILS[int(value)],
+                 "max_steps": f"Newton: 50 iterations, ||P|| = {value:.3g} > {HOMOTOPY_TOL:.3g}"}[inner]
+        return message(name, 1.0, message(inner, 1.0, extra))
+    extra = {"diverged": f"||x|| > {value:.3g}", "singular_jacobian": slip_trial.SINGULAR_DETAILS[detail],
+             "step_too_small": f"step {value:.3g} < {SLIP_HOMOTOPY_MIN_STEP:.3g}, turning point?",
+             "max_steps": f"{SLIP_HOMOTOPY_STEPS} continuation steps"}[name]
+    return message(name, t, extra)
+
+
 class CompiledSlipSystem:
-    """:class:`MixedSlipSystem` assembled, solved by Newton's method and read out in compiled kernels
-    (:mod:`~fem_grasp.contact.kernels.slip_trial`): the same unknowns, scales, tolerances and messages, three
-    kernel calls per increment instead of about a hundred numpy operations.  The Newton-homotopy fallback is
-    :class:`MixedSlipSystem`'s, built from the same inputs when it is needed (its unknowns are the same).
+    """:class:`MixedSlipSystem` assembled, solved (Newton's method, the Newton homotopy as fallback) and read out in
+    compiled kernels (:mod:`~fem_grasp.contact.kernels.slip_trial`): the same unknowns, scales, tolerances and
+    messages, a few kernel calls per increment instead of about a hundred numpy operations.
 
     Parameters are those of :class:`MixedSlipSystem`.
     """
@@ -380,8 +398,6 @@ class CompiledSlipSystem:
     def __init__(self, stiffness: np.ndarray, held_forces: np.ndarray, force_rate: np.ndarray,
                  sliding: np.ndarray, kinds: np.ndarray, mu: np.ndarray, directions: np.ndarray,
                  radii_vectors: np.ndarray, up: np.ndarray, radius: float, free: bool = False) -> None:
-        self._inputs = (stiffness, held_forces, force_rate, sliding, kinds, mu, directions, radii_vectors, up,
-                        radius, free)
         self.free = bool(free)
         self.sliding = np.ascontiguousarray(sliding, dtype=np.int64)
         self.kinds = np.ascontiguousarray(kinds, dtype=np.int64)
@@ -401,14 +417,6 @@ class CompiledSlipSystem:
         self.g_sl = np.ascontiguousarray(self.g[rows])
         self.sphere_rows = np.flatnonzero(self.kinds != TABLE)
         self.align_rows = np.arange(p) if self.free else np.zeros(0, dtype=np.int64)
-        self._reference: MixedSlipSystem | None = None
-
-    @property
-    def reference(self) -> MixedSlipSystem:
-        """The same system as a :class:`MixedSlipSystem` (built at first use: the homotopy fallback)."""
-        if self._reference is None:
-            self._reference = MixedSlipSystem(*self._inputs)
-        return self._reference
 
     def _newton(self, y: np.ndarray, tol: float) -> tuple[bool, bool, np.ndarray]:
         with np.errstate(over="ignore", invalid="ignore"):
@@ -418,29 +426,36 @@ class CompiledSlipSystem:
 
     def solve(self, tol: float = 1e-12, methods: Sequence[str] = ("newton", "homotopy"),
               start: np.ndarray | None = None) -> np.ndarray:
-        """As :meth:`MixedSlipSystem.solve` (the homotopy is the reference's); raises :class:`SlipFailure`."""
+        """As :meth:`MixedSlipSystem.solve`; raises :class:`SlipFailure`."""
         if self.n == 0:
             return np.zeros(0)
-        if "homotopy" in methods:
-            if "newton" in methods:
-                try:
-                    return self.solve(tol, ("newton",), start)
-                except SlipFailure:
-                    pass
-            return self.reference.solve(tol, ("homotopy",))
         attempts: list[str] = []
         last = None  # the latest root Newton found (admissible or not), as MixedSlipSystem.solve reports it
-        found, ok, x = self._newton(np.zeros(self.n), tol)
-        if found and ok:
-            return x
-        last = x if found else None
-        attempts.append("Newton reached a non-physical root" if found else "Newton did not converge")
-        if start is not None and len(start) == self.n and np.isfinite(start).all():
-            found, ok, x = self._newton(start / self.xscale, tol)
+        if "newton" in methods:
+            found, ok, x = self._newton(np.zeros(self.n), tol)
             if found and ok:
                 return x
             last = x if found else None
-            attempts.append("Newton from the nearby root did not converge")
+            attempts.append("Newton reached a non-physical root" if found else "Newton did not converge")
+            if start is not None and len(start) == self.n and np.isfinite(start).all():
+                found, ok, x = self._newton(start / self.xscale, tol)
+                if found and ok:
+                    return x
+                last = x if found else None
+                attempts.append("Newton from the nearby root did not converge")
+        if "homotopy" in methods:
+            reason, detail, t, value, y = slip_trial.homotopy(
+                np.zeros(self.n), HOMOTOPY_TOL, homotopy.SLIP_INITIAL_STEP, homotopy.SLIP_MAX_STEP,
+                SLIP_HOMOTOPY_STEPS, SLIP_HOMOTOPY_MIN_STEP, 50, self.xscale, self.row_scale, self.base_sl,
+                self.g_sl, self.dmap, self.n0, self.kappa, self.mu, self.sph, self.free)
+            if reason == 0:
+                found, ok, x = self._newton(y, tol)
+                if found and ok:
+                    return x
+                last = x if found else None
+                attempts.append("homotopy reached a non-physical root")
+            else:
+                attempts.append(f"homotopy: {_homotopy_message(reason, detail, t, value)}")
         with np.errstate(over="ignore", invalid="ignore"):
             r = np.abs(self.row_scale * slip_newton.residual(np.zeros(self.n) if last is None else last,
                                                              self.base_sl, self.g_sl, self.dmap, self.n0,
@@ -477,7 +492,8 @@ def _compile_the_slip_systems() -> None:
                                       np.array([TABLE, FINGER1]), s["mu"],
                                       np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]),
                                       s["positions"] - [np.zeros(3), s["centre"]], s["up"], 0.01, free)
-        try:
-            compiled.outcome(compiled.solve(methods=("newton",)))
-        except SlipFailure:
-            compiled.outcome(np.zeros(compiled.n))
+        for method in ("newton", "homotopy"):
+            try:
+                compiled.outcome(compiled.solve(methods=(method,)))
+            except SlipFailure:
+                compiled.outcome(np.zeros(compiled.n))

@@ -91,25 +91,27 @@ def test_a_singular_rate_jacobian_reads_as_a_friction_limit():
     assert not slip_trial._solve_checked(a, b)[0]
 
 
-def _trials(compiled):
+def _trials(compiled, method):
     rs, tracker, state, vel = box_squeezed_3mm()
     tracker.compiled = compiled
     out = []
     for free in (False, True):
         tracker.forms = (free,)
-        for dt in (1e-6, 1e-4, 1e-3, 3.4e-3):
+        for dt in (1e-6, 1e-4, 1e-3, 3.4e-3, 6e-3):
             try:
-                t = tracker.trial(state, dt, vel, methods=("newton",))
+                t = tracker.trial(state, dt, vel, methods=(method,))
                 out.append((t.state.disp, t.state.forces, t.amounts, t.rates))
             except SlipFailure as exc:
                 out.append(str(exc))
     return out
 
 
-def test_compiled_trials_are_the_reference_trials():
-    """The squeezed box's trial states, both slip forms, increments up to a third of the fingertip radius: the same
-    roots (or the same failure, with the same message), slip amounts and rates."""
-    compiled, reference = _trials(True), _trials(False)
+@pytest.mark.parametrize("method", ["newton", "homotopy"])
+def test_compiled_trials_are_the_reference_trials(method):
+    """The squeezed box's trial states, both slip forms, increments up to 60 % of the fingertip radius, by Newton's
+    method or by the Newton homotopy alone: the same roots (or the same failure, with the same message), slip
+    amounts and rates."""
+    compiled, reference = _trials(True, method), _trials(False, method)
     assert sum(not isinstance(r, str) for r in reference) >= 6
     for a, b in zip(compiled, reference):
         if isinstance(a, str) or isinstance(b, str):

@@ -5,13 +5,16 @@ from the slip unknowns x to the sliding nodes' forces and slips with about
 forty numpy operations on arrays of tens of entries, and reads out the slip
 rates, amounts, displacements and forces with as many more: at the tomato's
 ~900 trial states per pickup that overhead, not arithmetic, was half the
-tracking.  These kernels do the same in three calls per trial:
+tracking.  These kernels do the same in a few calls per trial:
 
 * :func:`assemble` — the system's arrays (both forms, the same unknowns, scales
   and rows as ``MixedSlipSystem``);
 * :func:`newton_root` — the damped Newton iteration of
   :func:`~fem_grasp.contact.kernels.slip_newton.newton` and the admissibility test
   (no compressive sliding contact on the far root through its cone's axis);
+* :func:`homotopy` — the Newton-homotopy continuation of paper footnote 2 where
+  Newton's method finds no root (``homotopy.track`` as ``MixedSlipSystem.solve``
+  calls it, its linear solves and condition test included);
 * :func:`outcome` — forces, displacement changes, slip amounts and the slip
   rates of event D by the implicit-function theorem (a partial-pivoting LU
   whose smallest pivot below ``SINGULAR_PIVOT`` of the largest reads as a
@@ -19,8 +22,7 @@ tracking.  These kernels do the same in three calls per trial:
 
 The arithmetic is that of ``MixedSlipSystem`` in another summation order:
 the two agree to round-off (``tests/contact/test_slip_trial.py``), and the
-tracker keeps ``MixedSlipSystem`` as its reference path and for the
-Newton-homotopy fallback.
+tracker keeps ``MixedSlipSystem`` as its reference path.
 """
 
 from __future__ import annotations
@@ -32,10 +34,10 @@ import numpy as np
 from . import slip_newton
 from .jit import jit
 
-__all__ = ["ENTRY_POINTS", "assemble", "newton_root", "outcome"]
+__all__ = ["ENTRY_POINTS", "HOMOTOPY_REASONS", "SINGULAR_DETAILS", "assemble", "homotopy", "newton_root", "outcome"]
 
 #: The kernels called from Python (what a warm-up must reach).
-ENTRY_POINTS = ("assemble", "newton_root", "outcome")
+ENTRY_POINTS = ("assemble", "homotopy", "newton_root", "outcome")
 
 #: Owner code of a table contact (``fem_grasp.contact.obstacles.TABLE``).
 _TABLE = 2
@@ -318,3 +320,192 @@ def outcome(x, fh, g, sl, dfh, base, g_sl, dmap, n0, kappa, mu, sph, free, t_hel
     for j in range(p):
         rates[j] = -(dirs[j, 0] * dd[j, 0] + dirs[j, 1] * dd[j, 1] + dirs[j, 2] * dd[j, 2])
     return forces, disp, amounts, rates
+
+
+# ------------------------------------------------------------------ homotopy
+#: Outcome codes of :func:`homotopy` (``fem_grasp.contact.homotopy.HomotopyError.reason``, in this order).
+HOMOTOPY_REASONS = ("", "diverged", "singular_jacobian", "step_too_small", "max_steps", "polish_failed")
+#: Why a linear solve of the homotopy failed (``homotopy._Singular``'s messages, in this order).
+SINGULAR_DETAILS = ("", "non-finite matrix or right-hand side", "zero matrix", "condition number > 1e+14")
+_COND_MAX = 1e14  # homotopy._COND_MAX
+_CORRECTOR_TOL = 1e-9  # homotopy._CORRECTOR_TOL
+_CORRECTOR_ITERS = 6  # homotopy._CORRECTOR_ITERS
+
+
+@jit
+def _lu(a):
+    """In-place LU with partial pivoting of a copy of ``a``: (factors, pivots)."""
+    n = a.shape[0]
+    lu = a.copy()
+    piv = np.empty(n, np.int64)
+    for k in range(n):
+        q = k
+        for i in range(k + 1, n):
+            if abs(lu[i, k]) > abs(lu[q, k]):
+                q = i
+        piv[k] = q
+        if q != k:
+            for col in range(n):
+                tmp = lu[k, col]
+                lu[k, col] = lu[q, col]
+                lu[q, col] = tmp
+        if lu[k, k] != 0.0:
+            for i in range(k + 1, n):
+                lu[i, k] /= lu[k, k]
+                f = lu[i, k]
+                if f != 0.0:
+                    for col in range(k + 1, n):
+                        lu[i, col] -= f * lu[k, col]
+    return lu, piv
+
+
+@jit
+def _lu_apply(lu, piv, b):
+    """x with (P L U) x = b from :func:`_lu`'s factors."""
+    n = lu.shape[0]
+    x = b.copy()
+    for k in range(n):
+        q = piv[k]
+        if q != k:
+            tmp = x[k]
+            x[k] = x[q]
+            x[q] = tmp
+    for i in range(n):
+        for k in range(i):
+            x[i] -= lu[i, k] * x[k]
+    for i in range(n - 1, -1, -1):
+        for k in range(i + 1, n):
+            x[i] -= lu[i, k] * x[k]
+        x[i] /= lu[i, i]
+    return x
+
+
+@jit
+def _lin_solve(a, b):
+    """``homotopy._lin_solve``: (detail code, x), code 0 when solved; singular when the matrix or right-hand side is
+    not finite, the matrix is zero, or its 1-norm condition number exceeds 1e14 (here ‖A‖₁‖A⁻¹‖₁ itself, where
+    LAPACK's gecon estimates ‖A⁻¹‖₁ from below: a matrix within a factor of a few of the limit may be judged
+    singular here and not there)."""
+    n = a.shape[0]
+    if not (np.isfinite(a).all() and np.isfinite(b).all()):
+        return 1, b
+    anorm = 0.0
+    for col in range(n):
+        s = 0.0
+        for i in range(n):
+            s += abs(a[i, col])
+        anorm = max(anorm, s)
+    if anorm == 0.0:
+        return 2, b
+    lu, piv = _lu(a)
+    for k in range(n):
+        if lu[k, k] == 0.0:
+            return 3, b
+    inv_norm = 0.0
+    e = np.zeros(n)
+    for col in range(n):
+        e[:] = 0.0
+        e[col] = 1.0
+        z = _lu_apply(lu, piv, e)
+        s = 0.0
+        for i in range(n):
+            s += abs(z[i])
+        inv_norm = max(inv_norm, s)
+    if not (np.isfinite(inv_norm) and anorm * inv_norm < _COND_MAX):
+        return 3, b
+    return 0, _lu_apply(lu, piv, b)
+
+
+@jit
+def _scaled(y, scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free):
+    """P(y) = row_scale · residual(scale · y), the system the homotopy follows (``MixedSlipSystem.solve``'s fun)."""
+    return row_scale * slip_newton.residual(y * scale, base, g_sl, dmap, n0, kappa, mu, sph, free)
+
+
+@jit
+def _scaled_jacobian(y, scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free):
+    return (row_scale.reshape(-1, 1) * slip_newton.jacobian(y * scale, base, g_sl, dmap, n0, kappa, mu, sph, free)
+            * scale.reshape(1, -1))
+
+
+@jit
+def homotopy(y0, tol, initial_step, max_step, max_steps, min_step, max_iter,
+             scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free):
+    """The Newton homotopy H(y, t) = P(y) − (1 − t)² P(y₀) of paper footnote 2, as ``homotopy.track`` follows it
+    for ``MixedSlipSystem.solve`` (start Q = P − P(y₀), γ = 1): Euler predictor, Newton corrector, step in t halved
+    on a failed correction and doubled after one of ≤ 3 iterations, Newton polish of P at t = 1.
+
+    Returns
+    -------
+    (reason, detail, t, value, y): reason 0 and the polished y on success, else an index into
+    ``HOMOTOPY_REASONS`` (polish failures: ``detail`` is the polish's own reason), where it stopped (t), the step
+    or residual its message quotes (value), and the last point.
+    """
+    args = (scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free)
+    x = y0.copy()
+    limit = 1e8 * max(1.0, math.sqrt(np.dot(x, x)))
+    p0 = _scaled(x, *args)
+    t, h, steps, rejected = 0.0, initial_step, 0, 0
+    while t < 1.0:
+        if steps + rejected >= max_steps:
+            return 4, 0, t, float(max_steps), x
+        jx = _scaled_jacobian(x, *args)
+        pv = _scaled(x, *args)
+        jt = 2.0 * (1.0 - t) * (pv - (pv - p0))
+        b = (1.0 - t) ** 2
+        code, xdot = _lin_solve((1.0 - b) * jx + b * jx, -jt)
+        if code:
+            return 2, code, t, 0.0, x
+        h = min(h, 1.0 - t)
+        t_new = 1.0 if h >= 1.0 - t else t + h
+        # Newton corrector on H(., t_new): accepted when it contracts and converges within a few iterations.
+        xc = x + h * xdot
+        bn = (1.0 - t_new) ** 2
+        prev = np.inf
+        accepted = 0
+        for k in range(1, _CORRECTOR_ITERS + 1):
+            pc = _scaled(xc, *args)
+            jc = _scaled_jacobian(xc, *args)
+            code, dx = _lin_solve((1.0 - bn) * jc + bn * jc, -((1.0 - bn) * pc + bn * (pc - p0)))
+            if code:
+                break
+            xc = xc + dx
+            step = math.sqrt(np.dot(dx, dx))
+            if not np.isfinite(step):
+                break
+            if step <= _CORRECTOR_TOL * (1.0 + math.sqrt(np.dot(xc, xc))):
+                accepted = k
+                break
+            if step > 0.5 * prev:
+                break
+            prev = step
+        if accepted == 0:
+            rejected += 1
+            h *= 0.5
+            if h < min_step:
+                return 3, 0, t, h, x
+            continue
+        x, t = xc, t_new
+        steps += 1
+        if math.sqrt(np.dot(x, x)) > limit:
+            return 1, 0, t, limit, x
+        if accepted <= 3:
+            h = min(2.0 * h, max_step)
+    # Polish: plain Newton on P (``homotopy._newton``); its failures are reported as polish failures.
+    res = 0.0
+    for it in range(max_iter + 1):
+        r = _scaled(x, *args)
+        if not np.isfinite(r).all():
+            return 5, 1, 1.0, -1.0, x
+        res = math.sqrt(np.dot(r, r))
+        if res <= tol:
+            return 0, 0, 1.0, res, x
+        if it == max_iter:
+            break
+        code, dx = _lin_solve(_scaled_jacobian(x, *args), -r)
+        if code:
+            return 5, 2, 1.0, float(code), x
+        x = x + dx
+        if not np.isfinite(x).all() or math.sqrt(np.dot(x, x)) > limit:
+            return 5, 1, 1.0, limit, x
+    return 5, 4, 1.0, res, x
