@@ -101,6 +101,11 @@ def replay(path: Path, force_tol: float = 1e-9, polish_halvings: int | None = No
     halvings = getattr(relaxation, "POLISH_HALVINGS", None)
     if polish_halvings is not None:
         relaxation.POLISH_HALVINGS = polish_halvings
+    # The polish watched is the numpy one (the compiled kernel runs the same iteration, tests/contact/test_polish.py,
+    # but its line search cannot be watched from here).
+    compiled = getattr(relaxation, "COMPILED_POLISH", None)
+    if compiled is not None:
+        relaxation.COMPILED_POLISH = False
     records, unwrap = _watch_polish(relaxation)
     try:
         for args, kwargs, _ in calls:
@@ -116,6 +121,8 @@ def replay(path: Path, force_tol: float = 1e-9, polish_halvings: int | None = No
         unwrap()
         if halvings is not None:
             relaxation.POLISH_HALVINGS = halvings
+        if compiled is not None:
+            relaxation.COMPILED_POLISH = compiled
     for i, ((_, _, before), now) in enumerate(zip(calls, outcomes)):
         if now[0] != before[0]:
             changed.append(f"call {i}: {before[0]} -> {now[0]}")

@@ -57,6 +57,7 @@ import scipy.linalg
 from ..errors import RelaxationFailure
 from ..threads import blas_threads_for
 from .kernels import gauss_seidel as gs
+from .kernels import jit, polish
 from .kernels.gauss_seidel import RELEASE, SLIDE, STICK
 from .kernels.jit import as_kernel_data, sample_contacts, warm_up_sample
 
@@ -80,6 +81,9 @@ POLISH_HALVINGS = 4
 #: still cuts the residual to ``CHORD_CONTRACTION`` of its norm; a slower step factorises a new Jacobian.
 POLISH_ITERATIONS = 30
 CHORD_CONTRACTION = 0.25
+#: The polish runs as one compiled kernel (:func:`fem_grasp.contact.kernels.polish.polish`) where numba is
+#: installed; False: as :func:`_polish` (numpy), its reference.
+COMPILED_POLISH = jit.ENABLED
 
 
 @dataclass(frozen=True)
@@ -258,6 +262,17 @@ def _polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, stat
     return dd, u2, f
 
 
+def _compiled_polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, status: np.ndarray,
+                     d: np.ndarray, u: np.ndarray, tol: float, stick_tol: float, max_slip: float
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """:func:`_polish` in one kernel call (:mod:`~fem_grasp.contact.kernels.polish`)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        ok, dd, u2, f = polish.polish(np.ascontiguousarray(rec), np.ascontiguousarray(c), np.ascontiguousarray(f0),
+                                      np.ascontiguousarray(mu, dtype=float), status, np.ascontiguousarray(d),
+                                      np.ascontiguousarray(u), float(tol), float(stick_tol), float(max_slip))
+    return (dd, u2, f) if ok else None
+
+
 def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndarray, centers: list,
                    up: np.ndarray, mu: np.ndarray, force_scale: float, *, tol: float = 1e-11,
                    max_sweeps: int = 5000, max_slip: float = np.inf) -> Relaxation:
@@ -338,8 +353,9 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
         # Once the statuses stop changing, Newton's method on their smooth system finishes the job
         # (Gauss–Seidel converges only linearly, slowly when the contacts are strongly coupled).
         if sweep >= next_polish and same:
-            polished = _polish(rec, c, f0, mu, np.asarray(status), np.asarray(d, float), np.asarray(u, float),
-                               local_tol, stick_tol, max_slip)
+            polished = (_compiled_polish if COMPILED_POLISH else _polish)(
+                rec, c, f0, mu, np.asarray(status, dtype=np.int64), np.asarray(d, float), np.asarray(u, float),
+                local_tol, stick_tol, max_slip)
             if polished is not None:
                 break
             polish_fails += 1
@@ -379,8 +395,9 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
 
 @warm_up_sample
 def _compile_the_return_mapping() -> None:
-    """A return mapping of one table and one fingertip contact: its sweep, and what its Newton polish and its
-    end call per contact (the kernels of :mod:`~fem_grasp.contact.kernels.gauss_seidel`)."""
+    """A return mapping of one table and one fingertip contact: its sweep, its Newton polish (both kernels) and what
+    its end calls per contact (the kernels of :mod:`~fem_grasp.contact.kernels.gauss_seidel` and
+    :mod:`~fem_grasp.contact.kernels.polish`)."""
     s = sample_contacts()
     up, centre, positions, mu = s["up"], s["centre"], s["positions"], s["mu"]
     relax_contacts(100.0 * np.eye(6), s["forces"], positions, [None, centre], up, mu, 1.0)
@@ -388,3 +405,5 @@ def _compile_the_return_mapping() -> None:
     gs.SlideGeometry(records, mu).projections(np.zeros((2, 2)))
     gs.outside_sphere(records[1], 0.0, 0.0, 0.0)
     gs.motion(records[1], 0.0, 0.0)
+    _compiled_polish(records, 100.0 * np.eye(6), s["forces"], mu, np.array([SLIDE, RELEASE], dtype=np.int64),
+                     np.zeros((2, 3)), np.full((2, 2), 1e-3), 1e-9, 1e-9, np.inf)

@@ -1,0 +1,227 @@
+"""The return mapping's Newton polish in one compiled kernel (issue #27).
+
+Once the Gauss–Seidel sweeps of :func:`fem_grasp.contact.relaxation.relax_contacts`
+stop changing the contacts' statuses, Newton's method on the smooth system of
+those statuses finishes the solve (``relaxation._polish``): unknowns u_k (2)
+of each sliding contact and δ_k (3) of each released one; equations
+f_t + μ f_n ŝ = 0 in the tangent plane at the new position (sliding) and
+f_k = 0 (released).  The lift test's hanging settles and every implicit
+increment end in such a polish, and written with numpy each costs a few
+hundred small array operations (the steam bun spent 1.6 s of its 3.7 s profiled
+pickup in them).  :func:`polish` is the same iteration — the same Jacobian
+(coupling blocks A_i C_ij D_j plus each sliding contact's geometric block by
+forward differences), chord steps on the LU factors while a full step cuts
+the residual to a quarter, Armijo backtracking to 1/8, and the closing checks
+that the statuses still hold — in another summation order; ``relaxation._polish``
+stays as its reference (``tests/contact/test_polish.py``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import gauss_seidel as gs
+from . import slip_trial
+from .jit import jit
+
+__all__ = ["ENTRY_POINTS", "polish"]
+
+#: The kernels called from Python (what a warm-up must reach).
+ENTRY_POINTS = ("polish",)
+
+# As relaxation.POLISH_ITERATIONS, POLISH_HALVINGS and CHORD_CONTRACTION (restated: kernels cannot import the
+# module that calls them; tests/contact/test_polish.py checks they agree).
+_ITERATIONS = 30
+_HALVINGS = 4
+_CONTRACTION = 0.25
+_SLIDE, _RELEASE, _STICK = gs.SLIDE, gs.RELEASE, gs.STICK
+
+
+@jit
+def _evaluate(x, rec, c, f0, mu, d, act, slide, offs, with_jacobian):
+    """(residual, forces (m, 3), displacement changes (m, 3), Jacobian or an empty matrix) at x."""
+    m = f0.shape[0]
+    q = act.shape[0]
+    n_x = offs[q]
+    dd = d.copy()
+    proj = np.zeros((q, 9))
+    for i in range(q):
+        k = act[i]
+        o = offs[i]
+        if slide[i]:
+            a0, a1, a2, b0, b1, b2, d0, d1, d2 = gs.slide_projection(rec[k], mu[k], x[o], x[o + 1])
+            proj[i, 0], proj[i, 1], proj[i, 2], proj[i, 3], proj[i, 4], proj[i, 5] = a0, a1, a2, b0, b1, b2
+            dd[k, 0], dd[k, 1], dd[k, 2] = d0, d1, d2
+        else:
+            dd[k, 0], dd[k, 1], dd[k, 2] = x[o], x[o + 1], x[o + 2]
+    f = f0 + (c @ dd.reshape(-1)).reshape(m, 3)
+    r = np.empty(n_x)
+    for i in range(q):
+        k = act[i]
+        o = offs[i]
+        if slide[i]:
+            r[o] = proj[i, 0] * f[k, 0] + proj[i, 1] * f[k, 1] + proj[i, 2] * f[k, 2]
+            r[o + 1] = proj[i, 3] * f[k, 0] + proj[i, 4] * f[k, 1] + proj[i, 5] * f[k, 2]
+        else:
+            r[o], r[o + 1], r[o + 2] = f[k, 0], f[k, 1], f[k, 2]
+    if not with_jacobian:
+        return r, f, dd, np.zeros((0, 0))
+    # Row maps A_i (2×3 sliding, I released) and column maps D_j (3×2 sliding, I released), padded to 3×3; each
+    # sliding contact's geometric block ∂A_i/∂u f_i by forward differences.
+    amap = np.zeros((q, 3, 3))
+    dmap = np.zeros((q, 3, 3))
+    geo = np.zeros((q, 2, 2))
+    for i in range(q):
+        k = act[i]
+        o = offs[i]
+        if not slide[i]:
+            for a in range(3):
+                amap[i, a, a] = 1.0
+                dmap[i, a, a] = 1.0
+            continue
+        for a in range(3):
+            amap[i, 0, a] = proj[i, a]
+            amap[i, 1, a] = proj[i, 3 + a]
+        u0, u1 = x[o], x[o + 1]
+        h = max(1e-7 * math.sqrt(u0 * u0 + u1 * u1), 1e-30)
+        for j in range(2):
+            v0, v1 = (u0 + h, u1) if j == 0 else (u0, u1 + h)
+            p0, p1, p2, p3, p4, p5, e0, e1, e2 = gs.slide_projection(rec[k], mu[k], v0, v1)
+            dmap[i, 0, j] = (e0 - dd[k, 0]) / h
+            dmap[i, 1, j] = (e1 - dd[k, 1]) / h
+            dmap[i, 2, j] = (e2 - dd[k, 2]) / h
+            geo[i, 0, j] = ((p0 - proj[i, 0]) * f[k, 0] + (p1 - proj[i, 1]) * f[k, 1] + (p2 - proj[i, 2]) * f[k, 2]) / h
+            geo[i, 1, j] = ((p3 - proj[i, 3]) * f[k, 0] + (p4 - proj[i, 4]) * f[k, 1] + (p5 - proj[i, 5]) * f[k, 2]) / h
+    jac = np.zeros((n_x, n_x))
+    left = np.zeros((3, 3))
+    for i in range(q):
+        ki = act[i]
+        si = 2 if slide[i] else 3
+        for j in range(q):
+            kj = act[j]
+            sj = 2 if slide[j] else 3
+            # A_i C_ij, then (A_i C_ij) D_j
+            for a in range(si):
+                for e in range(3):
+                    left[a, e] = (amap[i, a, 0] * c[3 * ki, 3 * kj + e] + amap[i, a, 1] * c[3 * ki + 1, 3 * kj + e]
+                                  + amap[i, a, 2] * c[3 * ki + 2, 3 * kj + e])
+            for a in range(si):
+                for b in range(sj):
+                    jac[offs[i] + a, offs[j] + b] = (left[a, 0] * dmap[j, 0, b] + left[a, 1] * dmap[j, 1, b]
+                                                     + left[a, 2] * dmap[j, 2, b])
+        if slide[i]:
+            for a in range(2):
+                for b in range(2):
+                    jac[offs[i] + a, offs[i] + b] += geo[i, a, b]
+    return r, f, dd, jac
+
+
+@jit
+def _max_abs(r):
+    out = 0.0
+    for v in r:
+        out = max(out, abs(v))
+    return out
+
+
+@jit
+def polish(rec, c, f0, mu, status, d, u, tol, stick_tol, max_slip):
+    """``relaxation._polish``: Newton's method on the smooth system of fixed statuses.
+
+    Returns
+    -------
+    (converged and the statuses still hold, δ (m, 3), u (m, 2), forces (m, 3))
+    """
+    m = f0.shape[0]
+    q = 0
+    for k in range(m):
+        if status[k] != _STICK:
+            q += 1
+    if q == 0:
+        return False, d, u, f0
+    act = np.empty(q, np.int64)
+    slide = np.zeros(q, np.bool_)
+    offs = np.zeros(q + 1, np.int64)
+    i = 0
+    for k in range(m):
+        if status[k] != _STICK:
+            act[i] = k
+            slide[i] = status[k] == _SLIDE
+            offs[i + 1] = offs[i] + (2 if slide[i] else 3)
+            i += 1
+    x = np.empty(offs[q])
+    for i in range(q):
+        k = act[i]
+        if slide[i]:
+            x[offs[i]], x[offs[i] + 1] = u[k, 0], u[k, 1]
+        else:
+            x[offs[i]], x[offs[i] + 1], x[offs[i] + 2] = d[k, 0], d[k, 1], d[k, 2]
+    r, f, dd, jac = _evaluate(x, rec, c, f0, mu, d, act, slide, offs, True)
+    fresh_lu = False
+    have_lu = False
+    lu = np.zeros((0, 0))
+    piv = np.zeros(0, np.int64)
+    converged = False
+    for _ in range(_ITERATIONS):
+        norm = math.sqrt(np.dot(r, r))
+        if _max_abs(r) <= tol:
+            converged = True
+            break
+        fresh_lu = not have_lu
+        if fresh_lu:
+            lu, piv = slip_trial._lu(jac)
+            for k in range(lu.shape[0]):
+                if lu[k, k] == 0.0:
+                    return False, d, u, f0  # exactly singular
+            have_lu = True
+        step = -slip_trial._lu_apply(lu, piv, r)
+        if not np.isfinite(step).all():
+            return False, d, u, f0
+        # Armijo backtracking on |r| down to 1/8 (a shorter step means wrong statuses: the sweeps go on).
+        lam = 1.0
+        found = False
+        for _h in range(_HALVINGS):
+            r2, f2, dd2, _j = _evaluate(x + lam * step, rec, c, f0, mu, d, act, slide, offs, False)
+            if math.sqrt(np.dot(r2, r2)) < (1.0 - 1e-4 * lam) * norm:
+                found = True
+                break
+            lam *= 0.5
+        if not found:
+            if fresh_lu:
+                return False, d, u, f0
+            have_lu = False  # an old Jacobian's step: retry from a new one
+            r, f, dd, jac = _evaluate(x, rec, c, f0, mu, d, act, slide, offs, True)
+            continue
+        x = x + lam * step
+        r, f, dd = r2, f2, dd2
+        if math.sqrt(np.dot(r, r)) > _CONTRACTION * norm or lam < 1.0:
+            have_lu = False
+            r, f, dd, jac = _evaluate(x, rec, c, f0, mu, d, act, slide, offs, True)
+    if not converged:
+        return False, d, u, f0
+    # The statuses must still hold at the polished state.
+    u2 = u.copy()
+    for i in range(q):
+        k = act[i]
+        o = offs[i]
+        if slide[i]:
+            motion = gs.motion(rec[k], x[o], x[o + 1])
+            fn = f[k, 0] * motion[3] + f[k, 1] * motion[4] + f[k, 2] * motion[5]
+            ul = math.sqrt(x[o] * x[o] + x[o + 1] * x[o + 1])
+            if not (fn > 0.0 and 0.0 < ul <= max_slip):
+                return False, d, u, f0
+            u2[k, 0], u2[k, 1] = x[o], x[o + 1]
+        else:
+            along = x[o] * rec[k, gs.REC_N0] + x[o + 1] * rec[k, gs.REC_N0 + 1] + x[o + 2] * rec[k, gs.REC_N0 + 2]
+            if along < 0.0 and not gs.outside_sphere(rec[k], x[o], x[o + 1], x[o + 2]):
+                return False, d, u, f0
+    for k in range(m):
+        if status[k] == _STICK:
+            n0, n1, n2 = rec[k, gs.REC_N0], rec[k, gs.REC_N0 + 1], rec[k, gs.REC_N0 + 2]
+            fn = f[k, 0] * n0 + f[k, 1] * n1 + f[k, 2] * n2
+            t0, t1, t2 = f[k, 0] - fn * n0, f[k, 1] - fn * n1, f[k, 2] - fn * n2
+            if fn < 0.0 or math.sqrt(t0 * t0 + t1 * t1 + t2 * t2) > mu[k] * fn + stick_tol:
+                return False, d, u, f0
+    return True, dd, u2, f

@@ -1,0 +1,101 @@
+"""The return mapping's compiled Newton polish (fem_grasp.contact.kernels.polish) against its numpy reference.
+
+``relaxation._polish`` stays as the reference of the kernel the return mappings call where numba is installed
+(``relaxation.COMPILED_POLISH``).  The two run the same iteration in another summation order: on every polish
+of the test problems both converge or both give up, to the same state within the polish's own tolerance.
+"""
+
+import numpy as np
+import pytest
+
+from fem_grasp.contact import relaxation
+from fem_grasp.contact.kernels import jit
+from fem_grasp.contact.kernels import polish as kernel
+from tests.contact.test_jit import _problems
+
+#: Compiled against numpy polish, relative to each array's largest entry: both stop once every residual is below
+#: ``local_tol`` (1e-3 × tol × the force scale), one chord step apart at most.
+POLISH_AGREEMENT = 1e-9
+
+
+def test_the_kernel_has_the_reference_iteration_limits():
+    assert (kernel._ITERATIONS, kernel._HALVINGS, kernel._CONTRACTION) == (
+        relaxation.POLISH_ITERATIONS, relaxation.POLISH_HALVINGS, relaxation.CHORD_CONTRACTION)
+    assert relaxation.COMPILED_POLISH == jit.ENABLED
+
+
+def _polish_calls(monkeypatch):
+    """Every polish the test problems' return mappings call (their arguments), and the problems' outcomes."""
+    calls = []
+    reference = relaxation._polish
+
+    def recording(*args):
+        calls.append(args)
+        return reference(*args)
+
+    monkeypatch.setattr(relaxation, "COMPILED_POLISH", False)
+    monkeypatch.setattr(relaxation, "_polish", recording)
+    outcomes = []
+    for args, kwargs in _problems():
+        try:
+            outcomes.append(relaxation.relax_contacts(*args, **kwargs))
+        except relaxation.RelaxationFailure as exc:
+            outcomes.append(str(exc))
+    return calls, outcomes
+
+
+def test_every_polish_of_the_test_problems_ends_alike_compiled_and_in_numpy(monkeypatch):
+    calls, _ = _polish_calls(monkeypatch)
+    monkeypatch.undo()
+    assert len(calls) >= 5
+    converged = 0
+    for args in calls:
+        ref = relaxation._polish(*args)
+        comp = relaxation._compiled_polish(*args)
+        assert (ref is None) == (comp is None)
+        if ref is None:
+            continue
+        converged += 1
+        for mine, theirs in zip(comp, ref):
+            np.testing.assert_allclose(mine, theirs, rtol=0,
+                                       atol=POLISH_AGREEMENT * max(float(np.abs(theirs).max()), 1e-300))
+    assert converged >= 3
+
+
+def test_return_mappings_with_the_compiled_polish_reach_the_reference_states(monkeypatch):
+    """The test problems' static states (statuses, sweeps, forces) with either polish, or the same failure."""
+    _, reference = _polish_calls(monkeypatch)
+    monkeypatch.undo()
+    monkeypatch.setattr(relaxation, "COMPILED_POLISH", True)
+    for (args, kwargs), ref in zip(_problems(), reference):
+        try:
+            comp = relaxation.relax_contacts(*args, **kwargs)
+        except relaxation.RelaxationFailure as exc:
+            assert str(exc) == ref
+            continue
+        assert not isinstance(ref, str)
+        np.testing.assert_array_equal(comp.status, ref.status)
+        assert comp.sweeps == ref.sweeps
+        np.testing.assert_allclose(comp.forces, ref.forces, rtol=0,
+                                   atol=POLISH_AGREEMENT * np.abs(ref.forces).max())
+
+
+@pytest.mark.parametrize("status", [(relaxation.SLIDE,), (relaxation.RELEASE,), (relaxation.STICK,)])
+def test_a_one_contact_polish_agrees(status):
+    """One fingertip contact: sliding onto its cone, released, or (nothing to polish) sticking."""
+    from fem_grasp.contact.kernels import gauss_seidel as gs
+
+    centre = np.array([0.0, 0.0, 0.02])
+    rec = gs.contact_records(np.array([centre - [0.0, 0.0, 0.01]]), [centre], np.array([0.0, 0.0, 1.0]),
+                             100.0 * np.eye(3)[None])
+    c = 100.0 * np.eye(3)
+    f0 = np.array([[0.0, 0.3, 1.0]])
+    args = (rec, c, f0, np.array([0.2]), np.array(status, dtype=np.int64), np.zeros((1, 3)),
+            np.array([[0.0, -1e-3]]), 1e-12, 1e-11, np.inf)
+    ref, comp = relaxation._polish(*args), relaxation._compiled_polish(*args)
+    assert (ref is None) == (comp is None)
+    if status[0] == relaxation.STICK:
+        assert ref is None
+    if ref is not None:
+        for mine, theirs in zip(comp, ref):
+            np.testing.assert_allclose(mine, theirs, rtol=0, atol=POLISH_AGREEMENT * max(np.abs(theirs).max(), 1e-30))
