@@ -141,3 +141,27 @@ def test_a_pickup_with_compiled_trials_is_the_reference_pickup(monkeypatch):
 
 def test_trackers_compile_their_trials_where_numba_is_installed():
     assert tracking.COMPILED_TRIALS == jit.ENABLED
+
+
+@pytest.mark.parametrize("free", [False, True])
+def test_the_fused_residual_jacobian_and_newton_are_the_slip_newton_kernels(free):
+    """fused_newton's residual and Jacobian (loops over the affine maps into preallocated arrays) against
+    slip_newton's at a point x, and the two Newton iterations from the held state: the same verdict and root."""
+    from fem_grasp.contact.kernels import slip_newton
+
+    ref, comp = _random_system(np.random.default_rng(7), free)
+    args = (comp.base_sl, comp.g_sl, comp.dmap, comp.n0, comp.kappa, comp.mu, comp.sph, comp.free)
+    x = 1e-3 * np.random.default_rng(8).normal(size=comp.n) * comp.xscale
+    p = len(comp.sliding)
+    out, f, d, n = np.empty(comp.n), np.empty((p, 3)), np.empty((p, 3)), np.empty((p, 3))
+    slip_trial._fused_residual(x, *args, out, f, d, n)
+    _close(out, slip_newton.residual(x, *args), ASSEMBLY_AGREEMENT)
+    jac = np.empty((comp.n, comp.n))
+    slip_trial._fused_jacobian(x, comp.g_sl, comp.dmap, comp.kappa, comp.mu, comp.sph, comp.free, f, d, n, jac)
+    _close(jac, slip_newton.jacobian(x, *args), ASSEMBLY_AGREEMENT)
+    lim = np.maximum(1e-12, comp.row_noise)
+    old = slip_newton.newton(np.zeros(comp.n), lim, 40, comp.xscale, comp.row_scale, *args)
+    new = slip_trial.fused_newton(np.zeros(comp.n), lim, 40, comp.xscale, comp.row_scale, *args)
+    assert old[0] == new[0]
+    if old[0]:
+        _close(new[1], old[1], SLIP_SOLVE_AGREEMENT)

@@ -213,9 +213,10 @@ def _admissible(x, base, g_sl, dmap, n0, kappa, t_held):
 
 @jit
 def newton_root(y, lim, scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free, t_held, max_iter):
-    """Damped Newton from the scaled start y (:func:`~fem_grasp.contact.kernels.slip_newton.newton`), then the
-    admissibility test: (a root was found, it is admissible, x = scale · y)."""
-    ok, yy = slip_newton.newton(y, lim, max_iter, scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free)
+    """Damped Newton from the scaled start y (:func:`fused_newton`, the iteration of
+    :func:`~fem_grasp.contact.kernels.slip_newton.newton`), then the admissibility test: (a root was found, it is
+    admissible, x = scale · y)."""
+    ok, yy = fused_newton(y, lim, max_iter, scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free)
     x = yy * scale
     if not ok:
         return False, False, x
@@ -419,13 +420,27 @@ def _lin_solve(a, b):
 @jit
 def _scaled(y, scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free):
     """P(y) = row_scale · residual(scale · y), the system the homotopy follows (``MixedSlipSystem.solve``'s fun)."""
-    return row_scale * slip_newton.residual(y * scale, base, g_sl, dmap, n0, kappa, mu, sph, free)
+    p = mu.shape[0]
+    out = np.empty(y.shape[0])
+    _scaled_residual(y, scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free, np.empty(y.shape[0]), out,
+                     np.empty((p, 3)), np.empty((p, 3)), np.empty((p, 3)))
+    return out
 
 
 @jit
 def _scaled_jacobian(y, scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free):
-    return (row_scale.reshape(-1, 1) * slip_newton.jacobian(y * scale, base, g_sl, dmap, n0, kappa, mu, sph, free)
-            * scale.reshape(1, -1))
+    """∂P/∂y = row_scale · ∂residual/∂x · scale."""
+    p = mu.shape[0]
+    nx = y.shape[0]
+    xs, r = np.empty(nx), np.empty(nx)
+    f, d, n = np.empty((p, 3)), np.empty((p, 3)), np.empty((p, 3))
+    _scaled_residual(y, scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free, xs, r, f, d, n)
+    jac = np.empty((nx, nx))
+    _fused_jacobian(xs, g_sl, dmap, kappa, mu, sph, free, f, d, n, jac)
+    for i in range(nx):
+        for j in range(nx):
+            jac[i, j] = row_scale[i] * jac[i, j] * scale[j]
+    return jac
 
 
 @jit
@@ -509,3 +524,178 @@ def homotopy(y0, tol, initial_step, max_step, max_steps, min_step, max_iter,
         if not np.isfinite(x).all() or math.sqrt(np.dot(x, x)) > limit:
             return 5, 1, 1.0, limit, x
     return 5, 4, 1.0, res, x
+
+
+# ------------------------------------------------------------- fused Newton
+@jit
+def _fused_residual(x, base, g, dmap, n0, kappa, mu, sph, free, out, f, d, n):
+    """``slip_newton.residual`` into ``out``, leaving the sliding nodes' forces, slips and normals in f, d, n (p, 3)."""
+    p = mu.shape[0]
+    nx = x.shape[0]
+    for row in range(3 * p):
+        sf = 0.0
+        sd = 0.0
+        for col in range(nx):
+            sf += g[row, col] * x[col]
+            sd += dmap[row, col] * x[col]
+        f[row // 3, row % 3] = base[row] + sf
+        d[row // 3, row % 3] = sd
+    for j in range(p):
+        for i in range(3):
+            n[j, i] = n0[j, i] + kappa[j] * d[j, i]
+        fn = f[j, 0] * n[j, 0] + f[j, 1] * n[j, 1] + f[j, 2] * n[j, 2]
+        out[j] = (1.0 + mu[j] ** 2) * fn ** 2 - (f[j, 0] * f[j, 0] + f[j, 1] * f[j, 1] + f[j, 2] * f[j, 2])
+    q, k = sph.shape
+    for i in range(q):
+        t = x[sph[i, 0]] ** 2
+        for jj in range(1, k):
+            t += x[sph[i, jj]] ** 2
+        out[p + i] = 2.0 * x[sph[i, 0]] + t
+    if free:
+        for j in range(p):
+            c0 = f[j, 1] * d[j, 2] - f[j, 2] * d[j, 1]
+            c1 = f[j, 2] * d[j, 0] - f[j, 0] * d[j, 2]
+            c2 = f[j, 0] * d[j, 1] - f[j, 1] * d[j, 0]
+            out[p + q + j] = n[j, 0] * c0 + n[j, 1] * c1 + n[j, 2] * c2
+
+
+@jit
+def _fused_jacobian(x, g, dmap, kappa, mu, sph, free, f, d, n, jac):
+    """``slip_newton.jacobian`` at the state f, d, n of :func:`_fused_residual`, into ``jac``."""
+    p = mu.shape[0]
+    nx = x.shape[0]
+    q, k = sph.shape
+    jac[:, :] = 0.0
+    for j in range(p):
+        fn = f[j, 0] * n[j, 0] + f[j, 1] * n[j, 1] + f[j, 2] * n[j, 2]
+        a = 2.0 * (1.0 + mu[j] ** 2) * fn
+        r0, r1, r2 = 3 * j, 3 * j + 1, 3 * j + 2
+        kap = kappa[j]
+        for col in range(nx):
+            g0, g1, g2 = g[r0, col], g[r1, col], g[r2, col]
+            dn0, dn1, dn2 = kap * dmap[r0, col], kap * dmap[r1, col], kap * dmap[r2, col]
+            jac[j, col] = (a * ((n[j, 0] * g0 + n[j, 1] * g1 + n[j, 2] * g2) + (f[j, 0] * dn0 + f[j, 1] * dn1
+                                                                              + f[j, 2] * dn2))
+                           - 2.0 * (f[j, 0] * g0 + f[j, 1] * g1 + f[j, 2] * g2))
+    for i in range(q):
+        for jj in range(k):
+            jac[p + i, sph[i, jj]] = 2.0 * x[sph[i, jj]]
+        jac[p + i, sph[i, 0]] += 2.0
+    if free:
+        for j in range(p):
+            fd0 = f[j, 1] * d[j, 2] - f[j, 2] * d[j, 1]
+            fd1 = f[j, 2] * d[j, 0] - f[j, 0] * d[j, 2]
+            fd2 = f[j, 0] * d[j, 1] - f[j, 1] * d[j, 0]
+            dn_0 = d[j, 1] * n[j, 2] - d[j, 2] * n[j, 1]
+            dn_1 = d[j, 2] * n[j, 0] - d[j, 0] * n[j, 2]
+            dn_2 = d[j, 0] * n[j, 1] - d[j, 1] * n[j, 0]
+            nf0 = n[j, 1] * f[j, 2] - n[j, 2] * f[j, 1]
+            nf1 = n[j, 2] * f[j, 0] - n[j, 0] * f[j, 2]
+            nf2 = n[j, 0] * f[j, 1] - n[j, 1] * f[j, 0]
+            r0, r1, r2 = 3 * j, 3 * j + 1, 3 * j + 2
+            kap = kappa[j]
+            for col in range(nx):
+                jac[p + q + j, col] = ((fd0 * (kap * dmap[r0, col]) + fd1 * (kap * dmap[r1, col])
+                                        + fd2 * (kap * dmap[r2, col]))
+                                       + (dn_0 * g[r0, col] + dn_1 * g[r1, col] + dn_2 * g[r2, col])
+                                       + (nf0 * dmap[r0, col] + nf1 * dmap[r1, col] + nf2 * dmap[r2, col]))
+
+
+@jit
+def _scaled_residual(y, scale, row_scale, base, g, dmap, n0, kappa, mu, sph, free, xs, out, f, d, n):
+    for i in range(y.shape[0]):
+        xs[i] = scale[i] * y[i]
+    _fused_residual(xs, base, g, dmap, n0, kappa, mu, sph, free, out, f, d, n)
+    for i in range(out.shape[0]):
+        out[i] = row_scale[i] * out[i]
+
+
+@jit
+def _norm(v):
+    s = 0.0
+    for e in v:
+        s += e * e
+    return math.sqrt(s)
+
+
+@jit
+def fused_newton(y, lim, max_iter, scale, row_scale, base, g, dmap, n0, kappa, mu, sph, free):
+    """:func:`~fem_grasp.contact.kernels.slip_newton.newton` (the same damped iteration, tests and limits) on
+    preallocated arrays: residual and Jacobian in loops over the affine maps, the step by :func:`_lu`.
+
+    Returns
+    -------
+    (converged, y)
+    """
+    nx = y.shape[0]
+    p = mu.shape[0]
+    y = y.copy()
+    xs = np.empty(nx)
+    f, d, n = np.empty((p, 3)), np.empty((p, 3)), np.empty((p, 3))
+    r = np.empty(nx)
+    r_new = np.empty(nx)
+    jac = np.empty((nx, nx))
+    y_new = np.empty(nx)
+    _scaled_residual(y, scale, row_scale, base, g, dmap, n0, kappa, mu, sph, free, xs, r, f, d, n)
+    best, since = np.inf, 0
+    for _ in range(max_iter):
+        if not np.isfinite(r).all():
+            return False, y
+        done = True
+        for i in range(nx):
+            if not abs(r[i]) <= lim[i]:
+                done = False
+                break
+        if done:
+            return True, y
+        norm = _norm(r)
+        if norm < 0.9 * best:
+            best, since = norm, 0
+        else:
+            since += 1
+            if since >= 6:
+                break
+        # The Jacobian at y: xs, f, d and n are those of the latest residual, which was y's.
+        _fused_jacobian(xs, g, dmap, kappa, mu, sph, free, f, d, n, jac)
+        for i in range(nx):
+            for j in range(nx):
+                jac[i, j] = row_scale[i] * jac[i, j] * scale[j]
+        lu, piv = _lu(jac)
+        singular = False
+        for i in range(nx):
+            if lu[i, i] == 0.0:
+                singular = True
+        if singular:
+            return False, y
+        step = _lu_apply(lu, piv, -r)
+        if not np.isfinite(step).all():
+            return False, y
+        lam = 1.0
+        found = False
+        for _h in range(12):
+            for i in range(nx):
+                y_new[i] = y[i] + lam * step[i]
+            _scaled_residual(y_new, scale, row_scale, base, g, dmap, n0, kappa, mu, sph, free, xs, r_new, f, d, n)
+            if np.isfinite(r_new).all() and _norm(r_new) < (1.0 - 1e-4 * lam) * norm:
+                found = True
+                break
+            lam *= 0.5
+        if not found:  # no decrease: take the full step (round-off regime)
+            for i in range(nx):
+                y_new[i] = y[i] + step[i]
+            _scaled_residual(y_new, scale, row_scale, base, g, dmap, n0, kappa, mu, sph, free, xs, r_new, f, d, n)
+        dy = 0.0
+        yn = 0.0
+        for i in range(nx):
+            dy += (y_new[i] - y[i]) ** 2
+            yn += y_new[i] ** 2
+        stalled = math.sqrt(dy) <= 1e-14 * (1.0 + math.sqrt(yn))
+        y[:] = y_new
+        r[:] = r_new
+        if stalled:
+            break
+    ok = np.isfinite(r).all()
+    for i in range(nx):
+        if not abs(r[i]) <= 10.0 * lim[i]:
+            ok = False
+    return ok, y
