@@ -16,6 +16,7 @@ watches.
 
 from __future__ import annotations
 
+import contextlib
 import warnings
 from typing import Sequence
 
@@ -23,7 +24,7 @@ import numpy as np
 import scipy.linalg as la
 
 from . import homotopy
-from .kernels import slip_newton, slip_trial
+from .kernels import jit, slip_newton, slip_trial
 from .kernels.jit import sample_contacts, warm_up_sample
 from .obstacles import FINGER1, TABLE, cross_rows, great_circle_axes, tangent_bases
 
@@ -368,6 +369,12 @@ class MixedSlipSystem:
                           f"{int(self.sliding[j])}, held force {self.own[j]:.3g} N): " + "; ".join(attempts))
 
 
+def _quiet() -> contextlib.AbstractContextManager:
+    """numpy's overflow and invalid-value warnings off around a kernel that runs as plain numpy (without numba,
+    whose compiled code raises none)."""
+    return contextlib.nullcontext() if jit.ENABLED else np.errstate(over="ignore", invalid="ignore")
+
+
 def _homotopy_message(reason: int, detail: int, t: float, value: float) -> str:
     """:class:`~fem_grasp.contact.homotopy.HomotopyError`'s message for an outcome of
     :func:`~fem_grasp.contact.kernels.slip_trial.homotopy`."""
@@ -419,7 +426,7 @@ class CompiledSlipSystem:
         self.align_rows = np.arange(p) if self.free else np.zeros(0, dtype=np.int64)
 
     def _newton(self, y: np.ndarray, tol: float) -> tuple[bool, bool, np.ndarray]:
-        with np.errstate(over="ignore", invalid="ignore"):
+        with _quiet():
             return slip_trial.newton_root(np.array(y, dtype=float), np.maximum(tol, self.row_noise), self.xscale,
                                           self.row_scale, self.base_sl, self.g_sl, self.dmap, self.n0, self.kappa,
                                           self.mu, self.sph, self.free, self.t_held, 40)
@@ -470,7 +477,7 @@ class CompiledSlipSystem:
 
     def outcome(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """As :meth:`MixedSlipSystem.outcome`, in one kernel call."""
-        with np.errstate(over="ignore", invalid="ignore"):
+        with _quiet():
             return slip_trial.outcome(np.ascontiguousarray(x, dtype=float), self.fh, self.g, self.sliding, self.df,
                                       self.base_sl, self.g_sl, self.dmap, self.n0, self.kappa, self.mu, self.sph,
                                       self.free, self.t_held, self.row_scale)

@@ -123,7 +123,8 @@ from ..errors import CollinearContactError, RelaxationFailure, TrackingError
 from ..threads import one_blas_thread
 from .obstacles import FINGER1, FINGER2, OBSTACLES, TABLE, Fingertip, TablePlane
 from .relaxation import RELEASE, SLIDE, relax_contacts
-from .kernels import jit
+from .kernels import events, jit, slip_trial
+from .kernels.jit import sample_contacts, warm_up_sample
 from .slip_system import CompiledSlipSystem, MixedSlipSystem, SlipFailure
 
 __all__ = ["FINGER1", "FINGER2", "OBSTACLES", "TABLE", "ContactEvent", "ContactState", "MixedSlipSystem", "Parameter",
@@ -441,7 +442,8 @@ class Tracker:
     def normals(self, owner: np.ndarray, positions: np.ndarray, centers: np.ndarray) -> np.ndarray:
         """(m, 3) inward normals of contacts at ``positions`` (m, 3): ``up`` on the table, (p − O)/|p − O| on a
         fingertip (:meth:`Fingertip.inward_normals`, without building the obstacles at every trial)."""
-        out = np.broadcast_to(self.up, positions.shape).copy()
+        out = np.empty(positions.shape)
+        out[:] = self.up
         tip = owner != TABLE
         if tip.any():
             d = positions[tip] - np.asarray(centers, float)[owner[tip]]
@@ -477,35 +479,21 @@ class Tracker:
         c = resp.reduced_stiffness
         f0 = resp.gravity_forces
         m = base.n_contacts
-        vel = np.zeros((m, 3))
-        for f in (FINGER1, FINGER2):
-            vel[base.owner == f] = velocities[f]
-        disp_h = base.disp + dt * vel
         centers = base.centers + dt * np.asarray(velocities, float)
         if param == Parameter.LOAD:  # the gravity load factor itself is the parameter
             load_rate = 1.0
         load = base.load + dt * load_rate
-        fh = (c @ disp_h.reshape(-1)).reshape(-1, 3) + load * f0
-        dfh = (c @ vel.reshape(-1)).reshape(-1, 3) + load_rate * f0
         sl = np.flatnonzero(base.sliding)
         kinds = base.owner[sl]
-        n_b = base.normals[sl]
-        # Slip directions from the held (trial) force, as in a return mapping; the base force if that has
-        # no tangential part.  For a node sliding steadily the two agree to O(dt).
-        t_hat = np.zeros((len(sl), 3))
-        for src in (base.forces[sl], fh[sl]):
-            ft = src - np.einsum("ki,ki->k", src, n_b)[:, None] * n_b
-            ftn = np.linalg.norm(ft, axis=1)
-            ok = ftn > DIRECTION_FLOOR * max(float(np.abs(src).max(initial=0.0)), 1e-300)
-            t_hat[ok] = ft[ok] / ftn[ok, None]
-        if np.any(np.linalg.norm(t_hat, axis=1) == 0):
-            raise SlipFailure("a sliding contact has no tangential force, so no slip direction")
-        r = np.zeros((len(sl), 3))
-        fing = kinds != TABLE
-        if fing.any():
-            p_b = self.points[base.nodes[sl[fing]]] + base.disp[sl[fing]]
-            r[fing] = p_b - base.centers[kinds[fing]]
-            r[fing] *= self.radius / np.linalg.norm(r[fing], axis=1, keepdims=True)
+        if self.compiled:
+            disp_h, fh, dfh, t_hat, r, has_directions = slip_trial.held_prediction(
+                c, f0, base.disp, base.owner, np.asarray(velocities, float), float(dt), float(load),
+                float(load_rate), base.forces, base.normals, sl, kinds, self.points[base.nodes[sl]], base.centers,
+                self.radius, DIRECTION_FLOOR)
+            if not has_directions:
+                raise SlipFailure("a sliding contact has no tangential force, so no slip direction")
+        else:
+            disp_h, fh, dfh, t_hat, r = self._held_prediction(base, c, f0, dt, velocities, load, load_rate, sl, kinds)
         errors = []
         systems = {}
         x = None
@@ -560,6 +548,36 @@ class Tracker:
                         slip=base.slip + np.abs(amounts), **kw)
         return _Trial(state, amounts, rates)
 
+    def _held_prediction(self, base: ContactState, c: np.ndarray, f0: np.ndarray, dt: float, velocities: np.ndarray,
+                         load: float, load_rate: float, sl: np.ndarray, kinds: np.ndarray) -> tuple:
+        """Step 1 of an increment in numpy (the reference of :func:`~fem_grasp.contact.kernels.slip_trial.
+        held_prediction`): (held displacements, held forces, their rate, slip directions t̂, fingertip r_k)."""
+        m = base.n_contacts
+        vel = np.zeros((m, 3))
+        for f in (FINGER1, FINGER2):
+            vel[base.owner == f] = velocities[f]
+        disp_h = base.disp + dt * vel
+        fh = (c @ disp_h.reshape(-1)).reshape(-1, 3) + load * f0
+        dfh = (c @ vel.reshape(-1)).reshape(-1, 3) + load_rate * f0
+        n_b = base.normals[sl]
+        # Slip directions from the held (trial) force, as in a return mapping; the base force if that has
+        # no tangential part.  For a node sliding steadily the two agree to O(dt).
+        t_hat = np.zeros((len(sl), 3))
+        for src in (base.forces[sl], fh[sl]):
+            ft = src - np.einsum("ki,ki->k", src, n_b)[:, None] * n_b
+            ftn = np.linalg.norm(ft, axis=1)
+            ok = ftn > DIRECTION_FLOOR * max(float(np.abs(src).max(initial=0.0)), 1e-300)
+            t_hat[ok] = ft[ok] / ftn[ok, None]
+        if np.any(np.linalg.norm(t_hat, axis=1) == 0):
+            raise SlipFailure("a sliding contact has no tangential force, so no slip direction")
+        r = np.zeros((len(sl), 3))
+        fing = kinds != TABLE
+        if fing.any():
+            p_b = self.points[base.nodes[sl[fing]]] + base.disp[sl[fing]]
+            r[fing] = p_b - base.centers[kinds[fing]]
+            r[fing] *= self.radius / np.linalg.norm(r[fing], axis=1, keepdims=True)
+        return disp_h, fh, dfh, t_hat, r
+
     @staticmethod
     def _same_motion(key: tuple, old: tuple | None) -> bool:
         """Whether ``key`` (base state, parameter, velocities, load rate) names the same motion as ``old``;
@@ -588,6 +606,15 @@ class Tracker:
         B, C, D: positions in the contact set.
         """
         st = trial.state
+        if self.compiled:
+            table = self.table
+            a_val, b_val, c_val, d_val = events.event_functions(
+                st.surface_positions, st.centers, self.radius, table is not None, self.up,
+                0.0 if table is None else float(table.height), self.surface_index[st.nodes], st.owner, st.forces,
+                st.normals, st.sliding, trial.rates, self.mu[st.owner], float(fscale), float(self.diameter),
+                TOL_PENETRATION, TOL_TENSILE, TOL_CONE, TOL_FORCE_FLOOR, TOL_RATE, STICK_HYSTERESIS)
+            ids = np.arange(st.n_contacts)
+            return {"A": (a_val, np.arange(a_val.size)), "B": (b_val, ids), "C": (c_val, ids), "D": (d_val, ids)}
         gaps = self.obstacle_gaps(st.surface_positions, st.centers)
         own = self.surface_index[st.nodes]
         on = own >= 0
@@ -1074,3 +1101,22 @@ def _run(tracker: Tracker, state: ContactState, velocities: np.ndarray, *, stop:
             return state, events, True
     return state, events, False
 
+
+
+@warm_up_sample
+def _compile_the_trial_kernels() -> None:
+    """A trial's held prediction and event functions (the kernels of
+    :mod:`~fem_grasp.contact.kernels.slip_trial` and :mod:`~fem_grasp.contact.kernels.events` that
+    :meth:`Tracker.trial` and :meth:`Tracker.event_values` call), on the warm-up's two contacts."""
+    s = sample_contacts()
+    owner = np.array([TABLE, FINGER1])
+    sl = np.array([0, 1])
+    normals = np.array([s["up"], [0.0, 0.0, 1.0]])
+    slip_trial.held_prediction(100.0 * np.eye(6), s["forces"], np.zeros((2, 3)), owner, np.zeros((2, 3)), 0.0, 1.0,
+                               0.0, s["forces"], normals, sl, owner[sl], s["positions"],
+                               np.array([s["centre"], s["centre"]]), 0.01, DIRECTION_FLOOR)
+    for has_table in (True, False):
+        events.event_functions(s["positions"], np.array([s["centre"], s["centre"]]), 0.01, has_table, s["up"], 0.0,
+                               np.array([0, 1]), owner, s["forces"], normals, np.array([False, True]), np.zeros(2),
+                               s["mu"], 1.0, 0.1, TOL_PENETRATION, TOL_TENSILE, TOL_CONE, TOL_FORCE_FLOOR, TOL_RATE,
+                               STICK_HYSTERESIS)

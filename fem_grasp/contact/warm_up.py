@@ -12,7 +12,7 @@ from __future__ import annotations
 import importlib
 import time
 
-from . import relaxation, slip_system  # noqa: F401 - importing them registers their samples
+from . import relaxation, slip_system, tracking  # noqa: F401 - importing them registers their samples
 from .kernels import jit
 
 __all__ = ["entry_points", "warm_up"]

@@ -468,6 +468,14 @@ class Compliance:
             raise ValueError("this Compliance keeps no surface rows (Compliance(surface=...))")
         return self._combine(self._surface_columns, nodes, coefficients)
 
+    def surface_block(self, nodes: np.ndarray) -> np.ndarray:
+        """(3s, 3m) the surface rows of the columns of ``nodes``, as one array (what :meth:`combine_surface` sums
+        column block by column block)."""
+        if self._surface_rows is None:
+            raise ValueError("this Compliance keeps no surface rows (Compliance(surface=...))")
+        self._ensure(nodes)
+        return np.concatenate([self._surface_columns[int(k)] for k in nodes], axis=1)
+
     def _combine(self, columns: dict[int, np.ndarray], nodes: np.ndarray, coefficients: np.ndarray) -> np.ndarray:
         self._ensure(nodes)
         a = np.asarray(coefficients, dtype=float).reshape(-1, 3)

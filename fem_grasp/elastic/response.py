@@ -52,6 +52,11 @@ COLLINEAR_TOLERANCE = 1e-8
 #: contacts approach a line at angle θ, so 1e12 refuses θ below ~1e-6 rad.
 MAX_CONDITION = 1e12
 WARN_CONDITION = 1e9
+#: A contact response keeps the surface rows of its contacts' compliance columns as one (3s, 3m) block when that
+#: takes at most this many bytes: a surface field is then one matrix-vector product instead of m (the tracking
+#: asks for one at every trial state, several per contact set; 442 kB for the tomato's 20 contacts, and a
+#: 10k-vertex body's 300-contact sets, ~70 MB, keep summing the cached columns instead).
+SURFACE_BLOCK_BYTES = 16 * 2**20
 
 
 def contact_dofs(nodes: np.ndarray) -> np.ndarray:
@@ -213,7 +218,8 @@ class ContactResponse:
     @property
     def nbytes(self) -> int:
         """Memory held by this response's own dense matrices (M, its LU factors, C once computed)."""
-        own = [self._matrix, self._lu[0], self._lu[1], self.__dict__.get("reduced_stiffness")]
+        own = [self._matrix, self._lu[0], self._lu[1], self.__dict__.get("reduced_stiffness"),
+               self.__dict__.get("_surface_block")]
         return sum(a.nbytes for a in own if a is not None)
 
     @property
@@ -276,6 +282,13 @@ class ContactResponse:
         field[self.dofs] = d
         return ContactSolution(self.nodes, f.reshape(-1, 3), field.reshape(-1, 3), self.body)
 
+    @cached_property
+    def _surface_block(self) -> np.ndarray | None:
+        """The surface rows of the contacts' compliance columns, (3s, 3m), or None above ``SURFACE_BLOCK_BYTES``."""
+        if 9 * len(self.body.mesh.surface_nodes) * self.n_contacts * 8 > SURFACE_BLOCK_BYTES:
+            return None
+        return self.body.compliance.surface_block(self.nodes)
+
     def surface_displacements(self, displacements: np.ndarray) -> np.ndarray:
         """(s, 3) the displacement field of :meth:`solve` at ``mesh.surface_nodes`` only.
 
@@ -289,7 +302,9 @@ class ContactResponse:
             return self.solve(d).displacements[surface]
         f, b = self._solve_bordered(d - self._d_bar, self._rhs_rigid)
         grav, null = self.body.surface_field_terms
-        field = (self.body.compliance.combine_surface(self.nodes, f) + grav + null @ b).reshape(-1, 3)
+        block = self._surface_block
+        combined = self.body.compliance.combine_surface(self.nodes, f) if block is None else block @ f
+        field = (combined + grav + null @ b).reshape(-1, 3)
         pos = self.body.mesh.surface_index[self.nodes]
         on = pos >= 0
         field[pos[on]] = d.reshape(-1, 3)[on]  # the prescribed values, exactly (as in solve)

@@ -34,10 +34,11 @@ import numpy as np
 from . import slip_newton
 from .jit import jit
 
-__all__ = ["ENTRY_POINTS", "HOMOTOPY_REASONS", "SINGULAR_DETAILS", "assemble", "homotopy", "newton_root", "outcome"]
+__all__ = ["ENTRY_POINTS", "HOMOTOPY_REASONS", "SINGULAR_DETAILS", "assemble", "fused_newton", "held_prediction", "homotopy",
+           "newton_root", "outcome"]
 
 #: The kernels called from Python (what a warm-up must reach).
-ENTRY_POINTS = ("assemble", "homotopy", "newton_root", "outcome")
+ENTRY_POINTS = ("assemble", "held_prediction", "homotopy", "newton_root", "outcome")
 
 #: Owner code of a table contact (``fem_grasp.contact.obstacles.TABLE``).
 _TABLE = 2
@@ -699,3 +700,53 @@ def fused_newton(y, lim, max_iter, scale, row_scale, base, g, dmap, n0, kappa, m
         if not abs(r[i]) <= 10.0 * lim[i]:
             ok = False
     return ok, y
+
+
+# --------------------------------------------------------- held prediction
+@jit
+def held_prediction(c, f0, disp, owner, velocities, dt, load, load_rate, base_forces, base_normals, sl, kinds,
+                    points_sl, centers, radius, direction_floor):
+    """Step 1 of an increment (``Tracker.trial``): every finger contact moved with its finger by dt, the held
+    forces F_h = C Δ̄_h + λ F̄₀ (eq. 5) and their rate along the parameter, and the slip system's directions.
+
+    Returns
+    -------
+    (disp_h (m, 3), fh (m, 3), dfh (m, 3), t_hat (p, 3), r (p, 3), every sliding contact has a direction): t_hat from
+    the held force's tangential part (the base force's where the held one has none), r_k = R (p̃_k − O)/|p̃_k − O|
+    for the fingertip nodes.
+    """
+    m = disp.shape[0]
+    p = sl.shape[0]
+    vel = np.zeros((m, 3))
+    for k in range(m):
+        if owner[k] != _TABLE:
+            vel[k] = velocities[owner[k]]
+    disp_h = disp + dt * vel
+    fh = (c @ disp_h.reshape(-1)).reshape(m, 3) + load * f0
+    dfh = (c @ vel.reshape(-1)).reshape(m, 3) + load_rate * f0
+    t_hat = np.zeros((p, 3))
+    for pass_ in range(2):
+        big = 0.0
+        for j in range(p):
+            for i in range(3):
+                v = base_forces[sl[j], i] if pass_ == 0 else fh[sl[j], i]
+                big = max(big, abs(v))
+        floor = direction_floor * max(big, 1e-300)
+        for j in range(p):
+            src = base_forces[sl[j]] if pass_ == 0 else fh[sl[j]]
+            nb = base_normals[sl[j]]
+            fn = src[0] * nb[0] + src[1] * nb[1] + src[2] * nb[2]
+            ft = src - fn * nb
+            ftn = math.sqrt(ft[0] * ft[0] + ft[1] * ft[1] + ft[2] * ft[2])
+            if ftn > floor:
+                t_hat[j] = ft / ftn
+    ok = True
+    for j in range(p):
+        if t_hat[j, 0] == 0.0 and t_hat[j, 1] == 0.0 and t_hat[j, 2] == 0.0:
+            ok = False
+    r = np.zeros((p, 3))
+    for j in range(p):
+        if kinds[j] != _TABLE:
+            rj = points_sl[j] + disp[sl[j]] - centers[kinds[j]]
+            r[j] = rj * (radius / _norm3(rj))
+    return disp_h, fh, dfh, t_hat, r, ok
