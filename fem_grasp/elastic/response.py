@@ -53,10 +53,13 @@ COLLINEAR_TOLERANCE = 1e-8
 MAX_CONDITION = 1e12
 WARN_CONDITION = 1e9
 #: A contact response keeps the surface rows of its contacts' compliance columns as one (3s, 3m) block when that
-#: takes at most this many bytes: a surface field is then one matrix-vector product instead of m (the tracking
-#: asks for one at every trial state, several per contact set; 442 kB for the tomato's 20 contacts, and a
-#: 10k-vertex body's 300-contact sets, ~70 MB, keep summing the cached columns instead).
-SURFACE_BLOCK_BYTES = 16 * 2**20
+#: takes at most this many bytes, from its third surface field on: a field is then one matrix-vector product
+#: instead of m small ones, which pays where numpy's per-call overhead dominates (the tomato's 307 surface nodes
+#: and 20 contacts, 442 kB, asked for 5-7 fields per contact set).  Copying the block costs about one field, and
+#: a large body's fields are limited by memory bandwidth either way: a block per set made the 10k-vertex orange
+#: (~3,000 surface nodes, implicit increments of one or two fields per set) 10 % slower.
+SURFACE_BLOCK_BYTES = 2 * 2**20
+SURFACE_BLOCK_AFTER = 2
 
 
 def contact_dofs(nodes: np.ndarray) -> np.ndarray:
@@ -175,6 +178,7 @@ class ContactResponse:
         self.backend = backend
         self.nodes = check_contact_set(body.mesh.points, nodes)
         self.dofs = contact_dofs(self.nodes)
+        self._surface_fields = 0  # surface fields asked for so far (see SURFACE_BLOCK_AFTER)
         if backend == "sparse":
             comp = body.compliance
             self._null = body.orthonormal_rigid_modes
@@ -302,7 +306,8 @@ class ContactResponse:
             return self.solve(d).displacements[surface]
         f, b = self._solve_bordered(d - self._d_bar, self._rhs_rigid)
         grav, null = self.body.surface_field_terms
-        block = self._surface_block
+        self._surface_fields += 1
+        block = self._surface_block if self._surface_fields > SURFACE_BLOCK_AFTER else None
         combined = self.body.compliance.combine_surface(self.nodes, f) if block is None else block @ f
         field = (combined + grav + null @ b).reshape(-1, 3)
         pos = self.body.mesh.surface_index[self.nodes]
