@@ -63,12 +63,12 @@ def slip_trials():
     return out
 
 
-def in_plain_python(name: str, tmp_path: Path):
-    """tests.contact.test_jit.<name>() run in a subprocess with FEM_GRASP_NO_JIT=1."""
+def in_plain_python(name: str, tmp_path: Path, module: str = "tests.contact.test_jit"):
+    """<module>.<name>() run in a subprocess with FEM_GRASP_NO_JIT=1."""
     out = tmp_path / f"{name}.pkl"
     env = dict(os.environ, FEM_GRASP_NO_JIT="1")
     code = ("import pickle, sys; from fem_grasp.contact.kernels import jit; assert not jit.ENABLED; "
-            f"from tests.contact.test_jit import {name}; pickle.dump({name}(), open(sys.argv[1], 'wb'))")
+            f"from {module} import {name}; pickle.dump({name}(), open(sys.argv[1], 'wb'))")
     subprocess.run([sys.executable, "-c", code, str(out)], cwd=ROOT, env=env, check=True)
     return pickle.loads(out.read_bytes())
 
@@ -137,7 +137,7 @@ def test_warm_up_compiles_every_entry_point(tmp_path):
     points = entry_points()
     assert set(points) == {"fem_grasp.contact.kernels.gauss_seidel", "fem_grasp.contact.kernels.slip_newton",
                            "fem_grasp.contact.kernels.slip_trial", "fem_grasp.contact.kernels.polish",
-                           "fem_grasp.contact.kernels.events"}
+                           "fem_grasp.contact.kernels.events", "fem_grasp.contact.kernels.dense"}
     for module, names in points.items():
         mod = importlib.import_module(module)
         assert names and all(callable(getattr(mod, n)) for n in names)

@@ -22,8 +22,8 @@ import math
 
 import numpy as np
 
+from . import dense
 from . import gauss_seidel as gs
-from . import slip_trial
 from .jit import jit
 
 __all__ = ["ENTRY_POINTS", "polish"]
@@ -161,8 +161,7 @@ def polish(rec, c, f0, mu, status, d, u, tol, stick_tol, max_slip):
     r, f, dd, jac = _evaluate(x, rec, c, f0, mu, d, act, slide, offs, True)
     fresh_lu = False
     have_lu = False
-    lu = np.zeros((0, 0))
-    piv = np.zeros(0, np.int64)
+    lu, piv, info = dense.lu_factor(np.zeros((0, 0)))
     converged = False
     for _ in range(_ITERATIONS):
         norm = math.sqrt(np.dot(r, r))
@@ -171,12 +170,11 @@ def polish(rec, c, f0, mu, status, d, u, tol, stick_tol, max_slip):
             break
         fresh_lu = not have_lu
         if fresh_lu:
-            lu, piv = slip_trial._lu(jac)
-            for k in range(lu.shape[0]):
-                if lu[k, k] == 0.0:
-                    return False, d, u, f0  # exactly singular
+            lu, piv, info = dense.lu_factor(jac)  # LAPACK's factors, as scipy's lu_factor
+            if info > 0:
+                return False, d, u, f0  # exactly singular
             have_lu = True
-        step = -slip_trial._lu_apply(lu, piv, r)
+        step = -dense.lu_solve(lu, piv, r)
         if not np.isfinite(step).all():
             return False, d, u, f0
         # Armijo backtracking on |r| down to 1/8 (a shorter step means wrong statuses: the sweeps go on).

@@ -31,7 +31,7 @@ import math
 
 import numpy as np
 
-from . import slip_newton
+from . import dense, slip_newton
 from .jit import jit
 
 __all__ = ["ENTRY_POINTS", "HOMOTOPY_REASONS", "SINGULAR_DETAILS", "assemble", "fused_newton", "held_prediction", "homotopy",
@@ -226,52 +226,19 @@ def newton_root(y, lim, scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, 
 
 @jit
 def _solve_checked(a, b):
-    """x with a x = b by LU with partial pivoting; (False, ·) when a pivot is below ``_SINGULAR_PIVOT`` of the
-    largest (a friction limit: no rates) or the matrix is not finite."""
+    """x with a x = b by LAPACK's LU; (False, ·) when a pivot is below ``_SINGULAR_PIVOT`` of the largest (a friction
+    limit: no rates) or the matrix is not finite (``MixedSlipSystem.rates``' test on scipy's factors)."""
     n = a.shape[0]
-    lu = a.copy()
-    x = b.copy()
-    if not (np.isfinite(lu).all() and np.isfinite(x).all()):
-        return False, x
-    piv = np.empty(n, np.int64)
-    for k in range(n):
-        q = k
-        for i in range(k + 1, n):
-            if abs(lu[i, k]) > abs(lu[q, k]):
-                q = i
-        piv[k] = q
-        if q != k:
-            for col in range(n):
-                tmp = lu[k, col]
-                lu[k, col] = lu[q, col]
-                lu[q, col] = tmp
-        if lu[k, k] != 0.0:
-            for i in range(k + 1, n):
-                lu[i, k] /= lu[k, k]
-                f = lu[i, k]
-                if f != 0.0:
-                    for col in range(k + 1, n):
-                        lu[i, col] -= f * lu[k, col]
+    if not (np.isfinite(a).all() and np.isfinite(b).all()):
+        return False, b
+    lu, piv, info = dense.lu_factor(a)
     big, small = 0.0, np.inf
     for k in range(n):
         big = max(big, abs(lu[k, k]))
         small = min(small, abs(lu[k, k]))
     if n and not small > _SINGULAR_PIVOT * big:
-        return False, x
-    for k in range(n):
-        q = piv[k]
-        if q != k:
-            tmp = x[k]
-            x[k] = x[q]
-            x[q] = tmp
-    for i in range(n):
-        for k in range(i):
-            x[i] -= lu[i, k] * x[k]
-    for i in range(n - 1, -1, -1):
-        for k in range(i + 1, n):
-            x[i] -= lu[i, k] * x[k]
-        x[i] /= lu[i, i]
-    return True, x
+        return False, b
+    return True, dense.lu_solve(lu, piv, b)
 
 
 @jit
@@ -335,54 +302,6 @@ _CORRECTOR_ITERS = 6  # homotopy._CORRECTOR_ITERS
 
 
 @jit
-def _lu(a):
-    """In-place LU with partial pivoting of a copy of ``a``: (factors, pivots)."""
-    n = a.shape[0]
-    lu = a.copy()
-    piv = np.empty(n, np.int64)
-    for k in range(n):
-        q = k
-        for i in range(k + 1, n):
-            if abs(lu[i, k]) > abs(lu[q, k]):
-                q = i
-        piv[k] = q
-        if q != k:
-            for col in range(n):
-                tmp = lu[k, col]
-                lu[k, col] = lu[q, col]
-                lu[q, col] = tmp
-        if lu[k, k] != 0.0:
-            for i in range(k + 1, n):
-                lu[i, k] /= lu[k, k]
-                f = lu[i, k]
-                if f != 0.0:
-                    for col in range(k + 1, n):
-                        lu[i, col] -= f * lu[k, col]
-    return lu, piv
-
-
-@jit
-def _lu_apply(lu, piv, b):
-    """x with (P L U) x = b from :func:`_lu`'s factors."""
-    n = lu.shape[0]
-    x = b.copy()
-    for k in range(n):
-        q = piv[k]
-        if q != k:
-            tmp = x[k]
-            x[k] = x[q]
-            x[q] = tmp
-    for i in range(n):
-        for k in range(i):
-            x[i] -= lu[i, k] * x[k]
-    for i in range(n - 1, -1, -1):
-        for k in range(i + 1, n):
-            x[i] -= lu[i, k] * x[k]
-        x[i] /= lu[i, i]
-    return x
-
-
-@jit
 def _lin_solve(a, b):
     """``homotopy._lin_solve``: (detail code, x), code 0 when solved; singular when the matrix or right-hand side is
     not finite, the matrix is zero, or its 1-norm condition number exceeds 1e14 (here ‖A‖₁‖A⁻¹‖₁ itself, where
@@ -399,23 +318,22 @@ def _lin_solve(a, b):
         anorm = max(anorm, s)
     if anorm == 0.0:
         return 2, b
-    lu, piv = _lu(a)
-    for k in range(n):
-        if lu[k, k] == 0.0:
-            return 3, b
+    lu, piv, info = dense.lu_factor(a)
+    if info > 0:
+        return 3, b
     inv_norm = 0.0
     e = np.zeros(n)
     for col in range(n):
         e[:] = 0.0
         e[col] = 1.0
-        z = _lu_apply(lu, piv, e)
+        z = dense.lu_solve(lu, piv, e)
         s = 0.0
         for i in range(n):
             s += abs(z[i])
         inv_norm = max(inv_norm, s)
     if not (np.isfinite(inv_norm) and anorm * inv_norm < _COND_MAX):
         return 3, b
-    return 0, _lu_apply(lu, piv, b)
+    return 0, dense.lu_solve(lu, piv, b)
 
 
 @jit
@@ -622,7 +540,8 @@ def _norm(v):
 @jit
 def fused_newton(y, lim, max_iter, scale, row_scale, base, g, dmap, n0, kappa, mu, sph, free):
     """:func:`~fem_grasp.contact.kernels.slip_newton.newton` (the same damped iteration, tests and limits) on
-    preallocated arrays: residual and Jacobian in loops over the affine maps, the step by :func:`_lu`.
+    preallocated arrays: residual and Jacobian in loops over the affine maps, the step by LAPACK's LU
+    (:mod:`~fem_grasp.contact.kernels.dense`).
 
     Returns
     -------
@@ -661,14 +580,10 @@ def fused_newton(y, lim, max_iter, scale, row_scale, base, g, dmap, n0, kappa, m
         for i in range(nx):
             for j in range(nx):
                 jac[i, j] = row_scale[i] * jac[i, j] * scale[j]
-        lu, piv = _lu(jac)
-        singular = False
-        for i in range(nx):
-            if lu[i, i] == 0.0:
-                singular = True
-        if singular:
+        lu, piv, info = dense.lu_factor(jac)  # as np.linalg.solve's LAPACK gesv
+        if info > 0:
             return False, y
-        step = _lu_apply(lu, piv, -r)
+        step = dense.lu_solve(lu, piv, -r)
         if not np.isfinite(step).all():
             return False, y
         lam = 1.0
