@@ -68,7 +68,10 @@ Sections (``--only NAME``, repeatable; default all):
     processes taking turns: medians after the first call, their ratio, and
     whether the answers are the same (events, ρ* to 1e-9, forces to 1e-9 mg);
     then the uniform orange at 10k and 100k vertices (up to
-    ``--max-vertices``) (:mod:`bench.tracker`; ``--baseline REV``).
+    ``--max-vertices``), and the convergence study's cheapest converged
+    routes (the tomato and the football graded to R/4 at fingertips and
+    table: #27's time to a converged answer) (:mod:`bench.tracker`;
+    ``--baseline REV``).
 
 Medians over ``--reps`` repetitions.  Prints tables and writes
 ``bench/out/bench.json`` (sections run earlier are kept when ``--only`` runs
@@ -765,10 +768,11 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         elif name == "converge":
             data["converge"] = section_converge(args.converge_quick)
         elif name == "tracker":
-            from bench.tracker import DEFAULT_BASELINE, section_tracker
+            from bench.tracker import DEFAULT_BASELINE, ROUTES, section_tracker
 
             data["tracker"] = section_tracker(args.baseline or DEFAULT_BASELINE, args.reps,
-                                              large=tuple(s for s in TRACKER_LARGE if s <= args.max_vertices))
+                                              large=tuple(s for s in TRACKER_LARGE if s <= args.max_vertices),
+                                              routes=ROUTES)
         elif name == "floor":
             data["floor"] = section_floor([s for s in SCALING_SIZES if s <= args.max_vertices], args.reps,
                                           data.get("scaling"))

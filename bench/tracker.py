@@ -39,6 +39,10 @@ SCENES = ("tomato", "orange", "steam_bun", "football", "foam_block")
 DEFAULT_BASELINE = "8d4802882b8d0ef62be1f91ccaf5e132eca56f11"
 #: The orange scene's modulus, for the uniform oranges of ``--large`` (as in the scaling section).
 ORANGE_YOUNG = 2e4
+#: The convergence study's cheapest routes to a converged answer (docs/convergence.md, "time to target"): the
+#: tomato (2 %) and the football (10 %) meshed finer at the fingertips and the table, inner spacing R/4
+#: (``--routes``; #27's "time to a 5 % answer").
+ROUTES = (("tomato", 0.25), ("football", 0.25))
 #: "The same answer" (#27): ρ* to 1e-9 relative ...
 SAME_RHO = 1e-9
 #: ... and final contact forces to 1e-9 of mg.
@@ -100,12 +104,59 @@ def serve() -> int:
     for line in sys.stdin:
         request = json.loads(line)
         try:
-            answer = (_orange_pickup(request["mesh"]) if "mesh" in request else
-                      _pickup(request["scene"], bool(request.get("quick"))))
+            if "route" in request:
+                answer = _route_pickup(request["mesh"], request["route"])
+            elif "mesh" in request:
+                answer = _orange_pickup(request["mesh"])
+            else:
+                answer = _pickup(request["scene"], bool(request.get("quick")))
         except Exception as exc:  # noqa: BLE001 - reported to the parent, which names the tree and the scene
             answer = {"error": f"{type(exc).__name__}: {exc}"}
         print(json.dumps(answer), flush=True)
     return 0
+
+
+def _route_pickup(path: str, scene_name: str) -> dict[str, Any]:
+    """A shipped scene's pickup on another mesh of its object (a graded mesh of ``--routes``, saved by the parent
+    with the contact nodes nearest the scene's): the body as the convergence study builds it, the scene's settings."""
+    import numpy as np
+
+    from fem_grasp.elastic.body import Body
+    from fem_grasp.grasp.pickup import pickup
+    from fem_grasp.io.scene import load_scene, resolve_scene
+    from fem_grasp.mesh.tetmesh import TetMesh
+
+    scene = load_scene(resolve_scene(scene_name))
+    with np.load(path) as data:
+        mesh = TetMesh(data["points"], data["tets"])
+        contacts = tuple(int(k) for k in data["contacts"]) if data["contacts"].size else None
+    kw = scene.pickup_kwargs()
+    if contacts is not None:
+        kw["contacts"] = contacts
+    t0 = time.perf_counter()
+    body = Body(mesh, scene.young, scene.poisson, gravity=scene.gravity,
+                **({"weight": scene.weight} if scene.weight is not None else {"density": scene.density}))
+    result = pickup(body, **kw)
+    return {"seconds": time.perf_counter() - t0, "fingerprint": fingerprint(result), "vertices": int(len(mesh.points))}
+
+
+def route_mesh(scene_name: str, inner: float, cache: Path) -> Path:
+    """The convergence study's graded mesh of a scene's object (fingertips and table at ``inner`` × R), built once
+    with gmsh and saved with the scene's contact nodes mapped onto it (``verification.converge.specs``)."""
+    import numpy as np
+
+    from verification.converge import specs
+
+    path = cache / f"{scene_name}_graded_table_{inner:g}.npz"
+    if not path.exists():
+        spec = {"object": scene_name, "series": "graded_table", "inner": inner}
+        scene = specs.scene_of(scene_name)
+        mesh, _ = specs.build_mesh(spec, scene)
+        contacts = specs.pickup_kwargs(spec, scene, mesh).get("contacts")
+        cache.mkdir(parents=True, exist_ok=True)
+        np.savez(path, points=mesh.points, tets=mesh.tets,
+                 contacts=np.asarray(contacts if contacts is not None else [], dtype=np.int64))
+    return path
 
 
 # ------------------------------------------------------------------ parent side
@@ -177,8 +228,11 @@ class _Worker:
             self.close()
             raise RuntimeError(f"the {label} worker imported fem_grasp from {hello['fem_grasp']}, not from {tree}")
 
-    def pickup(self, scene: str, quick: bool = False, mesh: Path | None = None) -> dict[str, Any]:
-        request = {"scene": scene, "quick": quick} if mesh is None else {"mesh": str(mesh)}
+    def pickup(self, scene: str, quick: bool = False, mesh: Path | None = None,
+               route: str | None = None) -> dict[str, Any]:
+        request: dict[str, Any] = {"scene": scene, "quick": quick} if mesh is None else {"mesh": str(mesh)}
+        if route is not None:
+            request["route"] = route
         self.proc.stdin.write(json.dumps(request) + "\n")
         self.proc.stdin.flush()
         answer = json.loads(self.proc.stdout.readline())
@@ -195,10 +249,11 @@ class _Worker:
 def section_tracker(baseline: str = DEFAULT_BASELINE, reps: int = 3, scenes: tuple[str, ...] = SCENES,
                     warm_up: str | None = "foam_block", quick: bool = False,
                     export_to: Path | None = None, large: tuple[int, ...] = (),
-                    mesh_cache: Path | None = None) -> dict[str, Any]:
+                    mesh_cache: Path | None = None, routes: tuple[tuple[str, float], ...] = ()) -> dict[str, Any]:
     """Time the shipped scenes' pickups (their ``[quick]`` variants with ``quick``) with the baseline's fem_grasp
     and this checkout's, interleaved (module notes); medians of ``reps`` after the first call.  ``large``: also
-    the uniform orange of about that many vertices (the scaling section's, rest included), one row each."""
+    the uniform orange of about that many vertices (the scaling section's, rest included), one row each;
+    ``routes``: also these (scene, inner spacing / R) graded meshes (:data:`ROUTES`)."""
     sha, tree = export_baseline(baseline, export_to)
     workers = {"baseline": _Worker("baseline", tree), "current": _Worker("current", ROOT)}
     try:
@@ -206,20 +261,24 @@ def section_tracker(baseline: str = DEFAULT_BASELINE, reps: int = 3, scenes: tup
             if warm_up:
                 w.pickup(warm_up, quick=True)
         rows = []
-        cases: list[tuple[str, Path | None]] = [(scene, None) for scene in scenes]
-        if large:
+        cases: list[tuple[str, Path | None, str | None]] = [(scene, None, None) for scene in scenes]
+        if large or routes:
             from bench.meshes import CACHE, cached_mesh
 
             cache = mesh_cache or CACHE
             for size in large:
                 cached_mesh("orange", size, cache)  # gmsh once, then both trees read the same file
-                cases.append((f"orange {size / 1000:g}k", cache / f"orange_{int(size)}.npz"))
-        for scene, mesh in cases:
+                cases.append((f"orange {size / 1000:g}k", cache / f"orange_{int(size)}.npz", None))
+            for name, inner in routes:
+                cases.append((f"{name} R/{1 / inner:g}", route_mesh(name, inner, cache), name))
+        for scene, mesh, route in cases:
             runs: dict[str, list[dict[str, Any]]] = {"baseline": [], "current": []}
             for _ in range(reps + 1):
                 for label, w in workers.items():
-                    runs[label].append(w.pickup(scene, quick, mesh))
+                    runs[label].append(w.pickup(scene, quick, mesh, route))
             row: dict[str, Any] = {"scene": scene}
+            if route is not None:
+                row["vertices"] = runs["current"][0].get("vertices")
             for label, rs in runs.items():
                 row[label] = {"first": rs[0]["seconds"], "median": statistics.median(r["seconds"] for r in rs[1:]),
                               "times": [r["seconds"] for r in rs]}
@@ -245,6 +304,8 @@ def print_tracker(sec: dict[str, Any]) -> None:
           f"(events, |dρ*|/ρ*, max |df|/mg)")
     for r in sec["rows"]:
         a = r["answer"]
+        if r.get("vertices"):
+            print(f"{r['scene']} ({r['vertices']:,} vertices):")
         print(f"{r['scene']:<11} {r['baseline']['median']:9.3f} {r['current']['median']:9.3f} {r['ratio']:8.2f}x "
               f"{r['baseline']['first']:6.2f}/{r['current']['first']:<6.2f}  {'yes' if a['same'] else 'NO '} "
               f"({'same' if a['same_events'] else 'different'} {a['events'][1]} events, {a['rho_rel']:.1e}, "
@@ -264,13 +325,16 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--quick", action="store_true", help="the scenes' [quick] variants")
     ap.add_argument("--large", type=int, nargs="*", default=[],
                     help="also the uniform orange of about these many vertices (e.g. 10000 100000)")
+    ap.add_argument("--routes", action="store_true",
+                    help="also the convergence study's converged routes: " + ", ".join(
+                        f"{n} graded to R/{1 / i:g} at fingertips and table" for n, i in ROUTES))
     ap.add_argument("--serve", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.serve:
         return serve()
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
     print_tracker(section_tracker(args.baseline, args.reps, tuple(args.scenes), quick=args.quick,
-                                  large=tuple(args.large)))
+                                  large=tuple(args.large), routes=ROUTES if args.routes else ()))
     return 0
 
 
