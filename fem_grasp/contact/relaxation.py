@@ -311,7 +311,7 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
     stick_tol = tol * fs_scale
     mu = np.asarray(mu, float)
     # The sweep's working state, as arrays (compiled) or lists (plain Python): see fem_grasp.contact.kernels.jit.
-    k_rec, k_c, k_mu = as_kernel_data(rec), as_kernel_data(c), as_kernel_data(mu)
+    k_rec, k_ct, k_mu = as_kernel_data(rec), as_kernel_data(c.T), as_kernel_data(mu)  # the sweep reads C's columns
     f, d, u = as_kernel_data(f0), as_kernel_data(np.zeros((m, 3))), as_kernel_data(np.zeros((m, 2)))
     has_u, status = as_kernel_data(np.zeros(m), np.int64), as_kernel_data(np.full(m, STICK), np.int64)
     memo, unsolved_force = as_kernel_data(np.zeros((m, 10))), as_kernel_data(np.zeros(3))
@@ -322,7 +322,7 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
     best_change, best_sweep = np.inf, 0
     polished = None
     for sweep in range(1, max_sweeps + 1):
-        code, k, change, move, unsolved = gs.sweep(k_rec, k_c, f, d, u, has_u, status, k_mu, stick_tol, local_tol,
+        code, k, change, move, unsolved = gs.sweep(k_rec, k_ct, f, d, u, has_u, status, k_mu, stick_tol, local_tol,
                                                    float(max_slip), memo, unsolved_force)
         if code == gs.FREE_TOO_FAR:
             raise RelaxationFailure(f"contact {k} would move more than {1e3 * max_slip:.3g} mm to carry no "

@@ -70,6 +70,23 @@ static state exists either (gross slip) does the tracking stop with
 :class:`TrackingError`.  The lift test's hanging settles use the same
 return mapping (:mod:`fem_grasp.grasp.lift_test`).
 
+Compiled trials
+---------------
+A trial state is ~6 numpy-sized steps on arrays of tens of contacts: the
+held prediction, the slip system's assembly, Newton's method (the homotopy
+where it fails), the read-out of forces, slips and rates, and the event
+functions.  Where numba is installed (:data:`COMPILED_TRIALS`) each is one
+kernel call (:mod:`~fem_grasp.contact.kernels.slip_trial`,
+:mod:`~fem_grasp.contact.kernels.events`, :class:`CompiledSlipSystem`);
+the numpy versions (:class:`MixedSlipSystem`, :meth:`Tracker._held_prediction`,
+the body of :meth:`Tracker.event_values`) are the reference path
+(``Tracker.compiled = False``), which the tests compare with it.  The two
+differ by round-off, so a pickup that sits on a knife edge can take the other
+branch: on the tomato a table node released in the lift penetrates the table
+by 0.98e-10 or 1.005e-10 diameters (the A test's tolerance is 1e-10),
+depending on where in its 1e-10 bracket the release was located, and
+re-touches and is released again at the same height on one path only.
+
 Modelling choices (the paper is silent or vague here)
 -----------------------------------------------------
 * **Slip directions are re-anchored every increment**: the great circle

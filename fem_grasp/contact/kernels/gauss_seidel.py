@@ -315,13 +315,14 @@ def outside_sphere(g, x0, x1, x2):
 
 
 @jit
-def sweep(rec, c, f, d, u, has_u, status, mu, stick_tol, local_tol, max_slip, memo, unsolved_force):
+def sweep(rec, ct, f, d, u, has_u, status, mu, stick_tol, local_tol, max_slip, memo, unsolved_force):
     """One Gauss–Seidel sweep over the contacts, in place on f, d, u, has_u, status and memo.
 
     Parameters
     ----------
     rec : (m, RECORD) contact records
-    c : (3m, 3m) reduced stiffness C
+    ct : (3m, 3m) the transpose of the reduced stiffness C (C's columns as rows: the rank-3 update of contact k
+        reads three contiguous rows instead of a strided column; the same numbers in the same order)
     f : (m, 3) current forces; d : (m, 3) current displacement changes δ
     u : (m, 2) tangential motion of each sliding contact, valid where has_u (m,) is 1
     status : (m,) STICK, SLIDE or RELEASE
@@ -397,10 +398,11 @@ def sweep(rec, c, f, d, u, has_u, status, mu, stick_tol, local_tol, max_slip, me
         y0, y1, y2 = x0 - dk0, x1 - dk1, x2 - dk2
         if y0 != 0.0 or y1 != 0.0 or y2 != 0.0:
             kc = 3 * k
+            col0, col1, col2 = ct[kc], ct[kc + 1], ct[kc + 2]  # C[:, kc], C[:, kc + 1], C[:, kc + 2]
             for j in range(m):
                 for i in range(3):
-                    row = c[3 * j + i]
-                    f[j][i] += row[kc] * y0 + row[kc + 1] * y1 + row[kc + 2] * y2
+                    r = 3 * j + i
+                    f[j][i] += col0[r] * y0 + col1[r] * y1 + col2[r] * y2
             a0, a1, a2 = _force(g, 0.0, 0.0, 0.0, y0, y1, y2)
             change = max(change, math.sqrt(a0 * a0 + a1 * a1 + a2 * a2))
             move = max(move, math.sqrt(y0 * y0 + y1 * y1 + y2 * y2))
