@@ -298,8 +298,8 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
     c = np.asarray(stiffness, float)
     f0 = np.array(forces, float)
     m = len(f0)
-    c4 = c.reshape(m, 3, m, 3)
-    ckk = np.array([c4[k, :, k, :] for k in range(m)]).reshape(m, 3, 3)
+    idx = np.arange(m)
+    ckk = np.ascontiguousarray(c.reshape(m, 3, m, 3)[idx, :, idx, :])  # (m, 3, 3): each contact's own block
     if m and np.any(np.linalg.det(ckk) == 0.0):
         raise RelaxationFailure("a contact's own stiffness block C_kk is singular")
     try:
@@ -315,7 +315,7 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
     f, d, u = as_kernel_data(f0), as_kernel_data(np.zeros((m, 3))), as_kernel_data(np.zeros((m, 2)))
     has_u, status = as_kernel_data(np.zeros(m), np.int64), as_kernel_data(np.full(m, STICK), np.int64)
     memo, unsolved_force = as_kernel_data(np.zeros((m, 10))), as_kernel_data(np.zeros(3))
-    last_status = list(status)
+    last_status = status.tobytes() if isinstance(status, np.ndarray) else list(status)
     next_polish, polish_fails = 2, 0
     moves: list[float] = []
     stuck = 0
@@ -348,7 +348,7 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
             raise RelaxationFailure(f"the stick/slip state stops settling after {sweep} Gauss–Seidel sweeps "
                                     f"(no progress in the last {STALL_SWEEPS}): friction cannot hold the "
                                     "contacts in a static state")
-        now_status = list(status)
+        now_status = status.tobytes() if isinstance(status, np.ndarray) else list(status)  # (compiled: an array)
         same = now_status == last_status
         # Once the statuses stop changing, Newton's method on their smooth system finishes the job
         # (Gauss–Seidel converges only linearly, slowly when the contacts are strongly coupled).
