@@ -138,10 +138,10 @@ from ..elastic.compliance import PREFETCH_NODES
 from ..elastic.response import ContactResponse, check_contact_set
 from ..errors import CollinearContactError, RelaxationFailure, TrackingError
 from ..threads import one_blas_thread
-from .obstacles import FINGER1, FINGER2, OBSTACLES, TABLE, Fingertip, TablePlane
-from .relaxation import RELEASE, SLIDE, relax_contacts
 from .kernels import events, jit, slip_trial
 from .kernels.jit import sample_contacts, warm_up_sample
+from .obstacles import FINGER1, FINGER2, OBSTACLES, TABLE, Fingertip, TablePlane
+from .relaxation import RELEASE, SLIDE, relax_contacts
 from .slip_system import CompiledSlipSystem, MixedSlipSystem, SlipFailure
 
 __all__ = ["FINGER1", "FINGER2", "OBSTACLES", "TABLE", "ContactEvent", "ContactState", "MixedSlipSystem", "Parameter",

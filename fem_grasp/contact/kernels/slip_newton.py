@@ -102,6 +102,15 @@ def jacobian(x, base, g, dmap, n0, kappa, mu, sph, free):
 
 
 @jit
+def progress(norm, best, since):
+    """The damped Newton iterations' give-up rule: (best norm, iterations since it fell by a tenth, give up after
+    six such iterations)."""
+    if norm < 0.9 * best:
+        return norm, 0, False
+    return best, since + 1, since + 1 >= 6
+
+
+@jit
 def newton(y, lim, max_iter, scale, row_scale, base, g, dmap, n0, kappa, mu, sph, free):
     """Damped Newton's method (backtracking on ‖P‖) on the scaled system P(y) = row_scale · residual(scale · y).
 
@@ -121,12 +130,9 @@ def newton(y, lim, max_iter, scale, row_scale, base, g, dmap, n0, kappa, mu, sph
         if np.all(np.abs(r) <= lim):
             return True, y
         norm = math.sqrt(np.dot(r, r))
-        if norm < 0.9 * best:
-            best, since = norm, 0
-        else:
-            since += 1
-            if since >= 6:
-                break
+        best, since, give_up = progress(norm, best, since)
+        if give_up:
+            break
         jac = row_scale.reshape(-1, 1) * jacobian(scale * y, base, g, dmap, n0, kappa, mu, sph, free) \
             * scale.reshape(1, -1)
         try:

@@ -569,12 +569,9 @@ def fused_newton(y, lim, max_iter, scale, row_scale, base, g, dmap, n0, kappa, m
         if done:
             return True, y
         norm = _norm(r)
-        if norm < 0.9 * best:
-            best, since = norm, 0
-        else:
-            since += 1
-            if since >= 6:
-                break
+        best, since, give_up = slip_newton.progress(norm, best, since)
+        if give_up:
+            break
         # The Jacobian at y: xs, f, d and n are those of the latest residual, which was y's.
         _fused_jacobian(xs, g, dmap, kappa, mu, sph, free, f, d, n, jac)
         for i in range(nx):
