@@ -7,7 +7,8 @@ and an LU written in the kernels is several times slower than LAPACK's beyond
 a hundred unknowns (690 µs against 200 µs at 150; the steam bun's polishes
 reach 300).  :func:`lu_factor` calls LAPACK's dgetrf — scipy's ``lu_factor``
 itself without numba, numba's own binding of the same routine (the one behind
-its ``np.linalg.inv``) when compiled — so the factors are scipy's bit for bit;
+its ``np.linalg.inv``) when compiled — so the factors are scipy's (bit for bit at the same BLAS thread count;
+OpenBLAS blocks the factorisation by its threads, so across processes they agree to round-off);
 :func:`lu_solve` applies them (row swaps and two triangular solves, O(n²)).
 """
 
