@@ -35,8 +35,8 @@ if TYPE_CHECKING:
     from .body import Body
 
 __all__ = ["BACKENDS", "COLLINEAR_TOLERANCE", "CollinearContactError", "ContactResponse", "ContactSolution",
-           "MAX_CONDITION", "WARN_CONDITION", "check_contact_set", "contact_dofs", "equilibrium_residual",
-           "solve_contact"]
+           "MAX_CONDITION", "NEIGHBOUR_BACKWARD_ERROR", "NEIGHBOUR_NODES", "NEIGHBOUR_UPDATES", "WARN_CONDITION",
+           "check_contact_set", "contact_dofs", "equilibrium_residual", "solve_contact"]
 
 log = logging.getLogger(__name__)
 
@@ -60,6 +60,19 @@ WARN_CONDITION = 1e9
 #: (~3,000 surface nodes, implicit increments of one or two fields per set) 10 % slower.
 SURFACE_BLOCK_BYTES = 2 * 2**20
 SURFACE_BLOCK_AFTER = 2
+#: A contact response is derived from a neighbouring set's (:meth:`ContactResponse.neighbour`) when the two sets
+#: differ by at most this many nodes: each node that joins or leaves is a rank-3 change of M⁻¹ (O(m²) work
+#: against the O(m³) of a fresh factorisation and of C); the event tracking changes its sets one or two nodes at
+#: a time.
+NEIGHBOUR_NODES = 6
+#: False: :meth:`ContactResponse.neighbour` derives nothing (every set factorised afresh, the reference the tests
+#: compare with).
+NEIGHBOUR_UPDATES = True
+#: Largest backward error ‖M x − r‖∞ / (‖M‖∞ ‖x‖∞) of a derived response's solves (x = M⁻¹ r for a probe r)
+#: before it is refused and the set factorised afresh.  A fresh LU solve reaches ~1e-17 here; each update adds
+#: round-off, and this bound keeps a derived C within cond(M) × 1e-14 (≈ 1e-10 at the cond ≈ 1e4 of real grasps)
+#: of a fresh one.
+NEIGHBOUR_BACKWARD_ERROR = 1e-14
 
 
 def contact_dofs(nodes: np.ndarray) -> np.ndarray:
@@ -222,7 +235,7 @@ class ContactResponse:
     @property
     def nbytes(self) -> int:
         """Memory held by this response's own dense matrices (M, its LU factors, C once computed)."""
-        own = [self._matrix, self._lu[0], self._lu[1], self.__dict__.get("reduced_stiffness"),
+        own = [self._matrix, *(self._lu or ()), self.__dict__.get("_inverse"), self.__dict__.get("reduced_stiffness"),
                self.__dict__.get("_surface_block")]
         return sum(a.nbytes for a in own if a is not None)
 
@@ -241,18 +254,124 @@ class ContactResponse:
 
     def _solve_bordered(self, rhs_top: np.ndarray, rhs_bottom: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         m3 = len(self.dofs)
-        sol = la.lu_solve(self._lu, np.concatenate([rhs_top, rhs_bottom]), check_finite=False)
+        rhs = np.concatenate([rhs_top, rhs_bottom])
+        sol = self._inverse @ rhs if self._lu is None else la.lu_solve(self._lu, rhs, check_finite=False)
         return sol[:m3], sol[m3:] * self._scale
+
+    @cached_property
+    def _inverse(self) -> np.ndarray:
+        """M⁻¹ ((3m+6)-square): from the LU factors, or kept up to date by :meth:`neighbour`."""
+        n = len(self.dofs) + 6
+        with blas_threads_for(n):
+            return la.lu_solve(self._lu, np.eye(n), check_finite=False)
 
     @cached_property
     def reduced_stiffness(self) -> np.ndarray:
         """C (3m×3m): the top-left block of M⁻¹ (eq. 5), symmetric with the rigid modes in its null space."""
         m3 = len(self.dofs)
-        rhs = np.zeros((m3 + 6, m3))
-        rhs[:m3] = np.eye(m3)
-        with blas_threads_for(m3 + 6):
-            c = la.lu_solve(self._lu, rhs, check_finite=False)[:m3]
+        c = self._inverse[:m3, :m3]
         return 0.5 * (c + c.T)
+
+    def neighbour(self, nodes: np.ndarray) -> "ContactResponse | None":
+        """The response of the contact set ``nodes`` derived from this one's M⁻¹, or None where that does not pay
+        or would not be accurate (then construct it afresh).
+
+        Nodes of this set missing from ``nodes`` leave M⁻¹ by a Schur complement (a rank-3 downdate each), new
+        ones join it by a bordered inverse (the 3a×3a Schur complement S = D − VᵀM⁻¹V of the new rows); the
+        result is permuted to the order of ``nodes``.  Derived sets keep this set's scaling of B (any positive
+        scale gives the same F̄).  Refused (None): the sparse backend only; sets differing by more than
+        :data:`NEIGHBOUR_NODES` nodes; an ill-conditioned or singular result (cond₁(M) above
+        :data:`WARN_CONDITION`: the fresh construction warns or refuses with its own message); a backward error
+        above :data:`NEIGHBOUR_BACKWARD_ERROR`.
+
+        Raises
+        ------
+        CollinearContactError
+            For the sets the constructor refuses by their nodes alone (:func:`check_contact_set`).
+        """
+        if not NEIGHBOUR_UPDATES or self.backend != "sparse":
+            return None
+        nodes = check_contact_set(self.body.mesh.points, nodes)  # refused as a fresh set would be
+        new_set = set(nodes.tolist())
+        old = self.nodes.tolist()
+        kept_pos = [i for i, k in enumerate(old) if k in new_set]
+        removed_pos = [i for i, k in enumerate(old) if k not in new_set]
+        kept = [old[i] for i in kept_pos]
+        old_set = set(old)
+        added = [k for k in nodes.tolist() if k not in old_set]
+        if len(removed_pos) + len(added) > NEIGHBOUR_NODES or len(kept) + len(added) != len(nodes):
+            return None
+
+        def dofs_of(positions: list[int]) -> np.ndarray:
+            return (3 * np.asarray(positions, dtype=np.int64)[:, None] + np.arange(3)).ravel()
+
+        m3, n3 = 3 * len(old), 3 * len(nodes)
+        keep = np.concatenate([dofs_of(kept_pos), np.arange(m3, m3 + 6)])  # in this response's M
+        at = {k: i for i, k in enumerate(nodes.tolist())}
+        to_kept = np.concatenate([dofs_of([at[k] for k in kept]), np.arange(n3, n3 + 6)])  # ... and in the new one
+        to_added = dofs_of([at[k] for k in added])
+        inv = self._inverse
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", la.LinAlgWarning)
+            try:
+                inv_kk = inv[np.ix_(keep, keep)]
+                if removed_pos:  # M⁻¹ of the kept rows: the Schur complement of the removed ones
+                    gone = dofs_of(removed_pos)
+                    inv_kg = inv[np.ix_(keep, gone)]
+                    inv_kk -= inv_kg @ la.solve(inv[np.ix_(gone, gone)], inv_kg.T, assume_a="sym",
+                                                check_finite=False)
+                if added:  # bordered by the added rows: [[M_k, V], [Vᵀ, D]]
+                    comp = self.body.compliance
+                    added_arr, kept_arr = np.asarray(added, dtype=np.int64), np.asarray(kept, dtype=np.int64)
+                    x_ka = comp.node_columns(added_arr, rows=kept_arr) if kept else np.zeros((0, 3 * len(added)))
+                    x_ak = comp.node_columns(kept_arr, rows=added_arr) if kept else np.zeros((3 * len(added), 0))
+                    x_aa = comp.contact_block(added_arr)
+                    v = np.vstack([0.5 * (x_ka + x_ak.T), self._scale * self._null[contact_dofs(added_arr)].T])
+                    d = 0.5 * (x_aa + x_aa.T)
+                    w = inv_kk @ v
+                    s_inv = la.inv(d - v.T @ w, check_finite=False)
+                    ws = w @ s_inv
+                    inv_kk += ws @ w.T
+            except (np.linalg.LinAlgError, la.LinAlgWarning, ValueError):
+                return None
+        if not added and np.array_equal(to_kept, np.arange(len(to_kept))):  # (releases keep the order)
+            inv, mat = inv_kk, self._matrix[np.ix_(keep, keep)]
+        else:
+            inv, mat = np.empty((n3 + 6, n3 + 6)), np.zeros((n3 + 6, n3 + 6))
+            inv[np.ix_(to_kept, to_kept)] = inv_kk
+            mat[np.ix_(to_kept, to_kept)] = self._matrix[np.ix_(keep, keep)]
+            if added:
+                inv[np.ix_(to_kept, to_added)] = -ws
+                inv[np.ix_(to_added, to_kept)] = -ws.T
+                inv[np.ix_(to_added, to_added)] = s_inv
+                mat[np.ix_(to_kept, to_added)] = v
+                mat[np.ix_(to_added, to_kept)] = v.T
+                mat[np.ix_(to_added, to_added)] = d
+        inv += inv.T  # M⁻¹ is symmetric: without this its round-off drifts along a chain of updates
+        inv *= 0.5
+        condition = float(np.abs(mat).sum(axis=0).max() * np.abs(inv).sum(axis=0).max())
+        if not condition < WARN_CONDITION:
+            return None
+        probe = np.cos(np.arange(len(mat)) * 1.618)  # a fixed probe with no structure aligned to the mesh's
+        x = inv @ probe
+        backward = float(np.abs(mat @ x - probe).max() / (np.abs(mat).sum(axis=1).max() * np.abs(x).max()))
+        if not backward <= NEIGHBOUR_BACKWARD_ERROR:
+            log.debug("derived contact response refused: backward error %.2e", backward)
+            return None
+        resp = object.__new__(ContactResponse)
+        resp.body, resp.backend = self.body, self.backend
+        resp.nodes = nodes.copy()
+        resp.dofs = contact_dofs(resp.nodes)
+        resp._surface_fields = 0
+        resp._null = self._null
+        resp._d_bar = self._gravity_displacement[resp.dofs]
+        resp._scale = self._scale
+        resp._matrix = mat
+        resp._rhs_rigid = self._rhs_rigid
+        resp._lu = None
+        resp.condition_estimate = condition
+        resp.__dict__["_inverse"] = inv
+        return resp
 
     @cached_property
     def gravity_forces(self) -> np.ndarray:

@@ -241,3 +241,67 @@ def test_a_large_body_caches_surface_rows_and_solves_for_whole_fields(body, rng,
     assert rel(a.forces, b.forces) <= 1e-12 and rel(a.displacements, b.displacements) <= 1e-12
     surface = ContactResponse(lean, nodes).surface_displacements(disp)
     assert rel(surface, a.displacements[body.mesh.surface_nodes]) <= 1e-12
+
+
+#: A response derived from a neighbouring set's M⁻¹ (ContactResponse.neighbour) agrees with a fresh one to this
+#: fraction of the largest entry: each update adds round-off of order cond(M) ε (cond ~1e3 here), and the
+#: backward-error guard keeps a chain of them there (200 updates on the tomato stayed below 3e-14).
+NEIGHBOUR_AGREEMENT = 1e-11
+
+
+def test_a_neighbouring_sets_response_is_the_fresh_one_to_round_off(body, rng):
+    """A chain of 40 derived responses (nodes joining, leaving, both, reordered), each against a fresh one."""
+    surface = body.mesh.surface_nodes
+    nodes = contact_set(body)
+    current = ContactResponse(body, nodes)
+    derived = 0
+    for step in range(40):
+        change = list(nodes)
+        if step % 4 == 1 and len(change) > 5:
+            change.pop(int(rng.integers(len(change))))
+        elif step % 4 == 2:
+            change = change[::-1]
+        else:
+            for k in rng.choice(surface, 2, replace=False):
+                if int(k) not in change:
+                    change.append(int(k))
+            if step % 4 == 3:
+                change.pop(0)
+        try:
+            fresh = ContactResponse(body, np.array(change))
+        except CollinearContactError:
+            continue
+        nodes = np.array(change)
+        new = current.neighbour(nodes)
+        assert new is not None, f"step {step}: a set {len(change)} nodes from its neighbour was not derived"
+        derived += 1
+        np.testing.assert_array_equal(new.nodes, nodes)
+        assert rel(new.reduced_stiffness, fresh.reduced_stiffness) <= NEIGHBOUR_AGREEMENT
+        assert rel(new.gravity_forces, fresh.gravity_forces) <= NEIGHBOUR_AGREEMENT
+        d = rng.standard_normal((len(nodes), 3)) * 1e-3
+        assert rel(new.forces(d), fresh.forces(d)) <= NEIGHBOUR_AGREEMENT
+        assert rel(new.surface_displacements(d), fresh.surface_displacements(d)) <= NEIGHBOUR_AGREEMENT
+        current = new
+    assert derived >= 35
+    # The derived response is a contact response in its own right: equilibrium to round-off, the six rigid
+    # motions of the contacts in C's null space.
+    sol = current.solve(rng.standard_normal((len(nodes), 3)) * 1e-3)
+    assert max(sol.equilibrium_residual()) <= 1e-10
+    c, r = current.reduced_stiffness, body.rigid_modes[contact_dofs(nodes)]
+    assert np.abs(c @ r).max() <= 1e-10 * np.abs(c).max() * np.abs(r).max()
+
+
+def test_a_neighbour_is_refused_where_it_would_not_pay_or_is_not_a_contact_set(body, monkeypatch):
+    from fem_grasp.elastic import response
+
+    nodes = contact_set(body)
+    resp = ContactResponse(body, nodes)
+    others = [int(k) for k in body.mesh.surface_nodes if int(k) not in set(nodes.tolist())]
+    far = np.concatenate([nodes, others[:response.NEIGHBOUR_NODES + 1]])
+    assert resp.neighbour(far) is None  # more nodes changed than updates pay for
+    assert resp.neighbour(np.concatenate([nodes, others[:1]])) is not None
+    with pytest.raises(CollinearContactError):
+        resp.neighbour(nodes[:2])  # refused as the constructor refuses it
+    assert ContactResponse(body, nodes, backend="spectral").neighbour(nodes[:4]) is None
+    monkeypatch.setattr(response, "NEIGHBOUR_UPDATES", False)
+    assert resp.neighbour(nodes[:4]) is None
