@@ -375,11 +375,14 @@ def _quiet() -> contextlib.AbstractContextManager:
     return contextlib.nullcontext() if jit.ENABLED else np.errstate(over="ignore", invalid="ignore")
 
 
+_NO_POINT = np.empty(0)
+
+
 def _homotopy_message(reason: int, detail: int, t: float, value: float) -> str:
     """:class:`~fem_grasp.contact.homotopy.HomotopyError`'s message for an outcome of
     :func:`~fem_grasp.contact.kernels.slip_trial.homotopy`."""
-    def message(name: str, t: float, extra: str) -> str:
-        return f"{name}: {homotopy._REASONS[name]} at t = {t:.6g} ({extra})"
+    def message(name: str, t: float, extra: str) -> str:  # worded by the reference's own exception
+        return str(homotopy.HomotopyError(name, t=t, x=_NO_POINT, detail=extra))
 
     name = slip_trial.HOMOTOPY_REASONS[reason]
     if name == "polish_failed":

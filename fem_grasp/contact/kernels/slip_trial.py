@@ -347,8 +347,9 @@ def _scaled(y, scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free):
 
 
 @jit
-def _scaled_jacobian(y, scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free):
-    """∂P/∂y = row_scale · ∂residual/∂x · scale."""
+def _scaled_with_jacobian(y, scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free):
+    """(P(y), ∂P/∂y): the Jacobian row_scale · ∂residual/∂x · scale with the residual it is built on (one evaluation
+    for both: ``_scaled`` gives the same numbers)."""
     p = mu.shape[0]
     nx = y.shape[0]
     xs, r = np.empty(nx), np.empty(nx)
@@ -359,7 +360,7 @@ def _scaled_jacobian(y, scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, 
     for i in range(nx):
         for j in range(nx):
             jac[i, j] = row_scale[i] * jac[i, j] * scale[j]
-    return jac
+    return r, jac
 
 
 @jit
@@ -383,8 +384,7 @@ def homotopy(y0, tol, initial_step, max_step, max_steps, min_step, max_iter,
     while t < 1.0:
         if steps + rejected >= max_steps:
             return 4, 0, t, float(max_steps), x
-        jx = _scaled_jacobian(x, *args)
-        pv = _scaled(x, *args)
+        pv, jx = _scaled_with_jacobian(x, *args)
         jt = 2.0 * (1.0 - t) * (pv - (pv - p0))
         b = (1.0 - t) ** 2
         code, xdot = _lin_solve((1.0 - b) * jx + b * jx, -jt)
@@ -398,8 +398,7 @@ def homotopy(y0, tol, initial_step, max_step, max_steps, min_step, max_iter,
         prev = np.inf
         accepted = 0
         for k in range(1, _CORRECTOR_ITERS + 1):
-            pc = _scaled(xc, *args)
-            jc = _scaled_jacobian(xc, *args)
+            pc, jc = _scaled_with_jacobian(xc, *args)
             code, dx = _lin_solve((1.0 - bn) * jc + bn * jc, -((1.0 - bn) * pc + bn * (pc - p0)))
             if code:
                 break
@@ -436,7 +435,7 @@ def homotopy(y0, tol, initial_step, max_step, max_steps, min_step, max_iter,
             return 0, 0, 1.0, res, x
         if it == max_iter:
             break
-        code, dx = _lin_solve(_scaled_jacobian(x, *args), -r)
+        code, dx = _lin_solve(_scaled_with_jacobian(x, *args)[1], -r)
         if code:
             return 5, 2, 1.0, float(code), x
         x = x + dx
