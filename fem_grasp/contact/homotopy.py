@@ -43,6 +43,10 @@ _CORRECTOR_ITERS = 6
 #: alike): larger than :func:`track`'s defaults because their paths from the held state are short and smooth.
 SLIP_INITIAL_STEP = 0.25
 SLIP_MAX_STEP = 1.0
+#: :func:`track`'s defaults: continuation steps, smallest step in t, Newton iterations of the final polish.
+TRACK_MAX_STEPS = 2000
+TRACK_MIN_STEP = 1e-10
+TRACK_MAX_ITER = 50
 
 
 @dataclass(frozen=True)
@@ -227,8 +231,8 @@ def _correct(hom: _Homotopy, x: np.ndarray, t: float) -> Optional[tuple[np.ndarr
 @np.errstate(over="ignore", invalid="ignore")
 def track(fun: Fun, jac: Fun, x0: np.ndarray, *, start: Optional[Fun] = None,
           start_jac: Optional[Fun] = None, tol: float = 1e-12, scale: float = 1.0,
-          max_steps: int = 2000, min_step: float = 1e-10, divergence: float = 1e8,
-          initial_step: float = 0.05, max_step: float = 0.25, max_iter: int = 50,
+          max_steps: int = TRACK_MAX_STEPS, min_step: float = TRACK_MIN_STEP, divergence: float = 1e8,
+          initial_step: float = 0.05, max_step: float = 0.25, max_iter: int = TRACK_MAX_ITER,
           gamma: complex = 1.0) -> HomotopyResult:
     """Track the root of ``H(x, t)`` from ``x0`` at t = 0 to a root of ``P`` at t = 1.
 

@@ -41,6 +41,7 @@ import numpy as np
 from ..errors import FrictionError
 from . import homotopy
 from .friction import CONE_RTOL, cone_residual, cone_violation, normal_component, slip_directions, tangential_component
+from .kernels import jit, slip_trial
 from .obstacles import tangent_basis
 
 __all__ = ["FrictionError", "PlaneSettlement", "PlaneSlip", "QuadraticConstraint", "SlipSolution", "SlipSystem",
@@ -48,6 +49,11 @@ __all__ = ["FrictionError", "PlaneSettlement", "PlaneSlip", "QuadraticConstraint
            "settle_plane_slip", "solve_plane_slip", "solve_slip"]
 
 log = logging.getLogger(__name__)
+
+#: :func:`solve_slip` follows its homotopy path in one compiled kernel (:func:`~fem_grasp.contact.kernels.slip_trial.
+#: homotopy`, the event tracking's) where numba is installed and the system is eq. (6) with frozen or free directions
+#: (no extra constraints); False: with :func:`fem_grasp.contact.homotopy.track` (numpy), the reference.
+COMPILED_HOMOTOPY = jit.ENABLED
 
 
 # ------------------------------------------------------------- slip systems
@@ -266,7 +272,9 @@ def solve_slip(system: SlipSystem, x0: np.ndarray | None = None, *, tol: float =
     root reached is the one continuously connected to the held state — the
     smallest slip that brings each node back onto its cone.  If that path
     fails, :func:`fem_grasp.contact.homotopy.solve` (Newton, then the default
-    homotopy) is tried.
+    homotopy) is tried.  The path is followed in one compiled kernel (the event tracking's
+    :func:`~fem_grasp.contact.kernels.slip_trial.homotopy`, the same steps and tolerances) where numba is
+    installed and the system has no extra constraints (:data:`COMPILED_HOMOTOPY`).
 
     Raises
     ------
@@ -295,10 +303,21 @@ def solve_slip(system: SlipSystem, x0: np.ndarray | None = None, *, tol: float =
     def jac(y: np.ndarray) -> np.ndarray:
         return row_scale[:, None] * system.jacobian(y * scale) * scale[None, :]
 
-    p0 = fun(y0)
+    kernel = _kernel_arrays(system) if COMPILED_HOMOTOPY else None
     try:
-        res = homotopy.track(fun, jac, y0, start=lambda y: fun(y) - p0, start_jac=jac, tol=tol,
-                             initial_step=homotopy.SLIP_INITIAL_STEP, max_step=homotopy.SLIP_MAX_STEP)
+        if kernel is not None:
+            reason, _, t, _, y, steps = slip_trial.homotopy(
+                y0, float(tol), homotopy.SLIP_INITIAL_STEP, homotopy.SLIP_MAX_STEP, homotopy.TRACK_MAX_STEPS,
+                homotopy.TRACK_MIN_STEP, homotopy.TRACK_MAX_ITER, np.ascontiguousarray(scale, dtype=float),
+                row_scale, *kernel)
+            if reason:
+                raise homotopy.HomotopyError(slip_trial.HOMOTOPY_REASONS[reason], t=t, x=y, detail="compiled path")
+            res_x, method = y, "homotopy"
+        else:
+            p0 = fun(y0)
+            res = homotopy.track(fun, jac, y0, start=lambda y: fun(y) - p0, start_jac=jac, tol=tol,
+                                 initial_step=homotopy.SLIP_INITIAL_STEP, max_step=homotopy.SLIP_MAX_STEP)
+            res_x, method, steps = res.x, res.method, res.steps
     except homotopy.HomotopyError as exc:
         log.debug("Newton-homotopy path from the held state failed (%s); trying homotopy.solve", exc)
         try:
@@ -306,9 +325,27 @@ def solve_slip(system: SlipSystem, x0: np.ndarray | None = None, *, tol: float =
         except homotopy.HomotopyError as exc2:
             raise FrictionError(f"the slip system of {len(system.sliding)} sliding node(s) could not be solved: "
                                 f"{exc2} (reason {exc2.reason!r})") from exc2
-    x = np.asarray(res.x, dtype=float) * scale
-    r = float(np.abs(fun(res.x)).max())
-    return SlipSolution(x, system.forces(x), system.displacements(x), r, res.method, res.steps)
+        res_x, method, steps = res.x, res.method, res.steps
+    x = np.asarray(res_x, dtype=float) * scale
+    r = float(np.abs(fun(res_x)).max())
+    return SlipSolution(x, system.forces(x), system.displacements(x), r, method, int(steps))
+
+
+def _kernel_arrays(system: SlipSystem) -> tuple | None:
+    """The arrays of :func:`~fem_grasp.contact.kernels.slip_trial.homotopy` after its scales (base forces, force
+    and displacement maps and normals of the sliding nodes, no curvature, no sphere rows, the free form's
+    alignment rows), or None for a system the kernel does not model (extra constraints, alignment rows other
+    than the sliding nodes', a displacement offset)."""
+    free = len(system.aligned) > 0
+    if (system.constraints or np.any(system.displacement_offset)
+            or (free and not np.array_equal(system.aligned, system.sliding))):
+        return None
+    m, n, p = system.n_contacts, system.n_unknowns, len(system.sliding)
+    rows = (3 * system.sliding[:, None] + np.arange(3)).ravel()
+    return (np.ascontiguousarray(system._force_base[rows]),
+            np.ascontiguousarray(system._force_map.reshape(3 * m, n)[rows]),
+            np.ascontiguousarray(system.displacement_map[rows]), np.ascontiguousarray(system.normals),
+            np.zeros(p), np.ascontiguousarray(system.mu, dtype=float), np.zeros((0, 2), dtype=np.int64), free)
 
 
 # ------------------------------------------------------------ table slip, eq. (6)

@@ -454,7 +454,7 @@ class CompiledSlipSystem:
                 last = x if found else None
                 attempts.append("Newton from the nearby root did not converge")
         if "homotopy" in methods:
-            reason, detail, t, value, y = slip_trial.homotopy(
+            reason, detail, t, value, y, _ = slip_trial.homotopy(
                 np.zeros(self.n), HOMOTOPY_TOL, homotopy.SLIP_INITIAL_STEP, homotopy.SLIP_MAX_STEP,
                 SLIP_HOMOTOPY_STEPS, SLIP_HOMOTOPY_MIN_STEP, 50, self.xscale, self.row_scale, self.base_sl,
                 self.g_sl, self.dmap, self.n0, self.kappa, self.mu, self.sph, self.free)

@@ -160,3 +160,45 @@ def test_frictionless_displacements_remove_all_friction():
     assert np.abs(f[:, :2]).max() < 1e-12 * np.abs(f).max()
     np.testing.assert_allclose(f[:, 2].sum(), body.weight, rtol=1e-12)
     assert np.abs(gauge.T @ u.ravel()).max() < 1e-12 * np.abs(u).max()
+
+
+#: solve_slip's compiled homotopy against the numpy reference (homotopy.track): the same path to the same root,
+#: to this fraction of the largest unknown (both polish the residual to 1e-13; the root's conditioning on these
+#: random systems is ~1e2).
+COMPILED_SLIP_AGREEMENT = 1e-10
+
+
+@pytest.mark.parametrize("free", [False, True])
+def test_the_compiled_plane_slip_homotopy_finds_the_reference_root(rng, monkeypatch, free):
+    """Random coupled table slips (eq. 6 frozen, and the free form): compiled and numpy paths, the same roots; a
+    system with an extra constraint stays on the numpy path."""
+    solved = 0
+    for _ in range(12):
+        m = 6
+        c = spd_matrix(rng, m)
+        f0 = rng.normal(size=(m, 3)) * [1.0, 1.0, 0.3] + [0, 0, 3]
+        sliding = np.flatnonzero(friction.cone_residual(f0, UP, 0.4) < 0)
+        if not len(sliding):
+            continue
+        system = (plane_slip.plane_free_slip_system(c, f0, sliding, UP, 0.4) if free
+                  else plane_slip.plane_slip_system(c, f0, sliding, UP, 0.4))
+        assert plane_slip._kernel_arrays(system) is not None
+        roots = {}
+        for compiled in (False, True):
+            monkeypatch.setattr(plane_slip, "COMPILED_HOMOTOPY", compiled)
+            try:
+                roots[compiled] = plane_slip.solve_slip(system)
+            except plane_slip.FrictionError as exc:
+                roots[compiled] = str(exc)
+        ref, comp = roots[False], roots[True]
+        assert type(ref) is type(comp)
+        if isinstance(ref, str):
+            continue
+        solved += 1
+        assert ref.method == comp.method
+        np.testing.assert_allclose(comp.x, ref.x, rtol=0, atol=COMPILED_SLIP_AGREEMENT * np.abs(ref.x).max())
+        assert comp.residual <= 1e-12
+    assert solved >= 6
+    con = plane_slip.QuadraticConstraint(np.eye(2), np.zeros(2), -1.0)
+    with_constraint = plane_slip.SlipSystem(c, f0, np.eye(3 * m)[:, :2], [0], UP, 0.4, constraints=(con,))
+    assert plane_slip._kernel_arrays(with_constraint) is None

@@ -372,9 +372,9 @@ def homotopy(y0, tol, initial_step, max_step, max_steps, min_step, max_iter,
 
     Returns
     -------
-    (reason, detail, t, value, y): reason 0 and the polished y on success, else an index into
+    (reason, detail, t, value, y, steps): reason 0 and the polished y on success, else an index into
     ``HOMOTOPY_REASONS`` (polish failures: ``detail`` is the polish's own reason), where it stopped (t), the step
-    or residual its message quotes (value), and the last point.
+    or residual its message quotes (value), the last point, and the continuation steps taken.
     """
     args = (scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free)
     x = y0.copy()
@@ -383,13 +383,13 @@ def homotopy(y0, tol, initial_step, max_step, max_steps, min_step, max_iter,
     t, h, steps, rejected = 0.0, initial_step, 0, 0
     while t < 1.0:
         if steps + rejected >= max_steps:
-            return 4, 0, t, float(max_steps), x
+            return 4, 0, t, float(max_steps), x, steps
         pv, jx = _scaled_with_jacobian(x, *args)
         jt = 2.0 * (1.0 - t) * (pv - (pv - p0))
         b = (1.0 - t) ** 2
         code, xdot = _lin_solve((1.0 - b) * jx + b * jx, -jt)
         if code:
-            return 2, code, t, 0.0, x
+            return 2, code, t, 0.0, x, steps
         h = min(h, 1.0 - t)
         t_new = 1.0 if h >= 1.0 - t else t + h
         # Newton corrector on H(., t_new): accepted when it contracts and converges within a few iterations.
@@ -416,12 +416,12 @@ def homotopy(y0, tol, initial_step, max_step, max_steps, min_step, max_iter,
             rejected += 1
             h *= 0.5
             if h < min_step:
-                return 3, 0, t, h, x
+                return 3, 0, t, h, x, steps
             continue
         x, t = xc, t_new
         steps += 1
         if math.sqrt(np.dot(x, x)) > limit:
-            return 1, 0, t, limit, x
+            return 1, 0, t, limit, x, steps
         if accepted <= 3:
             h = min(2.0 * h, max_step)
     # Polish: plain Newton on P (``homotopy._newton``); its failures are reported as polish failures.
@@ -429,19 +429,19 @@ def homotopy(y0, tol, initial_step, max_step, max_steps, min_step, max_iter,
     for it in range(max_iter + 1):
         r = _scaled(x, *args)
         if not np.isfinite(r).all():
-            return 5, 1, 1.0, -1.0, x
+            return 5, 1, 1.0, -1.0, x, steps
         res = math.sqrt(np.dot(r, r))
         if res <= tol:
-            return 0, 0, 1.0, res, x
+            return 0, 0, 1.0, res, x, steps
         if it == max_iter:
             break
         code, dx = _lin_solve(_scaled_with_jacobian(x, *args)[1], -r)
         if code:
-            return 5, 2, 1.0, float(code), x
+            return 5, 2, 1.0, float(code), x, steps
         x = x + dx
         if not np.isfinite(x).all() or math.sqrt(np.dot(x, x)) > limit:
-            return 5, 1, 1.0, limit, x
-    return 5, 4, 1.0, res, x
+            return 5, 1, 1.0, limit, x, steps
+    return 5, 4, 1.0, res, x, steps
 
 
 # ------------------------------------------------------------- fused Newton
