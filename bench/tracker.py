@@ -8,6 +8,12 @@ Per scene the table gives the medians, their ratio, the first calls, and whether
 identical event sequences and verdicts, ρ* to :data:`SAME_RHO` relative, final contact forces to
 :data:`SAME_FORCE` of the weight (the targets of #27).
 
+``--against SETTING …`` compares this checkout with itself instead: the "baseline" worker runs this checkout's
+fem_grasp with each SETTING applied — ``module.ATTRIBUTE=VALUE`` (a switch such as
+``fem_grasp.elastic.response.NEIGHBOUR_UPDATES=False``, set after import; VALUE a Python literal) or
+``ENV:NAME=VALUE`` (an environment variable of the worker, e.g. ``ENV:FEM_GRASP_NO_JIT=1``): what one step of the
+engine is worth, measured in one interleaved run.
+
 ``python -m bench.tracker --baseline REV`` runs it alone; ``python -m bench.bench --only tracker`` (``make bench``)
 runs it as a section of the benchmark and keeps it in ``bench/out/bench.json``.  The worker protocol (one JSON
 line per request on stdin, one per answer on stdout) is :func:`serve`.
@@ -100,6 +106,11 @@ def serve() -> int:
     logging.basicConfig(level=logging.WARNING)
     import fem_grasp
 
+    try:
+        _apply_switches()
+    except (ValueError, SyntaxError, ImportError) as exc:  # reported to the parent, which raises it
+        print(json.dumps({"error": str(exc)}), flush=True)
+        return 1
     print(json.dumps({"fem_grasp": str(Path(fem_grasp.__file__).resolve().parent)}), flush=True)
     for line in sys.stdin:
         request = json.loads(line)
@@ -215,15 +226,48 @@ def export_baseline(rev: str, into: Path | None = None) -> tuple[str, Path]:
     return sha, tree
 
 
+def _apply_switches() -> None:
+    """Set the module attributes named in ``BENCH_SWITCHES`` (a JSON list of [module.ATTRIBUTE, value]); see
+    ``--against``."""
+    import ast
+    import importlib
+
+    for name, value in json.loads(os.environ.get("BENCH_SWITCHES", "[]")):
+        module, _, attribute = name.rpartition(".")
+        mod = importlib.import_module(module)
+        if not hasattr(mod, attribute):
+            raise ValueError(f"--against: {module} has no attribute {attribute!r}")
+        setattr(mod, attribute, ast.literal_eval(value))
+
+
+def _against(settings: list[str]) -> tuple[dict[str, str], list[list[str]]]:
+    """``--against`` settings as (environment, switches)."""
+    env: dict[str, str] = {}
+    switches: list[list[str]] = []
+    for item in settings:
+        name, eq, value = item.partition("=")
+        if not eq or not name:
+            raise SystemExit(f"--against {item!r}: expected module.ATTRIBUTE=VALUE or ENV:NAME=VALUE")
+        if name.startswith("ENV:"):
+            env[name[4:]] = value
+        else:
+            switches.append([name, value])
+    return env, switches
+
+
 class _Worker:
-    def __init__(self, label: str, tree: Path):
+    def __init__(self, label: str, tree: Path, env: dict[str, str] | None = None,
+                 switches: list[list[str]] | None = None):
         # run as a script, not with -m: -m puts the working directory first on sys.path, and this checkout's
         # fem_grasp would shadow the baseline's
-        env = dict(os.environ, PYTHONPATH=str(tree))
+        env = dict(os.environ, PYTHONPATH=str(tree), **(env or {}), BENCH_SWITCHES=json.dumps(switches or []))
         self.label = label
         self.proc = subprocess.Popen([sys.executable, str(Path(__file__).resolve()), "--serve"], cwd=tree, env=env,
                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
         hello = json.loads(self.proc.stdout.readline())
+        if "error" in hello:
+            self.close()
+            raise RuntimeError(f"the {label} worker: {hello['error']}")
         if Path(hello["fem_grasp"]) != (tree / "fem_grasp").resolve():
             self.close()
             raise RuntimeError(f"the {label} worker imported fem_grasp from {hello['fem_grasp']}, not from {tree}")
@@ -249,13 +293,20 @@ class _Worker:
 def section_tracker(baseline: str = DEFAULT_BASELINE, reps: int = 3, scenes: tuple[str, ...] = SCENES,
                     warm_up: str | None = "foam_block", quick: bool = False,
                     export_to: Path | None = None, large: tuple[int, ...] = (),
-                    mesh_cache: Path | None = None, routes: tuple[tuple[str, float], ...] = ()) -> dict[str, Any]:
+                    mesh_cache: Path | None = None, routes: tuple[tuple[str, float], ...] = (),
+                    against: tuple[str, ...] = ()) -> dict[str, Any]:
     """Time the shipped scenes' pickups (their ``[quick]`` variants with ``quick``) with the baseline's fem_grasp
     and this checkout's, interleaved (module notes); medians of ``reps`` after the first call.  ``large``: also
     the uniform orange of about that many vertices (the scaling section's, rest included), one row each;
-    ``routes``: also these (scene, inner spacing / R) graded meshes (:data:`ROUTES`)."""
-    sha, tree = export_baseline(baseline, export_to)
-    workers = {"baseline": _Worker("baseline", tree), "current": _Worker("current", ROOT)}
+    ``routes``: also these (scene, inner spacing / R) graded meshes (:data:`ROUTES`).  ``against``: the baseline is
+    this checkout with these settings instead of a commit (module notes)."""
+    if against:
+        env, switches = _against(list(against))
+        sha = "this checkout with " + " ".join(against)
+        workers = {"baseline": _Worker("baseline", ROOT, env, switches), "current": _Worker("current", ROOT)}
+    else:
+        sha, tree = export_baseline(baseline, export_to)
+        workers = {"baseline": _Worker("baseline", tree), "current": _Worker("current", ROOT)}
     try:
         for w in workers.values():  # numba's kernels loaded (or compiled) before any scene is timed
             if warm_up:
@@ -298,7 +349,8 @@ def section_tracker(baseline: str = DEFAULT_BASELINE, reps: int = 3, scenes: tup
 
 
 def print_tracker(sec: dict[str, Any]) -> None:
-    print(f"\n== tracker: baseline {sec['baseline'][:12]} against this checkout, interleaved, medians of "
+    base = sec["baseline"] if sec["baseline"].startswith("this checkout") else sec["baseline"][:12]
+    print(f"\n== tracker: baseline {base} against this checkout, interleaved, medians of "
           f"{sec['reps']} after the first call (s)")
     print(f"{'scene':<11} {'baseline':>9} {'current':>9} {'speed-up':>9} {'first b/c':>13}  same answer "
           f"(events, |dρ*|/ρ*, max |df|/mg)")
@@ -328,13 +380,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--routes", action="store_true",
                     help="also the convergence study's converged routes: " + ", ".join(
                         f"{n} graded to R/{1 / i:g} at fingertips and table" for n, i in ROUTES))
+    ap.add_argument("--against", nargs="+", default=[], metavar="SETTING",
+                    help="instead of a commit, this checkout with these settings: module.ATTRIBUTE=VALUE "
+                         "(e.g. fem_grasp.elastic.response.NEIGHBOUR_UPDATES=False) or ENV:NAME=VALUE "
+                         "(e.g. ENV:FEM_GRASP_NO_JIT=1)")
     ap.add_argument("--serve", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.serve:
         return serve()
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
     print_tracker(section_tracker(args.baseline, args.reps, tuple(args.scenes), quick=args.quick,
-                                  large=tuple(args.large), routes=ROUTES if args.routes else ()))
+                                  large=tuple(args.large), routes=ROUTES if args.routes else (),
+                                  against=tuple(args.against)))
     return 0
 
 

@@ -154,3 +154,22 @@ def test_the_tracker_section_runs_a_baseline_commit_beside_this_checkout(tmp_pat
         assert len(row["baseline"]["times"]) == len(row["current"]["times"]) == 2 and row["ratio"] > 0
     with pytest.raises(SystemExit, match="not a commit"):
         section_tracker("no-such-commit", export_to=tmp_path)
+
+
+def test_the_tracker_section_compares_this_checkout_with_a_switch_set(tmp_path):
+    """--against: the baseline worker is this checkout with a module switch (derived contact responses off) and an
+    environment variable set; the switch reaches the worker (a wrong name stops it) and the answers agree."""
+    from bench.tracker import _against, section_tracker
+
+    assert _against(["fem_grasp.elastic.response.NEIGHBOUR_UPDATES=False", "ENV:FEM_GRASP_X=1"]) == (
+        {"FEM_GRASP_X": "1"}, [["fem_grasp.elastic.response.NEIGHBOUR_UPDATES", "False"]])
+    with pytest.raises(SystemExit, match="expected"):
+        _against(["NEIGHBOUR_UPDATES"])
+    sec = section_tracker(reps=1, scenes=("foam_block",), warm_up=None, quick=True,
+                          against=("fem_grasp.elastic.response.NEIGHBOUR_UPDATES=False", "ENV:OMP_NUM_THREADS=1"))
+    assert sec["baseline"].startswith("this checkout with fem_grasp.elastic.response.NEIGHBOUR_UPDATES=False")
+    row = sec["rows"][0]
+    assert row["answer"]["same"] and row["repeatable"] and row["answer"]["events"][0] > 0
+    with pytest.raises(RuntimeError, match="no attribute .NO_SUCH_SWITCH."):
+        section_tracker(reps=1, scenes=("foam_block",), warm_up=None, quick=True,
+                        against=("fem_grasp.elastic.response.NO_SUCH_SWITCH=1",))
