@@ -471,7 +471,11 @@ class Tracker:
 
     def normals(self, owner: np.ndarray, positions: np.ndarray, centers: np.ndarray) -> np.ndarray:
         """(m, 3) inward normals of contacts at ``positions`` (m, 3): ``up`` on the table, (p − O)/|p − O| on a
-        fingertip (:meth:`Fingertip.inward_normals`, without building the obstacles at every trial)."""
+        fingertip (:meth:`Fingertip.inward_normals`, without building the obstacles at every trial); compiled
+        (:func:`~fem_grasp.contact.kernels.events.contact_normals`) with the tracker's other kernels."""
+        if self.compiled:
+            return events.contact_normals(np.asarray(owner, dtype=np.int64), np.ascontiguousarray(positions, float),
+                                          np.ascontiguousarray(centers, float), self.up, TABLE)
         out = np.empty(positions.shape)
         out[:] = self.up
         tip = owner != TABLE
@@ -1145,6 +1149,7 @@ def _compile_the_trial_kernels() -> None:
     slip_trial.held_prediction(100.0 * np.eye(6), s["forces"], np.zeros((2, 3)), owner, np.zeros((2, 3)), 0.0, 1.0,
                                0.0, s["forces"], normals, sl, owner[sl], s["positions"],
                                np.array([s["centre"], s["centre"]]), 0.01, DIRECTION_FLOOR)
+    events.contact_normals(owner, s["positions"], np.array([s["centre"], s["centre"]]), s["up"], TABLE)
     for has_table in (True, False):
         events.event_functions(s["positions"], np.array([s["centre"], s["centre"]]), 0.01, has_table, s["up"], 0.0,
                                np.array([0, 1]), owner, s["forces"], normals, np.array([False, True]), np.zeros(2),

@@ -51,3 +51,21 @@ def test_the_compiled_event_functions_without_a_table():
         np.testing.assert_array_equal(finite, np.isfinite(compiled[kind][0]))
         np.testing.assert_allclose(compiled[kind][0][finite], reference[kind][0][finite], rtol=EVENT_AGREEMENT,
                                    atol=1e-15)
+
+
+def test_the_compiled_contact_normals_are_the_reference_ones():
+    """The squeezed box's contacts (table and both fingertips) at a moved trial state: unit normals, ``up`` on the
+    table, outward from each fingertip's centre through the contact, as the numpy reference gives them."""
+    from fem_grasp.contact.obstacles import TABLE
+
+    _, tracker, state, vel = box_squeezed_3mm()
+    st = tracker.trial(state, 1e-3, vel).state
+    positions = tracker.points[st.nodes] + st.disp
+    tracker.compiled = True
+    compiled = tracker.normals(st.owner, positions, st.centers)
+    tracker.compiled = False
+    reference = tracker.normals(st.owner, positions, st.centers)
+    assert set(st.owner.tolist()) == {0, 1, TABLE}
+    np.testing.assert_allclose(compiled, reference, rtol=0, atol=EVENT_AGREEMENT)
+    np.testing.assert_allclose(np.linalg.norm(compiled, axis=1), 1.0, atol=1e-15)
+    np.testing.assert_array_equal(compiled[st.owner == TABLE], np.broadcast_to(tracker.up, compiled[st.owner == TABLE].shape))

@@ -16,10 +16,10 @@ import numpy as np
 
 from .jit import jit
 
-__all__ = ["ENTRY_POINTS", "event_functions"]
+__all__ = ["ENTRY_POINTS", "contact_normals", "event_functions"]
 
 #: The kernels called from Python (what a warm-up must reach).
-ENTRY_POINTS = ("event_functions",)
+ENTRY_POINTS = ("event_functions", "contact_normals")
 
 
 @jit
@@ -70,3 +70,23 @@ def event_functions(surface, centers, radius, has_table, up, height, own, owner,
             c_val[k] = (ft - mu[k] * fn - tol_cone * max(fn, 0.0)) / fscale - tol_force_floor
             d_val[k] = -np.inf
     return a_val, b_val, c_val, d_val
+
+
+@jit
+def contact_normals(owner, positions, centers, up, table):
+    """(m, 3) inward normals of contacts at ``positions`` (m, 3), as ``Tracker.normals`` defines them: ``up`` on the
+    table (owner code ``table``), (p − O)/|p − O| on a fingertip centred at ``centers[owner]``; the same
+    arithmetic as the numpy reference (the norm summed in the order x, y, z)."""
+    m = positions.shape[0]
+    out = np.empty((m, 3))
+    for k in range(m):
+        o = owner[k]
+        if o == table:
+            out[k, 0], out[k, 1], out[k, 2] = up[0], up[1], up[2]
+            continue
+        d0 = positions[k, 0] - centers[o, 0]
+        d1 = positions[k, 1] - centers[o, 1]
+        d2 = positions[k, 2] - centers[o, 2]
+        norm = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        out[k, 0], out[k, 1], out[k, 2] = d0 / norm, d1 / norm, d2 / norm
+    return out
