@@ -376,6 +376,7 @@ def _quiet() -> contextlib.AbstractContextManager:
 
 
 _NO_POINT = np.empty(0)
+_XYZ = np.arange(3)
 
 
 def _homotopy_message(reason: int, detail: int, t: float, value: float) -> str:
@@ -421,12 +422,19 @@ class CompiledSlipSystem:
                                          np.ascontiguousarray(radii_vectors, dtype=float).reshape(-1, 3),
                                          np.ascontiguousarray(up, dtype=float), float(radius), self.free)
         self.n = self.g.shape[1]
-        p = len(self.sliding)
-        rows = (3 * self.sliding[:, None] + np.arange(3)).reshape(-1)
+        rows = (3 * self.sliding[:, None] + _XYZ).reshape(-1)
         self.base_sl = self.fh.reshape(-1)[rows]
-        self.g_sl = np.ascontiguousarray(self.g[rows])
-        self.sphere_rows = np.flatnonzero(self.kinds != TABLE)
-        self.align_rows = np.arange(p) if self.free else np.zeros(0, dtype=np.int64)
+        self.g_sl = self.g[rows]  # (fancy indexing copies: C-contiguous)
+
+    @property
+    def sphere_rows(self) -> np.ndarray:
+        """Positions in ``sliding`` of the fingertip nodes (one sphere row each); only failure messages read it."""
+        return np.flatnonzero(self.kinds != TABLE)
+
+    @property
+    def align_rows(self) -> np.ndarray:
+        """Positions in ``sliding`` of the alignment rows (the free form's)."""
+        return np.arange(len(self.sliding)) if self.free else np.zeros(0, dtype=np.int64)
 
     def _newton(self, y: np.ndarray, tol: float) -> tuple[bool, bool, np.ndarray]:
         with _quiet():
