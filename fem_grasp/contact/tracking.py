@@ -135,7 +135,7 @@ import numpy as np
 
 from ..elastic.body import Body
 from ..elastic.compliance import PREFETCH_NODES
-from ..elastic.response import NEIGHBOUR_NODES, ContactResponse, check_contact_set
+from ..elastic.response import ContactResponse, check_contact_set, contact_response
 from ..errors import CollinearContactError, RelaxationFailure, TrackingError
 from ..threads import one_blas_thread
 from .kernels import events, jit, slip_trial
@@ -386,9 +386,9 @@ class Tracker:
         key = _key(nodes)
         resp = self._responses.get(key)
         if resp is None:
-            nodes = np.asarray(key, dtype=np.int64)
-            try:
-                resp = self._neighbour_response(key, nodes) or ContactResponse(self.body, nodes, backend=self.backend)
+            try:  # derived from the cached set nearest in nodes where that pays (a node or two joined or left)
+                resp = contact_response(self.body, np.asarray(key, dtype=np.int64), backend=self.backend,
+                                        cached=self._responses.values())
             except CollinearContactError as exc:
                 raise TrackingError(f"the object is no longer held: {exc}") from None
             self._responses[key] = resp
@@ -397,18 +397,6 @@ class Tracker:
                     or sum(r.nbytes for r in self._responses.values()) > RESPONSE_CACHE_BYTES):
                 self._responses.pop(next(iter(self._responses)))  # the oldest
         return resp
-
-    def _neighbour_response(self, key: tuple[int, ...], nodes: np.ndarray) -> ContactResponse | None:
-        """The response of ``nodes`` derived from the cached one whose set differs least from it
-        (:meth:`~fem_grasp.elastic.response.ContactResponse.neighbour`), or None."""
-        if not self._responses:
-            return None
-        wanted = set(key)
-        near, parent = min(((len(wanted.symmetric_difference(k)), r) for k, r in self._responses.items()),
-                           key=lambda t: t[0])
-        if near > NEIGHBOUR_NODES:
-            return None
-        return parent.neighbour(nodes)
 
     def prefetch_columns(self, nodes: Sequence[int], surface_positions: np.ndarray, centers: np.ndarray) -> None:
         """With the sparse backend, when new contact ``nodes`` lack their compliance columns, compute them

@@ -23,7 +23,7 @@ import logging
 import warnings
 from dataclasses import dataclass
 from functools import cached_property
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Iterable
 
 import numpy as np
 import scipy.linalg as la
@@ -35,7 +35,7 @@ if TYPE_CHECKING:
     from .body import Body
 
 __all__ = ["BACKENDS", "COLLINEAR_TOLERANCE", "CollinearContactError", "ContactResponse", "ContactSolution",
-           "MAX_CONDITION", "NEIGHBOUR_BACKWARD_ERROR", "NEIGHBOUR_NODES", "NEIGHBOUR_UPDATES", "WARN_CONDITION",
+           "MAX_CONDITION", "contact_response", "NEIGHBOUR_BACKWARD_ERROR", "NEIGHBOUR_NODES", "NEIGHBOUR_UPDATES", "WARN_CONDITION",
            "check_contact_set", "contact_dofs", "equilibrium_residual", "solve_contact"]
 
 log = logging.getLogger(__name__)
@@ -434,6 +434,28 @@ class ContactResponse:
         on = pos >= 0
         field[pos[on]] = d.reshape(-1, 3)[on]  # the prescribed values, exactly (as in solve)
         return field
+
+
+def contact_response(body: "Body", nodes: np.ndarray, *, backend: str = "sparse",
+                     cached: Iterable[ContactResponse] = ()) -> ContactResponse:
+    """The response of the contact set ``nodes``: derived (:meth:`ContactResponse.neighbour`) from the response
+    among ``cached`` whose set differs least from it, by at most :data:`NEIGHBOUR_NODES` nodes (the first such in
+    ``cached`` order on a tie), where that derivation is accepted; else constructed afresh.
+
+    Raises
+    ------
+    CollinearContactError
+        As the constructor does.
+    """
+    nodes = np.asarray(nodes, dtype=np.int64)
+    wanted = set(nodes.tolist())
+    parent, near = None, NEIGHBOUR_NODES + 1
+    for resp in cached:
+        differ = len(wanted.symmetric_difference(resp.nodes.tolist()))
+        if differ < near:
+            parent, near = resp, differ
+    derived = parent.neighbour(nodes) if parent is not None else None
+    return derived or ContactResponse(body, nodes, backend=backend)
 
 
 def solve_contact(body: "Body", nodes: np.ndarray, displacements: np.ndarray, backend: str = "sparse") -> ContactSolution:

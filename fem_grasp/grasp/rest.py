@@ -75,7 +75,13 @@ from ..contact import friction, plane_slip
 from ..contact.obstacles import TABLE, TablePlane
 from ..elastic.body import Body
 from ..elastic.compliance import PREFETCH_NODES
-from ..elastic.response import CollinearContactError, ContactResponse, ContactSolution, check_contact_set
+from ..elastic.response import (
+    CollinearContactError,
+    ContactResponse,
+    ContactSolution,
+    check_contact_set,
+    contact_response,
+)
 from ..errors import RestCheckError, RestConvergenceError
 from .checks import contact_law_figures
 from .pose import RestingPose, resting_pose
@@ -260,9 +266,9 @@ class _Solver:
     def response(self) -> ContactResponse:
         key = tuple(self.contacts)
         if key not in self._responses:
-            previous = next(iter(self._responses.values()), None)  # the last set: a node or two away
-            resp = previous.neighbour(np.array(key)) if previous is not None else None
-            self._responses = {key: resp or ContactResponse(self.body, np.array(key), backend=self.backend)}
+            # derived from the last set (a node or two away) where that pays
+            self._responses = {key: contact_response(self.body, np.array(key), backend=self.backend,
+                                                     cached=self._responses.values())}
             self._gravity_field = None
         return self._responses[key]
 
