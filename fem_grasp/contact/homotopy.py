@@ -23,6 +23,8 @@ from typing import Callable, Optional
 import numpy as np
 import scipy.linalg as la
 
+from .kernels import slip_trial
+
 __all__ = ["SLIP_INITIAL_STEP", "SLIP_MAX_STEP", "HomotopyResult", "HomotopyError", "newton", "track", "solve"]
 
 log = logging.getLogger(__name__)
@@ -98,6 +100,24 @@ class HomotopyError(RuntimeError):
         self.reason, self.t, self.x = reason, float(t), np.array(x, copy=True)
         msg = f"{reason}: {_REASONS[reason]} at t = {self.t:.6g}"
         super().__init__(f"{msg} ({detail})" if detail else msg)
+
+
+def kernel_error(reason: int, detail: int, t: float, value: float, x: np.ndarray, *, tol: float, min_step: float,
+                 max_steps: int, max_iter: int) -> HomotopyError:
+    """The :class:`HomotopyError` :func:`track` would raise for a failed outcome of the compiled
+    :func:`~fem_grasp.contact.kernels.slip_trial.homotopy` run with these limits (its reason and detail codes, the
+    t it reached, the value its message quotes, the last point)."""
+    name = slip_trial.HOMOTOPY_REASONS[reason]
+    if name == "polish_failed":
+        inner = slip_trial.HOMOTOPY_REASONS[detail]
+        extra = {"diverged": "non-finite residual" if value < 0 else f"||x|| > {value:.3g}",
+                 "singular_jacobian": slip_trial.SINGULAR_DETAILS[int(value)],
+                 "max_steps": f"Newton: {max_iter} iterations, ||P|| = {value:.3g} > {tol:.3g}"}[inner]
+        return HomotopyError(name, t=1.0, x=x, detail=str(HomotopyError(inner, t=1.0, x=x, detail=extra)))
+    extra = {"diverged": f"||x|| > {value:.3g}", "singular_jacobian": slip_trial.SINGULAR_DETAILS[detail],
+             "step_too_small": f"step {value:.3g} < {min_step:.3g}, turning point?",
+             "max_steps": f"{max_steps} continuation steps"}[name]
+    return HomotopyError(name, t=t, x=x, detail=extra)
 
 
 class _Singular(Exception):

@@ -306,12 +306,13 @@ def solve_slip(system: SlipSystem, x0: np.ndarray | None = None, *, tol: float =
     kernel = _kernel_arrays(system) if COMPILED_HOMOTOPY else None
     try:
         if kernel is not None:
-            reason, _, t, _, y, steps = slip_trial.homotopy(
+            reason, detail, t, value, y, steps = slip_trial.homotopy(
                 y0, float(tol), homotopy.SLIP_INITIAL_STEP, homotopy.SLIP_MAX_STEP, homotopy.TRACK_MAX_STEPS,
                 homotopy.TRACK_MIN_STEP, homotopy.TRACK_MAX_ITER, np.ascontiguousarray(scale, dtype=float),
                 row_scale, *kernel)
             if reason:
-                raise homotopy.HomotopyError(slip_trial.HOMOTOPY_REASONS[reason], t=t, x=y, detail="compiled path")
+                raise homotopy.kernel_error(reason, detail, t, value, y, tol=tol, min_step=homotopy.TRACK_MIN_STEP,
+                                            max_steps=homotopy.TRACK_MAX_STEPS, max_iter=homotopy.TRACK_MAX_ITER)
             res_x, method = y, "homotopy"
         else:
             p0 = fun(y0)

@@ -375,27 +375,9 @@ def _quiet() -> contextlib.AbstractContextManager:
     return contextlib.nullcontext() if jit.ENABLED else np.errstate(over="ignore", invalid="ignore")
 
 
-_NO_POINT = np.empty(0)
 _XYZ = np.arange(3)
-
-
-def _homotopy_message(reason: int, detail: int, t: float, value: float) -> str:
-    """:class:`~fem_grasp.contact.homotopy.HomotopyError`'s message for an outcome of
-    :func:`~fem_grasp.contact.kernels.slip_trial.homotopy`."""
-    def message(name: str, t: float, extra: str) -> str:  # worded by the reference's own exception
-        return str(homotopy.HomotopyError(name, t=t, x=_NO_POINT, detail=extra))
-
-    name = slip_trial.HOMOTOPY_REASONS[reason]
-    if name == "polish_failed":
-        inner = slip_trial.HOMOTOPY_REASONS[detail]
-        extra = {"diverged": "non-finite residual" if value < 0 else f"||x|| > {value:.3g}",
-                 "singular_jacobian": slip_trial.SINGULAR_DETAILS[int(value)],
-                 "max_steps": f"Newton: 50 iterations, ||P|| = {value:.3g} > {HOMOTOPY_TOL:.3g}"}[inner]
-        return message(name, 1.0, message(inner, 1.0, extra))
-    extra = {"diverged": f"||x|| > {value:.3g}", "singular_jacobian": slip_trial.SINGULAR_DETAILS[detail],
-             "step_too_small": f"step {value:.3g} < {SLIP_HOMOTOPY_MIN_STEP:.3g}, turning point?",
-             "max_steps": f"{SLIP_HOMOTOPY_STEPS} continuation steps"}[name]
-    return message(name, t, extra)
+#: Newton iterations of the homotopy's final polish (``homotopy.track``'s default, as MixedSlipSystem uses it).
+_HOMOTOPY_POLISH_ITER = homotopy.TRACK_MAX_ITER
 
 
 class CompiledSlipSystem:
@@ -464,7 +446,7 @@ class CompiledSlipSystem:
         if "homotopy" in methods:
             reason, detail, t, value, y, _ = slip_trial.homotopy(
                 np.zeros(self.n), HOMOTOPY_TOL, homotopy.SLIP_INITIAL_STEP, homotopy.SLIP_MAX_STEP,
-                SLIP_HOMOTOPY_STEPS, SLIP_HOMOTOPY_MIN_STEP, 50, self.xscale, self.row_scale, self.base_sl,
+                SLIP_HOMOTOPY_STEPS, SLIP_HOMOTOPY_MIN_STEP, _HOMOTOPY_POLISH_ITER, self.xscale, self.row_scale, self.base_sl,
                 self.g_sl, self.dmap, self.n0, self.kappa, self.mu, self.sph, self.free)
             if reason == 0:
                 found, ok, x = self._newton(y, tol)
@@ -473,7 +455,10 @@ class CompiledSlipSystem:
                 last = x if found else None
                 attempts.append("homotopy reached a non-physical root")
             else:
-                attempts.append(f"homotopy: {_homotopy_message(reason, detail, t, value)}")
+                error = homotopy.kernel_error(reason, detail, t, value, y, tol=HOMOTOPY_TOL,
+                                              min_step=SLIP_HOMOTOPY_MIN_STEP, max_steps=SLIP_HOMOTOPY_STEPS,
+                                              max_iter=_HOMOTOPY_POLISH_ITER)
+                attempts.append(f"homotopy: {error}")
         with np.errstate(over="ignore", invalid="ignore"):
             r = np.abs(self.row_scale * slip_newton.residual(np.zeros(self.n) if last is None else last,
                                                              self.base_sl, self.g_sl, self.dmap, self.n0,
