@@ -210,12 +210,20 @@ def hull_facets(body: Body, coplanar_tol: float = COPLANAR_TOL) -> list[Facet]:
     # every pair was O(triangles²), seconds at 30k vertices.
     by_offset = np.argsort(offsets, kind="stable")
     sorted_offsets = offsets[by_offset]
+    lows = np.searchsorted(sorted_offsets, offsets - 2.0 * tol, side="left")
+    highs = np.searchsorted(sorted_offsets, offsets + 2.0 * tol, side="right")
+    # A triangle alone in its offset window is a plane of its own (the window is symmetric, so no other
+    # triangle's window holds it): nearly every triangle of a fine mesh, without the masks below.
+    alone = (highs - lows == 1).tolist()
     for i in range(len(eq)):
         if assigned[i] >= 0:
             continue
-        lo = np.searchsorted(sorted_offsets, offsets[i] - 2.0 * tol, side="left")
-        hi = np.searchsorted(sorted_offsets, offsets[i] + 2.0 * tol, side="right")
-        cand = np.sort(by_offset[lo:hi])  # a superset of the triangles within tol; the exact test follows
+        if alone[i]:
+            assigned[i] = len(planes)
+            n = normals[i]
+            planes.append((n / np.linalg.norm(n), float(offsets[i])))
+            continue
+        cand = np.sort(by_offset[lows[i]:highs[i]])  # a superset of the triangles within tol; the exact test follows
         same = cand[(assigned[cand] < 0) & (normals[cand] @ normals[i] > 1.0 - coplanar_tol)
                     & (np.abs(offsets[cand] - offsets[i]) <= tol)]
         assigned[same] = len(planes)
