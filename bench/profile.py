@@ -93,9 +93,27 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             slip_stats[key][0] += 1
             slip_stats[key][1] += time.perf_counter() - t0
 
+    # The whole-trial kernel's Newton from zero slip on the first form (the solves that never reach ``solve``).
+    from fem_grasp.contact.kernels import slip_trial
+    from fem_grasp.contact.warm_up import warm_up
+
+    warm_up()  # compiled now: a kernel's first call would put the compiled kernels over the counting wrapper
+    newton_trial = slip_trial.newton_trial
+
+    def counted_newton_trial(*a: Any) -> Any:
+        t0 = time.perf_counter()
+        out = newton_trial(*a)
+        if out[0] != slip_trial.TRIAL_NO_DIRECTION:
+            key = ("newton", "free direction" if a[18] else "great circle",
+                   "no root" if out[0] == slip_trial.TRIAL_NO_ROOT else "root")
+            slip_stats[key][0] += 1
+            slip_stats[key][1] += time.perf_counter() - t0
+        return out
+
     limit = getattr(tracking, "one_blas_thread", None)
     tracking.relax_contacts = counted_relax
     system.solve = counted_solve
+    slip_trial.newton_trial = counted_newton_trial
     tracking.Tracker.trial = counted_trial
     if args.free_blas and limit is not None:
         tracking.one_blas_thread = contextlib.nullcontext
@@ -125,6 +143,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         prof.disable()
         tracking.relax_contacts = relax
         system.solve = solve
+        slip_trial.newton_trial = newton_trial
         tracking.Tracker.trial = trial
         if limit is not None:
             tracking.one_blas_thread = limit

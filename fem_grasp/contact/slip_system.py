@@ -28,7 +28,7 @@ from .kernels import jit, slip_newton, slip_trial
 from .kernels.jit import sample_contacts, warm_up_sample
 from .obstacles import FINGER1, TABLE, cross_rows, great_circle_axes, tangent_bases
 
-__all__ = ["CompiledSlipSystem", "HOMOTOPY_TOL", "MixedSlipSystem", "REVERSED_FRICTION", "SINGULAR_PIVOT", "SLIP_HOMOTOPY_MIN_STEP",
+__all__ = ["CompiledSlipSystem", "HOMOTOPY_TOL", "MixedSlipSystem", "NEWTON_MAX_ITER", "NEWTON_TOL", "REVERSED_FRICTION", "SINGULAR_PIVOT", "SLIP_HOMOTOPY_MIN_STEP",
            "SLIP_HOMOTOPY_STEPS", "SlipFailure"]
 
 #: The slip-rate Jacobian is taken as singular (a friction limit: no rates) when its smallest LU pivot is
@@ -43,6 +43,10 @@ HOMOTOPY_TOL = 1e-8
 #: (the path has a turning point: the sliding set has no root there).
 SLIP_HOMOTOPY_STEPS = 200
 SLIP_HOMOTOPY_MIN_STEP = 1e-6
+#: Newton's method on a slip system: converged when every scaled row is within this (or its round-off floor);
+#: it gives up after ``NEWTON_MAX_ITER`` iterations (a root lost beyond a turning point takes ~40 residuals).
+NEWTON_TOL = 1e-12
+NEWTON_MAX_ITER = 40
 
 
 class SlipFailure(RuntimeError):
@@ -295,7 +299,7 @@ class MixedSlipSystem:
         return bool(np.all((fn <= 0) | (along >= -REVERSED_FRICTION * np.linalg.norm(ft, axis=1))))
 
     @np.errstate(over="ignore", invalid="ignore")
-    def _newton(self, y: np.ndarray, tol: float, max_iter: int = 40) -> np.ndarray | None:
+    def _newton(self, y: np.ndarray, tol: float, max_iter: int = NEWTON_MAX_ITER) -> np.ndarray | None:
         """Damped Newton's method on the scaled system (:func:`fem_grasp.contact.kernels.slip_newton.newton`); None if it fails.
 
         Converged when every row |P_j| ≤ max(tol, noise_j) (rows of lightly
@@ -307,7 +311,7 @@ class MixedSlipSystem:
         return y if ok else None
 
     @np.errstate(over="ignore", invalid="ignore")
-    def solve(self, tol: float = 1e-12, methods: Sequence[str] = ("newton", "homotopy"),
+    def solve(self, tol: float = NEWTON_TOL, methods: Sequence[str] = ("newton", "homotopy"),
               start: np.ndarray | None = None) -> np.ndarray:
         """The root continuously connected to the held state; raises :class:`SlipFailure`.
 
@@ -422,17 +426,22 @@ class CompiledSlipSystem:
         with _quiet():
             return slip_trial.newton_root(np.array(y, dtype=float), np.maximum(tol, self.row_noise), self.xscale,
                                           self.row_scale, self.base_sl, self.g_sl, self.dmap, self.n0, self.kappa,
-                                          self.mu, self.sph, self.free, self.t_held, 40)
+                                          self.mu, self.sph, self.free, self.t_held, NEWTON_MAX_ITER)
 
-    def solve(self, tol: float = 1e-12, methods: Sequence[str] = ("newton", "homotopy"),
-              start: np.ndarray | None = None) -> np.ndarray:
-        """As :meth:`MixedSlipSystem.solve`; raises :class:`SlipFailure`."""
+    def solve(self, tol: float = NEWTON_TOL, methods: Sequence[str] = ("newton", "homotopy"),
+              start: np.ndarray | None = None, zero_start: tuple[bool, np.ndarray] | None = None) -> np.ndarray:
+        """As :meth:`MixedSlipSystem.solve`; raises :class:`SlipFailure`.  ``zero_start``: Newton from zero slip has
+        been run already (by :func:`~fem_grasp.contact.kernels.slip_trial.newton_trial`, with this ``tol``) and found
+        no admissible root: (whether it found a root, x)."""
         if self.n == 0:
             return np.zeros(0)
         attempts: list[str] = []
         last = None  # the latest root Newton found (admissible or not), as MixedSlipSystem.solve reports it
         if "newton" in methods:
-            found, ok, x = self._newton(np.zeros(self.n), tol)
+            if zero_start is not None:
+                (found, x), ok = zero_start, False
+            else:
+                found, ok, x = self._newton(np.zeros(self.n), tol)
             if found and ok:
                 return x
             last = x if found else None

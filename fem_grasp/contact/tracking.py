@@ -142,7 +142,7 @@ from .kernels import events, jit, slip_trial
 from .kernels.jit import sample_contacts, warm_up_sample
 from .obstacles import FINGER1, FINGER2, OBSTACLES, TABLE, Fingertip, TablePlane
 from .relaxation import RELEASE, SLIDE, relax_contacts
-from .slip_system import CompiledSlipSystem, MixedSlipSystem, SlipFailure
+from .slip_system import NEWTON_MAX_ITER, NEWTON_TOL, CompiledSlipSystem, MixedSlipSystem, SlipFailure
 
 __all__ = ["FINGER1", "FINGER2", "OBSTACLES", "TABLE", "ContactEvent", "ContactState", "MixedSlipSystem", "Parameter",
            "SlipFailure", "Tracker", "TrackingError", "run"]
@@ -507,30 +507,74 @@ class Tracker:
         load = base.load + dt * load_rate
         sl = np.flatnonzero(base.sliding)
         kinds = base.owner[sl]
-        if self.compiled:
+        velocities = np.asarray(velocities, float)
+        # Roots are reused only for the same base state moved the same way (not, e.g., a squeeze root for a lift).
+        warm_key = (base, param, velocities.tobytes(), float(load_rate))
+        if not self._same_motion(warm_key, self._fail_key):
+            self._fail_key, self._newton_fails = warm_key, {}
+        fails = self._newton_fails
+
+        def newton_order() -> list[bool]:
+            # A form whose Newton found no root at a smaller dt of the same motion is tried last: its root
+            # is lost beyond a turning point (and each failing Newton costs ~40 residuals).
+            return sorted(self.forms, key=lambda fr: dt >= fails.get(fr, np.inf))
+
+        zero_start = None  # Newton from zero slip on the first form, already run: (form, found, x)
+        solved = None  # the trial's (form, x, forces, displacements, normals, slip amounts, slip rates)
+        if self.compiled and methods[0] == "newton":
+            # The whole trial in one kernel where Newton from zero finds the first form's root (nine in ten).
+            first = newton_order()[0]
+            (code, disp_h, fh, dfh, t_hat, r, found, x, forces, disp, normals, amounts,
+             rates) = slip_trial.newton_trial(
+                c, f0, base.disp, base.owner, velocities, float(dt), float(load), float(load_rate), base.forces,
+                base.normals, sl, kinds, self.points[base.nodes[sl]], base.centers, self.radius, DIRECTION_FLOOR,
+                self.mu[kinds], self.up, first, NEWTON_TOL, NEWTON_MAX_ITER, self.points[base.nodes], centers, TABLE)
+            if code == slip_trial.TRIAL_NO_DIRECTION:
+                raise SlipFailure("a sliding contact has no tangential force, so no slip direction")
+            if code == slip_trial.TRIAL_NO_ROOT:
+                zero_start = (first, found, x)
+            else:
+                solved = (first, x, forces, disp, normals, amounts, rates)
+        elif self.compiled:
             disp_h, fh, dfh, t_hat, r, has_directions = slip_trial.held_prediction(
-                c, f0, base.disp, base.owner, np.asarray(velocities, float), float(dt), float(load),
-                float(load_rate), base.forces, base.normals, sl, kinds, self.points[base.nodes[sl]], base.centers,
-                self.radius, DIRECTION_FLOOR)
+                c, f0, base.disp, base.owner, velocities, float(dt), float(load), float(load_rate), base.forces,
+                base.normals, sl, kinds, self.points[base.nodes[sl]], base.centers, self.radius, DIRECTION_FLOOR)
             if not has_directions:
                 raise SlipFailure("a sliding contact has no tangential force, so no slip direction")
         else:
             disp_h, fh, dfh, t_hat, r = self._held_prediction(base, c, f0, dt, velocities, load, load_rate, sl, kinds)
+        if solved is None:
+            solved = self._solve_slip(c, fh, dfh, sl, kinds, t_hat, r, dt, methods, warm_key, newton_order,
+                                      zero_start)
+        free, x, *outcome = solved
+        if not self._same_motion(warm_key, self._warm_key):
+            self._warm_key, self._warm = warm_key, {}
+        self._warm.setdefault(free, []).append((dt, x))
+        if outcome[0] is None:  # solved in Python: read the outcome out now
+            outcome = self._read_out(outcome[1], x, disp_h, sl, m, base, centers)
+        forces, disp, normals, amounts, rates = outcome
+        if not np.isfinite(rates).all():
+            raise SlipFailure("the slip system is singular (a limit of friction is reached)")
+        surface = self.points[self.surface] + self.surface_field(base.nodes, disp, load)
+        kw = {} if param == Parameter.LOAD else {param: getattr(base, param) + dt}
+        state = replace(base, load=load, centers=centers, disp=disp, forces=forces, normals=normals,
+                        surface_positions=surface, position_source=self._position_source(base.nodes, disp, load),
+                        slip=base.slip + np.abs(amounts), **kw)
+        return _Trial(state, amounts, rates)
+
+    def _solve_slip(self, c: np.ndarray, fh: np.ndarray, dfh: np.ndarray, sl: np.ndarray, kinds: np.ndarray,
+                    t_hat: np.ndarray, r: np.ndarray, dt: float, methods: Sequence[str], warm_key: tuple,
+                    newton_order: Callable[[], list[bool]], zero_start: tuple | None) -> tuple:
+        """The slip system's root, form by form and method by method (:meth:`trial`'s order): (form, x, None,
+        the system) — its outcome is read out by :meth:`_read_out`.  ``zero_start``: Newton from zero slip on the
+        first form has been run (by the fused kernel) and found no admissible root."""
         errors = []
         systems = {}
-        x = None
-        # Roots are reused only for the same base state moved the same way (not, e.g., a squeeze root for a lift).
-        warm_key = (base, param, np.asarray(velocities, float).tobytes(), float(load_rate))
+        fails = self._newton_fails
         # Great-circle form (the paper's) first, the free-direction form if it has no root; Newton on
         # both before the (costlier) homotopy continuation on both.
-        if not self._same_motion(warm_key, self._fail_key):
-            self._fail_key, self._newton_fails = warm_key, {}
-        fails = self._newton_fails
         for method in methods:
-            # A form whose Newton found no root at a smaller dt of the same motion is tried last: its root
-            # is lost beyond a turning point (and each failing Newton costs ~40 residuals).
-            order = self.forms if method != "newton" else sorted(self.forms,
-                                                                   key=lambda fr: dt >= fails.get(fr, np.inf))
+            order = self.forms if method != "newton" else newton_order()
             for free in order:
                 if free not in systems:
                     system_type = CompiledSlipSystem if self.compiled else MixedSlipSystem
@@ -539,36 +583,33 @@ class Tracker:
                 near = None
                 if method == "newton" and self._same_motion(warm_key, self._warm_key) and self._warm.get(free):
                     near = min(self._warm[free], key=lambda e: abs(e[0] - dt))[1]
+                tried = {}
+                if method == "newton" and zero_start is not None and zero_start[0] == free:
+                    tried = {"zero_start": zero_start[1:]}
+                    zero_start = None
                 try:
-                    x = systems[free].solve(methods=(method,), start=near)
-                    system = systems[free]
-                    break
+                    x = systems[free].solve(methods=(method,), start=near, **tried)
+                    return free, x, None, systems[free]
                 except SlipFailure as exc:
                     errors.append(str(exc))
                     if method == "newton":
                         fails[free] = min(fails.get(free, np.inf), dt)
-            if x is not None:
-                break
-        else:
-            raise SlipFailure("; ".join(errors))
-        if not self._same_motion(warm_key, self._warm_key):
-            self._warm_key, self._warm = warm_key, {}
-        self._warm.setdefault(system.free, []).append((dt, x))
+        raise SlipFailure("; ".join(errors))
+
+    def _read_out(self, system: CompiledSlipSystem | MixedSlipSystem, x: np.ndarray, disp_h: np.ndarray,
+                  sl: np.ndarray, m: int, base: ContactState, centers: np.ndarray) -> tuple:
+        """(forces, contact displacements, normals, slip amounts, slip rates) of a trial at the root x of
+        ``system``: the amounts and rates 0 where a contact sticks; rates NaN at a friction limit."""
         forces, change, amounts_s, rates_s = system.outcome(x)
-        if not np.isfinite(rates_s).all():
-            raise SlipFailure("the slip system is singular (a limit of friction is reached)")
-        disp = disp_h + change
-        surface = self.points[self.surface] + self.surface_field(base.nodes, disp, load)
-        normals = self.normals(base.owner, self.points[base.nodes] + disp, centers)
         amounts = np.zeros(m)
         rates = np.zeros(m)
         amounts[sl] = amounts_s
         rates[sl] = rates_s
-        kw = {} if param == Parameter.LOAD else {param: getattr(base, param) + dt}
-        state = replace(base, load=load, centers=centers, disp=disp, forces=forces, normals=normals,
-                        surface_positions=surface, position_source=self._position_source(base.nodes, disp, load),
-                        slip=base.slip + np.abs(amounts), **kw)
-        return _Trial(state, amounts, rates)
+        if not np.isfinite(rates_s).all():
+            return forces, disp_h, None, amounts, rates
+        disp = disp_h + change
+        normals = self.normals(base.owner, self.points[base.nodes] + disp, centers)
+        return forces, disp, normals, amounts, rates
 
     def _held_prediction(self, base: ContactState, c: np.ndarray, f0: np.ndarray, dt: float, velocities: np.ndarray,
                          load: float, load_rate: float, sl: np.ndarray, kinds: np.ndarray) -> tuple:
@@ -1127,7 +1168,7 @@ def _run(tracker: Tracker, state: ContactState, velocities: np.ndarray, *, stop:
 
 @warm_up_sample
 def _compile_the_trial_kernels() -> None:
-    """A trial's held prediction and event functions (the kernels of
+    """A trial's held prediction, the whole-trial kernel and the event functions (the kernels of
     :mod:`~fem_grasp.contact.kernels.slip_trial` and :mod:`~fem_grasp.contact.kernels.events` that
     :meth:`Tracker.trial` and :meth:`Tracker.event_values` call), on the warm-up's two contacts."""
     s = sample_contacts()
@@ -1137,6 +1178,12 @@ def _compile_the_trial_kernels() -> None:
     slip_trial.held_prediction(100.0 * np.eye(6), s["forces"], np.zeros((2, 3)), owner, np.zeros((2, 3)), 0.0, 1.0,
                                0.0, s["forces"], normals, sl, owner[sl], s["positions"],
                                np.array([s["centre"], s["centre"]]), 0.01, DIRECTION_FLOOR)
+    for free in (False, True):
+        slip_trial.newton_trial(100.0 * np.eye(6), s["forces"], np.zeros((2, 3)), owner, np.zeros((2, 3)), 0.0, 1.0,
+                                0.0, s["forces"], normals, sl, owner[sl], s["positions"],
+                                np.array([s["centre"], s["centre"]]), 0.01, DIRECTION_FLOOR, s["mu"], s["up"], free,
+                                NEWTON_TOL, NEWTON_MAX_ITER, s["positions"], np.array([s["centre"], s["centre"]]),
+                                TABLE)
     events.contact_normals(owner, s["positions"], np.array([s["centre"], s["centre"]]), s["up"], TABLE)
     for has_table in (True, False):
         events.event_functions(s["positions"], np.array([s["centre"], s["centre"]]), 0.01, has_table, s["up"], 0.0,

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from fem_grasp import Body
+from fem_grasp.contact.kernels import slip_trial
 from fem_grasp.contact.obstacles import Fingertip
 from fem_grasp.contact.slip_system import CompiledSlipSystem
 from fem_grasp.contact.tracking import FINGER1, TABLE, MixedSlipSystem, Tracker
@@ -146,9 +147,22 @@ def test_warm_started_slip_roots_are_the_homotopy_roots(free, monkeypatch):
             return _orig(self, *a, start=start, **k)
 
         monkeypatch.setattr(system, "solve", solve)
+    # Newton from zero slip (the whole-trial kernel's first try) is made to miss after the first trial, so that
+    # every later trial solves from the previous root.
+    real, calls = slip_trial.newton_trial, []
+
+    def zero_misses(*args):
+        out = list(real(*args))
+        calls.append(out[0])
+        if len(calls) > 1 and out[0] == slip_trial.TRIAL_ROOT:
+            out[0], out[6] = slip_trial.TRIAL_NO_ROOT, False
+        return tuple(out)
+
+    monkeypatch.setattr(slip_trial, "newton_trial", zero_misses)
     for k in range(1, 9):
         stepped = warm.trial(state, big * k / 8, vel, methods=("newton",))
-    assert seen[0] is False and all(seen[1:])  # every later trial had the previous root to start from
+    assert calls == [slip_trial.TRIAL_ROOT] * 8  # Newton from zero would have found every root ...
+    assert seen == [True] * 7  # ... but every later trial solved from the previous root
     scale = np.abs(by_homotopy.state.forces).max()
     np.testing.assert_allclose(stepped.state.forces, by_homotopy.state.forces, rtol=0, atol=1e-10 * scale)
     np.testing.assert_allclose(stepped.state.disp, by_homotopy.state.disp, rtol=0, atol=1e-12)
@@ -191,23 +205,38 @@ def test_the_event_predicted_to_fire_first_leads_the_location():
     assert Tracker._first_to_fire(None, hi) is None and Tracker._first_to_fire(lo, None) is None
 
 
-def test_a_slip_form_whose_newton_failed_at_a_smaller_step_is_tried_last(monkeypatch):
+@pytest.mark.parametrize("compiled", [False, True])
+def test_a_slip_form_whose_newton_failed_at_a_smaller_step_is_tried_last(monkeypatch, compiled):
     """After the great-circle Newton finds no root at dt, later trials of the same motion at dt' ≥ dt start
-    with the free-direction form; a trial at a smaller step still tries the great circle first."""
+    with the free-direction form; a trial at a smaller step still tries the great circle first.  Compiled, the
+    first form is tried by the whole-trial kernel, the others by the slip system."""
     from fem_grasp.contact.tracking import SlipFailure
 
     _, t, state, vel = box_squeezed_3mm()
+    if compiled and not t.compiled:
+        pytest.skip("numba is not installed: trials run on the reference path only")
+    t.compiled = compiled
     order = []
-    system = CompiledSlipSystem if t.compiled else MixedSlipSystem
-    orig = system.solve
+    system = CompiledSlipSystem if compiled else MixedSlipSystem
+    orig, kernel = system.solve, slip_trial.newton_trial
 
-    def solve(self, *a, methods=("newton", "homotopy"), **k):
-        order.append(self.free)
+    def solve(self, *a, methods=("newton", "homotopy"), zero_start=None, **k):
+        if zero_start is None:  # (else the kernel tried this form and recorded it)
+            order.append(self.free)
         if not self.free and methods == ("newton",):
             raise SlipFailure("great circle made to fail")
-        return orig(self, *a, methods=methods, **k)
+        return orig(self, *a, methods=methods, **k, **({} if zero_start is None else {"zero_start": zero_start}))
+
+    def newton_trial(*args):
+        free = args[18]
+        order.append(free)
+        out = list(kernel(*args))
+        if not free:
+            out[0] = slip_trial.TRIAL_NO_ROOT
+        return tuple(out)
 
     monkeypatch.setattr(system, "solve", solve)
+    monkeypatch.setattr(slip_trial, "newton_trial", newton_trial)
     t.trial(state, 2e-4, vel, methods=("newton",))
     assert order == [False, True]
     order.clear()

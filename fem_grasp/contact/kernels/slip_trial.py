@@ -31,14 +31,14 @@ import math
 
 import numpy as np
 
-from . import dense, slip_newton
+from . import dense, events, slip_newton
 from .jit import jit
 
 __all__ = ["ENTRY_POINTS", "HOMOTOPY_REASONS", "SINGULAR_DETAILS", "assemble", "fused_newton", "held_prediction", "homotopy",
-           "newton_root", "outcome"]
+           "newton_root", "newton_trial", "outcome"]
 
 #: The kernels called from Python (what a warm-up must reach).
-ENTRY_POINTS = ("assemble", "held_prediction", "homotopy", "newton_root", "outcome")
+ENTRY_POINTS = ("assemble", "held_prediction", "homotopy", "newton_root", "newton_trial", "outcome")
 
 #: Owner code of a table contact (``fem_grasp.contact.obstacles.TABLE``).
 _TABLE = 2
@@ -661,3 +661,75 @@ def held_prediction(c, f0, disp, owner, velocities, dt, load, load_rate, base_fo
             rj = points_sl[j] + disp[sl[j]] - centers[kinds[j]]
             r[j] = rj * (radius / _norm3(rj))
     return disp_h, fh, dfh, t_hat, r, ok
+
+
+# ------------------------------------------------------------ whole trial
+#: :func:`newton_trial`'s outcome codes: a root was found; Newton found no admissible root of the first form (the
+#: caller goes on with the other methods and forms); a sliding contact has no slip direction; the root's slip rates
+#: are singular (a friction limit).
+TRIAL_ROOT, TRIAL_NO_ROOT, TRIAL_NO_DIRECTION, TRIAL_SINGULAR = 0, 1, 2, 3
+
+
+@jit
+def newton_trial(c, f0, disp, owner, velocities, dt, load, load_rate, base_forces, base_normals, sl, kinds,
+                 points_sl, centers, radius, direction_floor, mu_sl, up, free, tol, max_iter, points, new_centers,
+                 table):
+    """One trial state of the event tracking in one call, where Newton's method from zero slip finds the root
+    of the first slip form (nine trials in ten): :func:`held_prediction`, :func:`assemble`, :func:`newton_root`,
+    :func:`outcome` and the contact normals at the new positions (:func:`~fem_grasp.contact.kernels.events.
+    contact_normals`), the calls ``Tracker.trial`` makes one by one, in the same order on the same arrays.
+
+    Parameters
+    ----------
+    c … direction_floor : as :func:`held_prediction`; mu_sl : (p,) friction of the sliding contacts; up : (3,);
+    free : the form tried; tol, max_iter : Newton's (``CompiledSlipSystem.solve``); points : (m, 3) the contact
+    nodes' reference positions; new_centers : (2, 3) the fingertip centres after the increment; table : the table's
+    owner code
+
+    Returns
+    -------
+    (code, disp_h, fh, dfh, t_hat, r, found, x, forces, disp, normals, amounts, rates): ``code`` one of
+    ``TRIAL_*``; the held prediction (always); Newton's result (``found``, x unscaled); with ``TRIAL_ROOT`` the
+    trial's forces, contact displacements, normals and each contact's slip amount and rate (0 where it sticks).
+    """
+    m = disp.shape[0]
+    p = sl.shape[0]
+    disp_h, fh, dfh, t_hat, r, has_directions = held_prediction(
+        c, f0, disp, owner, velocities, dt, load, load_rate, base_forces, base_normals, sl, kinds, points_sl,
+        centers, radius, direction_floor)
+    forces = np.zeros((m, 3))
+    new_disp = np.zeros((m, 3))
+    normals = np.zeros((m, 3))
+    amounts = np.zeros(m)
+    rates = np.zeros(m)
+    if not has_directions:
+        return TRIAL_NO_DIRECTION, disp_h, fh, dfh, t_hat, r, False, np.zeros(0), forces, new_disp, normals, \
+            amounts, rates
+    g, dmap, n0, kappa, sph, xscale, row_scale, row_noise, own = assemble(c, fh, sl, kinds, mu_sl, t_hat, r, up,
+                                                                           radius, free)
+    n = g.shape[1]
+    base_sl = np.empty(3 * p)
+    g_sl = np.empty((3 * p, n))
+    for j in range(p):
+        for i in range(3):
+            base_sl[3 * j + i] = fh[sl[j], i]
+            g_sl[3 * j + i] = g[3 * sl[j] + i]
+    found, ok = True, True
+    x = np.zeros(n)
+    if n:
+        lim = np.maximum(tol, row_noise)
+        found, ok, x = newton_root(np.zeros(n), lim, xscale, row_scale, base_sl, g_sl, dmap, n0, kappa, mu_sl, sph,
+                                   free, t_hat, max_iter)
+    if not (found and ok):
+        return TRIAL_NO_ROOT, disp_h, fh, dfh, t_hat, r, found, x, forces, new_disp, normals, amounts, rates
+    forces, change, amounts_s, rates_s = outcome(x, fh, g, sl, dfh, base_sl, g_sl, dmap, n0, kappa, mu_sl, sph, free,
+                                                 t_hat, row_scale)
+    if not np.isfinite(rates_s).all():
+        rates[:] = np.nan
+        return TRIAL_SINGULAR, disp_h, fh, dfh, t_hat, r, found, x, forces, new_disp, normals, amounts, rates
+    new_disp = disp_h + change
+    normals = events.contact_normals(owner, points + new_disp, new_centers, up, table)
+    for j in range(p):
+        amounts[sl[j]] = amounts_s[j]
+        rates[sl[j]] = rates_s[j]
+    return TRIAL_ROOT, disp_h, fh, dfh, t_hat, r, found, x, forces, new_disp, normals, amounts, rates
