@@ -522,7 +522,7 @@ class Tracker:
         zero_start = None  # Newton from zero slip on the first form, already run: (form, found, x)
         solved = None  # the trial's (form, x, forces, displacements, normals, slip amounts, slip rates)
         if self.compiled and methods[0] == "newton":
-            # The whole trial in one kernel where Newton from zero finds the first form's root (nine in ten).
+            # The whole trial in one kernel where Newton from zero finds the first form's root (most of them).
             first = newton_order()[0]
             (code, disp_h, fh, dfh, t_hat, r, found, x, forces, disp, normals, amounts,
              rates) = slip_trial.newton_trial(
