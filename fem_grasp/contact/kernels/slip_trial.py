@@ -675,9 +675,10 @@ def newton_trial(c, f0, disp, owner, velocities, dt, load, load_rate, base_force
                  points_sl, centers, radius, direction_floor, mu_sl, up, free, tol, max_iter, points, new_centers,
                  table):
     """One trial state of the event tracking in one call, where Newton's method from zero slip finds the root
-    of the first slip form (77–91 % of the shipped scenes' trial states): :func:`held_prediction`, :func:`assemble`, :func:`newton_root`,
-    :func:`outcome` and the contact normals at the new positions (:func:`~fem_grasp.contact.kernels.events.
-    contact_normals`), the calls ``Tracker.trial`` makes one by one, in the same order on the same arrays.
+    of the first slip form (77–91 % of the shipped scenes' trial states): :func:`held_prediction`,
+    :func:`assemble`, :func:`newton_root`, :func:`outcome` and the contact normals at the new positions
+    (:func:`~fem_grasp.contact.kernels.events.contact_normals`), the calls ``Tracker.trial`` made one by one, in
+    the same order on the same arrays.
 
     Parameters
     ----------
