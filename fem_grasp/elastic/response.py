@@ -185,25 +185,32 @@ class ContactResponse:
     differs by a few nodes from this one's M⁻¹ instead.
     """
 
-    def __init__(self, body: "Body", nodes: np.ndarray, backend: str = "sparse") -> None:
+    def __init__(self, body: "Body", nodes: np.ndarray, backend: str = "sparse", *,
+                 _derived: tuple[np.ndarray, np.ndarray, float, np.ndarray, float] | None = None) -> None:
         if backend not in BACKENDS:
             raise ValueError(f"unknown backend {backend!r}; choose one of {BACKENDS}")
         self.body = body
         self.backend = backend
-        self.nodes = check_contact_set(body.mesh.points, nodes)
+        # (_derived: M, M⁻¹, B's scale, the rigid modes' right-hand side and cond₁(M) of a set that :meth:`neighbour`
+        # has derived and checked already.)
+        self.nodes = check_contact_set(body.mesh.points, nodes) if _derived is None else np.array(nodes)
         self.dofs = contact_dofs(self.nodes)
         self._surface_fields = 0  # surface fields asked for so far (see SURFACE_BLOCK_AFTER)
         if backend == "sparse":
-            comp = body.compliance
             self._null = body.orthonormal_rigid_modes
-            a = comp.contact_block(self.nodes)  # X_cc; the columns X[:, c] stay in the body's cache
             d_full = self._gravity_displacement
         else:
             spec = body.spectral
             self._null = spec.null_space
-            a = spec.compliance_block(self.dofs)
             d_full = spec.gravity_term
         self._d_bar = d_full[self.dofs]
+        if _derived is not None:
+            self._matrix, inverse, self._scale, self._rhs_rigid, self.condition_estimate = _derived
+            self._lu = None
+            self.__dict__["_inverse"] = inverse
+            return
+        # X_cc; the columns X[:, c] stay in the body's cache
+        a = body.compliance.contact_block(self.nodes) if backend == "sparse" else spec.compliance_block(self.dofs)
         b = self._null[self.dofs]
         # Scale B so both blocks of M have like magnitudes; b absorbs the scale.
         self._scale = max(float(np.abs(np.diag(a)).max()), np.finfo(float).tiny)
@@ -359,20 +366,8 @@ class ContactResponse:
         if not backward <= NEIGHBOUR_BACKWARD_ERROR:
             log.debug("derived contact response refused: backward error %.2e", backward)
             return None
-        resp = object.__new__(ContactResponse)
-        resp.body, resp.backend = self.body, self.backend
-        resp.nodes = nodes.copy()
-        resp.dofs = contact_dofs(resp.nodes)
-        resp._surface_fields = 0
-        resp._null = self._null
-        resp._d_bar = self._gravity_displacement[resp.dofs]
-        resp._scale = self._scale
-        resp._matrix = mat
-        resp._rhs_rigid = self._rhs_rigid
-        resp._lu = None
-        resp.condition_estimate = condition
-        resp.__dict__["_inverse"] = inv
-        return resp
+        return ContactResponse(self.body, nodes, self.backend, _derived=(mat, inv, self._scale, self._rhs_rigid,
+                                                                             condition))
 
     @cached_property
     def gravity_forces(self) -> np.ndarray:
