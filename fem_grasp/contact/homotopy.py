@@ -38,9 +38,10 @@ _REASONS = {
     "max_steps": "the iteration budget was exhausted without convergence",
     "polish_failed": "Newton polishing of the end point at t = 1 failed",
 }
-_COND_MAX = 1e14        # condition number above which a Jacobian counts as singular
-_CORRECTOR_TOL = 1e-9   # relative Newton-step size at which the path corrector stops
-_CORRECTOR_ITERS = 6
+# The limits the compiled homotopy shares (kernels cannot import this module).
+_COND_MAX = slip_trial.COND_MAX
+_CORRECTOR_TOL = slip_trial.CORRECTOR_TOL
+_CORRECTOR_ITERS = slip_trial.CORRECTOR_ITERS
 #: First and largest continuation steps in t for the slip systems of eqs. (6)–(8) (plane slip and mixed slip
 #: alike): larger than :func:`track`'s defaults because their paths from the held state are short and smooth.
 SLIP_INITIAL_STEP = 0.25

@@ -34,8 +34,9 @@ import numpy as np
 from . import dense, events, slip_newton
 from .jit import jit
 
-__all__ = ["ENTRY_POINTS", "HOMOTOPY_REASONS", "SINGULAR_DETAILS", "assemble", "fused_newton", "held_prediction", "homotopy",
-           "newton_root", "newton_trial", "outcome"]
+__all__ = ["COND_MAX", "CORRECTOR_ITERS", "CORRECTOR_TOL", "ENTRY_POINTS", "HOMOTOPY_REASONS", "SINGULAR_DETAILS",
+           "TRIAL_NO_DIRECTION", "TRIAL_NO_ROOT", "TRIAL_ROOT", "TRIAL_SINGULAR", "assemble", "fused_newton",
+           "held_prediction", "homotopy", "newton_root", "newton_trial", "outcome"]
 
 #: The kernels called from Python (what a warm-up must reach).
 ENTRY_POINTS = ("assemble", "held_prediction", "homotopy", "newton_root", "newton_trial", "outcome")
@@ -296,9 +297,12 @@ def outcome(x, fh, g, sl, dfh, base, g_sl, dmap, n0, kappa, mu, sph, free, t_hel
 HOMOTOPY_REASONS = ("", "diverged", "singular_jacobian", "step_too_small", "max_steps", "polish_failed")
 #: Why a linear solve of the homotopy failed (``homotopy._Singular``'s messages, in this order).
 SINGULAR_DETAILS = ("", "non-finite matrix or right-hand side", "zero matrix", "condition number > 1e+14")
-_COND_MAX = 1e14  # homotopy._COND_MAX
-_CORRECTOR_TOL = 1e-9  # homotopy._CORRECTOR_TOL
-_CORRECTOR_ITERS = 6  # homotopy._CORRECTOR_ITERS
+#: The Newton homotopy's limits, here and in its numpy reference (``fem_grasp.contact.homotopy`` imports them): the
+#: condition number above which a Jacobian counts as singular, the relative Newton-step size at which the path
+#: corrector stops, and its iterations per step.
+COND_MAX = 1e14
+CORRECTOR_TOL = 1e-9
+CORRECTOR_ITERS = 6
 
 
 @jit
@@ -331,7 +335,7 @@ def _lin_solve(a, b):
         for i in range(n):
             s += abs(z[i])
         inv_norm = max(inv_norm, s)
-    if not (np.isfinite(inv_norm) and anorm * inv_norm < _COND_MAX):
+    if not (np.isfinite(inv_norm) and anorm * inv_norm < COND_MAX):
         return 3, b
     return 0, dense.lu_solve(lu, piv, b)
 
@@ -397,7 +401,7 @@ def homotopy(y0, tol, initial_step, max_step, max_steps, min_step, max_iter,
         bn = (1.0 - t_new) ** 2
         prev = np.inf
         accepted = 0
-        for k in range(1, _CORRECTOR_ITERS + 1):
+        for k in range(1, CORRECTOR_ITERS + 1):
             pc, jc = _scaled_with_jacobian(xc, *args)
             code, dx = _lin_solve((1.0 - bn) * jc + bn * jc, -((1.0 - bn) * pc + bn * (pc - p0)))
             if code:
@@ -406,7 +410,7 @@ def homotopy(y0, tol, initial_step, max_step, max_steps, min_step, max_iter,
             step = math.sqrt(np.dot(dx, dx))
             if not np.isfinite(step):
                 break
-            if step <= _CORRECTOR_TOL * (1.0 + math.sqrt(np.dot(xc, xc))):
+            if step <= CORRECTOR_TOL * (1.0 + math.sqrt(np.dot(xc, xc))):
                 accepted = k
                 break
             if step > 0.5 * prev:
