@@ -520,7 +520,7 @@ class Tracker:
             return sorted(self.forms, key=lambda fr: dt >= fails.get(fr, np.inf))
 
         zero_start = None  # Newton from zero slip on the first form, already run: (form, found, x)
-        solved = None  # the trial's (form, x, forces, displacements, normals, slip amounts, slip rates)
+        outcome = None  # the kernel's (forces, contact displacements, normals, slip amounts, slip rates)
         if self.compiled and methods[0] == "newton":
             # The whole trial in one kernel where Newton from zero finds the first form's root (most of them).
             first = newton_order()[0]
@@ -533,8 +533,8 @@ class Tracker:
                 raise SlipFailure("a sliding contact has no tangential force, so no slip direction")
             if code == slip_trial.TRIAL_NO_ROOT:
                 zero_start = (first, found, x)
-            else:
-                solved = (first, x, forces, disp, normals, amounts, rates)
+            else:  # a root (its rates NaN at a friction limit)
+                free, outcome = first, (forces, disp, normals, amounts, rates)
         elif self.compiled:
             disp_h, fh, dfh, t_hat, r, has_directions = slip_trial.held_prediction(
                 c, f0, base.disp, base.owner, velocities, float(dt), float(load), float(load_rate), base.forces,
@@ -543,15 +543,14 @@ class Tracker:
                 raise SlipFailure("a sliding contact has no tangential force, so no slip direction")
         else:
             disp_h, fh, dfh, t_hat, r = self._held_prediction(base, c, f0, dt, velocities, load, load_rate, sl, kinds)
-        if solved is None:
-            solved = self._solve_slip(c, fh, dfh, sl, kinds, t_hat, r, dt, methods, warm_key, newton_order,
-                                      zero_start)
-        free, x, *outcome = solved
+        if outcome is None:
+            free, x, system = self._solve_slip(c, fh, dfh, sl, kinds, t_hat, r, dt, methods, warm_key,
+                                               newton_order, zero_start)
         if not self._same_motion(warm_key, self._warm_key):
             self._warm_key, self._warm = warm_key, {}
         self._warm.setdefault(free, []).append((dt, x))
-        if outcome[0] is None:  # solved in Python: read the outcome out now
-            outcome = self._read_out(outcome[1], x, disp_h, sl, m, base, centers)
+        if outcome is None:
+            outcome = self._read_out(system, x, disp_h, sl, m, base, centers)
         forces, disp, normals, amounts, rates = outcome
         if not np.isfinite(rates).all():
             raise SlipFailure("the slip system is singular (a limit of friction is reached)")
@@ -565,9 +564,9 @@ class Tracker:
     def _solve_slip(self, c: np.ndarray, fh: np.ndarray, dfh: np.ndarray, sl: np.ndarray, kinds: np.ndarray,
                     t_hat: np.ndarray, r: np.ndarray, dt: float, methods: Sequence[str], warm_key: tuple,
                     newton_order: Callable[[], list[bool]], zero_start: tuple | None) -> tuple:
-        """The slip system's root, form by form and method by method (:meth:`trial`'s order): (form, x, None,
-        the system) — its outcome is read out by :meth:`_read_out`.  ``zero_start``: Newton from zero slip on the
-        first form has been run (by the fused kernel) and found no admissible root."""
+        """The slip system's root, form by form and method by method (:meth:`trial`'s order): (form, x, the
+        system), whose outcome :meth:`_read_out` reads.  ``zero_start``: Newton from zero slip on the first form
+        has been run (by the whole-trial kernel) and found no admissible root."""
         errors = []
         systems = {}
         fails = self._newton_fails
@@ -589,7 +588,7 @@ class Tracker:
                     zero_start = None
                 try:
                     x = systems[free].solve(methods=(method,), start=near, **tried)
-                    return free, x, None, systems[free]
+                    return free, x, systems[free]
                 except SlipFailure as exc:
                     errors.append(str(exc))
                     if method == "newton":
