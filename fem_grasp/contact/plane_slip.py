@@ -38,6 +38,7 @@ from typing import Sequence
 
 import numpy as np
 
+from ..elastic.response import contact_dofs
 from ..errors import FrictionError
 from . import homotopy
 from .friction import CONE_RTOL, cone_residual, cone_violation, normal_component, slip_directions, tangential_component
@@ -342,7 +343,7 @@ def _kernel_arrays(system: SlipSystem) -> tuple | None:
             or (free and not np.array_equal(system.aligned, system.sliding))):
         return None
     m, n, p = system.n_contacts, system.n_unknowns, len(system.sliding)
-    rows = (3 * system.sliding[:, None] + np.arange(3)).ravel()
+    rows = contact_dofs(system.sliding)
     return (np.ascontiguousarray(system._force_base[rows]),
             np.ascontiguousarray(system._force_map.reshape(3 * m, n)[rows]),
             np.ascontiguousarray(system.displacement_map[rows]), np.ascontiguousarray(system.normals),

@@ -23,6 +23,7 @@ from typing import Sequence
 import numpy as np
 import scipy.linalg as la
 
+from ..elastic.response import contact_dofs
 from . import homotopy
 from .kernels import jit, slip_newton, slip_trial
 from .kernels.jit import sample_contacts, warm_up_sample
@@ -379,7 +380,6 @@ def _quiet() -> contextlib.AbstractContextManager:
     return contextlib.nullcontext() if jit.ENABLED else np.errstate(over="ignore", invalid="ignore")
 
 
-_XYZ = np.arange(3)
 #: Newton iterations of the homotopy's final polish (``homotopy.track``'s default, as MixedSlipSystem uses it).
 _HOMOTOPY_POLISH_ITER = homotopy.TRACK_MAX_ITER
 
@@ -408,7 +408,7 @@ class CompiledSlipSystem:
                                          np.ascontiguousarray(radii_vectors, dtype=float).reshape(-1, 3),
                                          np.ascontiguousarray(up, dtype=float), float(radius), self.free)
         self.n = self.g.shape[1]
-        rows = (3 * self.sliding[:, None] + _XYZ).reshape(-1)
+        rows = contact_dofs(self.sliding)
         self.base_sl = self.fh.reshape(-1)[rows]
         self.g_sl = self.g[rows]  # (fancy indexing copies: C-contiguous)
 

@@ -35,8 +35,8 @@ if TYPE_CHECKING:
     from .body import Body
 
 __all__ = ["BACKENDS", "COLLINEAR_TOLERANCE", "CollinearContactError", "ContactResponse", "ContactSolution",
-           "MAX_CONDITION", "contact_response", "NEIGHBOUR_BACKWARD_ERROR", "NEIGHBOUR_NODES", "NEIGHBOUR_UPDATES", "WARN_CONDITION",
-           "check_contact_set", "contact_dofs", "equilibrium_residual", "solve_contact"]
+           "MAX_CONDITION", "NEIGHBOUR_BACKWARD_ERROR", "NEIGHBOUR_NODES", "NEIGHBOUR_UPDATES", "WARN_CONDITION",
+           "check_contact_set", "contact_dofs", "contact_response", "equilibrium_residual", "solve_contact"]
 
 log = logging.getLogger(__name__)
 
@@ -77,7 +77,7 @@ NEIGHBOUR_BACKWARD_ERROR = 1e-14
 
 def contact_dofs(nodes: np.ndarray) -> np.ndarray:
     """(3m,) DOF numbers of the contact nodes, node-major (the paper's ā selection)."""
-    return (3 * np.asarray(nodes)[:, None] + np.arange(3)).ravel()
+    return (3 * np.asarray(nodes, dtype=np.int64)[:, None] + np.arange(3)).ravel()
 
 
 def check_contact_set(points: np.ndarray, nodes: np.ndarray) -> np.ndarray:
@@ -310,21 +310,18 @@ class ContactResponse:
         if len(removed_pos) + len(added) > NEIGHBOUR_NODES or len(kept) + len(added) != len(nodes):
             return None
 
-        def dofs_of(positions: list[int]) -> np.ndarray:
-            return (3 * np.asarray(positions, dtype=np.int64)[:, None] + np.arange(3)).ravel()
-
         m3, n3 = 3 * len(old), 3 * len(nodes)
-        keep = np.concatenate([dofs_of(kept_pos), np.arange(m3, m3 + 6)])  # in this response's M
+        keep = np.concatenate([contact_dofs(kept_pos), np.arange(m3, m3 + 6)])  # in this response's M
         at = {k: i for i, k in enumerate(nodes.tolist())}
-        to_kept = np.concatenate([dofs_of([at[k] for k in kept]), np.arange(n3, n3 + 6)])  # ... and in the new one
-        to_added = dofs_of([at[k] for k in added])
+        to_kept = np.concatenate([contact_dofs([at[k] for k in kept]), np.arange(n3, n3 + 6)])  # ... and the new one
+        to_added = contact_dofs([at[k] for k in added])
         inv = self._inverse
         with warnings.catch_warnings():
             warnings.simplefilter("error", la.LinAlgWarning)
             try:
                 inv_kk = inv[np.ix_(keep, keep)]
                 if removed_pos:  # M⁻¹ of the kept rows: the Schur complement of the removed ones
-                    gone = dofs_of(removed_pos)
+                    gone = contact_dofs(removed_pos)
                     inv_kg = inv[np.ix_(keep, gone)]
                     inv_kk -= inv_kg @ la.solve(inv[np.ix_(gone, gone)], inv_kg.T, assume_a="sym",
                                                 check_finite=False)

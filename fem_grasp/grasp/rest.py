@@ -80,6 +80,7 @@ from ..elastic.response import (
     ContactResponse,
     ContactSolution,
     check_contact_set,
+    contact_dofs,
     contact_response,
 )
 from ..errors import RestCheckError, RestConvergenceError
@@ -330,7 +331,7 @@ class _Solver:
     def _frictionless(self, resp: ContactResponse) -> None:
         d = self.prescribed()
         nodes = np.array(self.contacts)
-        dofs = (3 * nodes[:, None] + np.arange(3)).ravel()
+        dofs = contact_dofs(nodes)
         gauge = self.body.rigid_modes[dofs][:, [0, 1, 5]]  # t_x, t_y, r_z at the contacts
         d = d + plane_slip.frictionless_tangential_displacements(resp.reduced_stiffness, self._forces(resp, d),
                                                                self.table.up, gauge)
