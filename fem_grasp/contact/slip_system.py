@@ -29,8 +29,8 @@ from .kernels import jit, slip_newton, slip_trial
 from .kernels.jit import sample_contacts, warm_up_sample
 from .obstacles import FINGER1, TABLE, cross_rows, great_circle_axes, tangent_bases
 
-__all__ = ["CompiledSlipSystem", "HOMOTOPY_TOL", "MixedSlipSystem", "NEWTON_MAX_ITER", "NEWTON_TOL", "REVERSED_FRICTION", "SINGULAR_PIVOT", "SLIP_HOMOTOPY_MIN_STEP",
-           "SLIP_HOMOTOPY_STEPS", "SlipFailure"]
+__all__ = ["CompiledSlipSystem", "HOMOTOPY_TOL", "MixedSlipSystem", "NEWTON_MAX_ITER", "NEWTON_TOL",
+           "REVERSED_FRICTION", "SINGULAR_PIVOT", "SLIP_HOMOTOPY_MIN_STEP", "SLIP_HOMOTOPY_STEPS", "SlipFailure"]
 
 #: The slip-rate Jacobian is taken as singular (a friction limit: no rates) when its smallest LU pivot is
 #: below this fraction of its largest.

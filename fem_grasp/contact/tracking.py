@@ -512,18 +512,11 @@ class Tracker:
         warm_key = (base, param, velocities.tobytes(), float(load_rate))
         if not self._same_motion(warm_key, self._fail_key):
             self._fail_key, self._newton_fails = warm_key, {}
-        fails = self._newton_fails
-
-        def newton_order() -> list[bool]:
-            # A form whose Newton found no root at a smaller dt of the same motion is tried last: its root
-            # is lost beyond a turning point (and each failing Newton costs ~40 residuals).
-            return sorted(self.forms, key=lambda fr: dt >= fails.get(fr, np.inf))
-
         zero_start = None  # Newton from zero slip on the first form, already run: (form, found, x)
         outcome = None  # the kernel's (forces, contact displacements, normals, slip amounts, slip rates)
         if self.compiled and methods[0] == "newton":
             # The whole trial in one kernel where Newton from zero finds the first form's root (most of them).
-            first = newton_order()[0]
+            first = self._newton_order(dt)[0]
             (code, disp_h, fh, dfh, t_hat, r, found, x, forces, disp, normals, amounts,
              rates) = slip_trial.newton_trial(
                 c, f0, base.disp, base.owner, velocities, float(dt), float(load), float(load_rate), base.forces,
@@ -533,7 +526,7 @@ class Tracker:
                 raise SlipFailure("a sliding contact has no tangential force, so no slip direction")
             if code == slip_trial.TRIAL_NO_ROOT:
                 zero_start = (first, found, x)
-            else:  # a root (its rates NaN at a friction limit)
+            else:
                 free, outcome = first, (forces, disp, normals, amounts, rates)
         elif self.compiled:
             disp_h, fh, dfh, t_hat, r, has_directions = slip_trial.held_prediction(
@@ -544,8 +537,7 @@ class Tracker:
         else:
             disp_h, fh, dfh, t_hat, r = self._held_prediction(base, c, f0, dt, velocities, load, load_rate, sl, kinds)
         if outcome is None:
-            free, x, system = self._solve_slip(c, fh, dfh, sl, kinds, t_hat, r, dt, methods, warm_key,
-                                               newton_order, zero_start)
+            free, x, system = self._solve_slip(c, fh, dfh, sl, kinds, t_hat, r, dt, methods, warm_key, zero_start)
         if not self._same_motion(warm_key, self._warm_key):
             self._warm_key, self._warm = warm_key, {}
         self._warm.setdefault(free, []).append((dt, x))
@@ -563,7 +555,7 @@ class Tracker:
 
     def _solve_slip(self, c: np.ndarray, fh: np.ndarray, dfh: np.ndarray, sl: np.ndarray, kinds: np.ndarray,
                     t_hat: np.ndarray, r: np.ndarray, dt: float, methods: Sequence[str], warm_key: tuple,
-                    newton_order: Callable[[], list[bool]], zero_start: tuple | None) -> tuple:
+                    zero_start: tuple | None) -> tuple:
         """The slip system's root, form by form and method by method (:meth:`trial`'s order): (form, x, the
         system), whose outcome :meth:`_read_out` reads.  ``zero_start``: Newton from zero slip on the first form
         has been run (by the whole-trial kernel) and found no admissible root."""
@@ -573,7 +565,7 @@ class Tracker:
         # Great-circle form (the paper's) first, the free-direction form if it has no root; Newton on
         # both before the (costlier) homotopy continuation on both.
         for method in methods:
-            order = self.forms if method != "newton" else newton_order()
+            order = self.forms if method != "newton" else self._newton_order(dt)
             for free in order:
                 if free not in systems:
                     system_type = CompiledSlipSystem if self.compiled else MixedSlipSystem
@@ -595,17 +587,22 @@ class Tracker:
                         fails[free] = min(fails.get(free, np.inf), dt)
         raise SlipFailure("; ".join(errors))
 
+    def _newton_order(self, dt: float) -> list[bool]:
+        """The slip forms in the order Newton's method tries them at increment dt: a form whose Newton found no root
+        at a smaller dt of the same motion is tried last (its root is lost beyond a turning point, and each failing
+        Newton costs ~40 residuals)."""
+        return sorted(self.forms, key=lambda fr: dt >= self._newton_fails.get(fr, np.inf))
+
     def _read_out(self, system: CompiledSlipSystem | MixedSlipSystem, x: np.ndarray, disp_h: np.ndarray,
                   sl: np.ndarray, m: int, base: ContactState, centers: np.ndarray) -> tuple:
         """(forces, contact displacements, normals, slip amounts, slip rates) of a trial at the root x of
-        ``system``: the amounts and rates 0 where a contact sticks; rates NaN at a friction limit."""
+        ``system`` (what the whole-trial kernel returns): the amounts and rates 0 where a contact sticks, the rates NaN
+        at a friction limit."""
         forces, change, amounts_s, rates_s = system.outcome(x)
         amounts = np.zeros(m)
         rates = np.zeros(m)
         amounts[sl] = amounts_s
         rates[sl] = rates_s
-        if not np.isfinite(rates_s).all():
-            return forces, disp_h, None, amounts, rates
         disp = disp_h + change
         normals = self.normals(base.owner, self.points[base.nodes] + disp, centers)
         return forces, disp, normals, amounts, rates

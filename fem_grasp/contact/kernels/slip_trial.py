@@ -35,7 +35,7 @@ from . import dense, events, slip_newton
 from .jit import jit
 
 __all__ = ["COND_MAX", "CORRECTOR_ITERS", "CORRECTOR_TOL", "ENTRY_POINTS", "HOMOTOPY_REASONS", "SINGULAR_DETAILS",
-           "TRIAL_NO_DIRECTION", "TRIAL_NO_ROOT", "TRIAL_ROOT", "TRIAL_SINGULAR", "assemble", "fused_newton",
+           "TRIAL_NO_DIRECTION", "TRIAL_NO_ROOT", "TRIAL_ROOT", "assemble", "fused_newton",
            "held_prediction", "homotopy", "newton_root", "newton_trial", "outcome"]
 
 #: The kernels called from Python (what a warm-up must reach).
@@ -668,10 +668,10 @@ def held_prediction(c, f0, disp, owner, velocities, dt, load, load_rate, base_fo
 
 
 # ------------------------------------------------------------ whole trial
-#: :func:`newton_trial`'s outcome codes: a root was found; Newton found no admissible root of the first form (the
-#: caller goes on with the other methods and forms); a sliding contact has no slip direction; the root's slip rates
-#: are singular (a friction limit).
-TRIAL_ROOT, TRIAL_NO_ROOT, TRIAL_NO_DIRECTION, TRIAL_SINGULAR = 0, 1, 2, 3
+#: :func:`newton_trial`'s outcome codes: a root was found (its slip rates NaN at a friction limit, as
+#: :func:`outcome` gives them); Newton found no admissible root of the first form (the caller goes on with the
+#: other methods and forms); a sliding contact has no slip direction.
+TRIAL_ROOT, TRIAL_NO_ROOT, TRIAL_NO_DIRECTION = 0, 1, 2
 
 
 @jit
@@ -729,9 +729,6 @@ def newton_trial(c, f0, disp, owner, velocities, dt, load, load_rate, base_force
         return TRIAL_NO_ROOT, disp_h, fh, dfh, t_hat, r, found, x, forces, new_disp, normals, amounts, rates
     forces, change, amounts_s, rates_s = outcome(x, fh, g, sl, dfh, base_sl, g_sl, dmap, n0, kappa, mu_sl, sph, free,
                                                  t_hat, row_scale)
-    if not np.isfinite(rates_s).all():
-        rates[:] = np.nan
-        return TRIAL_SINGULAR, disp_h, fh, dfh, t_hat, r, found, x, forces, new_disp, normals, amounts, rates
     new_disp = disp_h + change
     normals = events.contact_normals(owner, points + new_disp, new_centers, up, table)
     for j in range(p):
