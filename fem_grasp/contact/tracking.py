@@ -356,7 +356,9 @@ class Tracker:
         self.surface = body.mesh.surface_nodes
         self.surface_index = body.mesh.surface_index  # each node's position in ``surface`` (−1: interior)
         self.diameter = body.mesh.diameter
-        self.up = table.up if table is not None else np.array([0.0, 0.0, 1.0])
+        # A writable copy: the table's own is read-only, and numba compiles a kernel again for a read-only array
+        # (the warm-up's samples are writable), so a pickup would pay a second compilation.
+        self.up = np.array(table.up if table is not None else [0.0, 0.0, 1.0], dtype=float)
         self._responses: dict[tuple[int, ...], ContactResponse] = {}
         self._zero_fields: dict[tuple[int, ...], np.ndarray] = {}
         self._zero_surface_fields: dict[tuple[int, ...], np.ndarray] = {}

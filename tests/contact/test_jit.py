@@ -8,6 +8,7 @@ number of sweeps, with the same forces, or fail with the same message; the
 slip systems the same roots.
 """
 
+import json
 import os
 import pickle
 import subprocess
@@ -130,7 +131,6 @@ def test_warm_up_compiles_every_entry_point(tmp_path):
     cache), every kernel called from Python must then have a compiled signature, and none is left for a pickup
     to compile.  The kernel modules name their entry points; the callers register the samples."""
     import importlib
-    import json
 
     from fem_grasp.contact.warm_up import entry_points, warm_up
 
@@ -151,3 +151,19 @@ def test_warm_up_compiles_every_entry_point(tmp_path):
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, check=True, capture_output=True, text=True)
     counts = json.loads(out.stdout.strip().splitlines()[-1])
     assert all(n >= 1 for names in counts.values() for n in names.values()), counts
+
+
+@NEEDS_NUMBA
+def test_a_pickup_after_the_warm_up_compiles_nothing():
+    """Regression (the first tomato pickup after ``make setup`` spent 11 s compiling): the warm-up's samples must
+    have the argument types a pickup passes (a read-only table normal was a second signature of four kernels).
+    In a fresh process, a pickup on the table after :func:`warm_up` adds no signature to any entry point."""
+    code = ("import importlib, json; from fem_grasp.contact.warm_up import entry_points, warm_up; warm_up(); "
+            "count = lambda: {f'{m}.{n}': len(getattr(importlib.import_module(m), n).signatures) "
+            "for m, names in entry_points().items() for n in names}; before = count(); "
+            "from tests.helpers import pick_up_box; r = pick_up_box(0.8); "
+            "print(json.dumps([r.success, len(r.events), before, count()]))")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, check=True, capture_output=True, text=True)
+    success, n_events, before, after = json.loads(out.stdout.strip().splitlines()[-1])
+    assert n_events > 0  # the pickup tracked events (it ran the trial kernels)
+    assert after == before, {k: (before[k], after[k]) for k in after if after[k] != before[k]}
