@@ -12,7 +12,9 @@ identical event sequences and verdicts, ρ* to :data:`SAME_RHO` relative, final 
 fem_grasp with each SETTING applied — ``module.ATTRIBUTE=VALUE`` (a switch such as
 ``fem_grasp.elastic.response.NEIGHBOUR_UPDATES=False``, set after import; VALUE a Python literal) or
 ``ENV:NAME=VALUE`` (an environment variable of the worker, e.g. ``ENV:FEM_GRASP_NO_JIT=1``): what one step of the
-engine is worth, measured in one interleaved run.
+engine is worth, measured in one interleaved run.  A constant that other modules import by value (``from
+fem_grasp.elastic.compliance import PREFETCH_NODES``) keeps its old value there: the worker warns, naming those
+modules (:func:`by_value_copies`), unless they are switched too.
 
 ``python -m bench.tracker --baseline REV`` runs it alone; ``python -m bench.bench --only tracker`` (``make bench``)
 runs it as a section of the benchmark and keeps it in ``bench/out/bench.json``.  The worker protocol (one JSON
@@ -35,8 +37,8 @@ from typing import Any
 
 log = logging.getLogger("bench")
 
-__all__ = ["SCENES", "SAME_FORCE", "SAME_RHO", "compare", "fingerprint", "print_tracker", "section_tracker",
-           "serve"]
+__all__ = ["SCENES", "SAME_FORCE", "SAME_RHO", "by_value_copies", "compare", "fingerprint", "print_tracker",
+           "section_tracker", "serve"]
 
 ROOT = Path(__file__).resolve().parent.parent
 #: The shipped paper scenes and the foam block (the box the tests use most).
@@ -232,12 +234,37 @@ def _apply_switches() -> None:
     import ast
     import importlib
 
-    for name, value in json.loads(os.environ.get("BENCH_SWITCHES", "[]")):
+    switches = json.loads(os.environ.get("BENCH_SWITCHES", "[]"))
+    if switches:
+        # Everything a pickup imports, so that copies of a switched constant imported by value can be found.
+        importlib.import_module("fem_grasp.io.scene")
+        importlib.import_module("fem_grasp.grasp.pickup")
+    left = {name for name, _ in switches}  # switched, or already warned about
+    for name, value in switches:
         module, _, attribute = name.rpartition(".")
         mod = importlib.import_module(module)
         if not hasattr(mod, attribute):
             raise ValueError(f"--against: {module} has no attribute {attribute!r}")
+        copies = [other for other in by_value_copies(mod, attribute) if f"{other}.{attribute}" not in left]
+        left.update(f"{other}.{attribute}" for other in copies)
+        if copies:
+            log.warning("--against %s: %s also bind%s %s to the same object (imported by value?) and keep it; "
+                        "name %s too if the setting is meant to reach %s", name, ", ".join(copies),
+                        "s" if len(copies) == 1 else "", attribute, "it" if len(copies) == 1 else "them",
+                        "it" if len(copies) == 1 else "them")
         setattr(mod, attribute, ast.literal_eval(value))
+
+
+def by_value_copies(module: Any, attribute: str) -> list[str]:
+    """The other loaded ``fem_grasp`` modules whose global ``attribute`` is the very object ``module`` binds to
+    it (a ``from module import ATTRIBUTE``): setting the attribute on ``module`` does not reach them."""
+    value = getattr(module, attribute)
+    return sorted(name for name, other in list(sys.modules.items())
+                  if other is not module and other is not None and name.split(".")[0] == "fem_grasp"
+                  and vars(other).get(attribute, _MISSING) is value)
+
+
+_MISSING = object()
 
 
 def _against(settings: list[str]) -> tuple[dict[str, str], list[list[str]]]:
