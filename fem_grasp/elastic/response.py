@@ -422,10 +422,16 @@ class ContactResponse:
         block = self._surface_block if self._surface_fields > SURFACE_BLOCK_AFTER else None
         combined = self.body.compliance.combine_surface(self.nodes, f) if block is None else block @ f
         field = (combined + grav + null @ b).reshape(-1, 3)
-        pos = self.body.mesh.surface_index[self.nodes]
-        on = pos >= 0
-        field[pos[on]] = d.reshape(-1, 3)[on]  # the prescribed values, exactly (as in solve)
+        rows, contacts = self._surface_contacts
+        field[rows] = d.reshape(-1, 3)[contacts]  # the prescribed values, exactly (as in solve)
         return field
+
+    @cached_property
+    def _surface_contacts(self) -> tuple[np.ndarray, np.ndarray]:
+        """(rows of ``mesh.surface_nodes``, positions in the contact set) of the contact nodes on the surface."""
+        pos = self.body.mesh.surface_index[self.nodes]
+        on = np.flatnonzero(pos >= 0)
+        return pos[on], on
 
 
 def contact_response(body: "Body", nodes: np.ndarray, *, backend: str = "sparse",
