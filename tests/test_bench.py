@@ -26,6 +26,19 @@ def test_profile_counts_the_return_mappings_and_slip_solves_of_a_pickup(capsys):
     assert tracking.one_blas_thread.__name__ == "one_blas_thread"
 
 
+def test_profile_after_a_first_pickup_counts_the_second_only(capsys):
+    """--after-first: the first pickup (factorisation, columns) is timed but neither profiled nor counted; the counters
+    hold the second pickup's solves alone (as many trial states as it has, at least one per event)."""
+    plain = profile.main(["football", "--quick", "--top", "1"])
+    out = profile.main(["football", "--quick", "--top", "1", "--after-first"])
+    text = capsys.readouterr().out
+    assert out["first_s"] > 0 and "after a first pickup" in text
+    assert out["events"] == plain["events"] > 0
+    # counted once, not twice: the counters were reset between the pickups
+    assert out["events"] <= out["trials"] < 1.5 * plain["trials"]
+    assert tracking.Tracker.trial.__name__ == "trial"
+
+
 def test_replayed_return_mappings_reach_their_recorded_outcomes(tmp_path, capsys, monkeypatch):
     """bench.replay records a pickup's return mappings and solves them again: the same code reaches the same
     outcome on every call, and a solver that changes one verdict is reported."""
