@@ -355,8 +355,7 @@ class Tracker:
         self.points = body.mesh.points
         self.surface = body.mesh.surface_nodes
         self.surface_index = body.mesh.surface_index  # each node's position in ``surface`` (−1: interior)
-        self.surface_points = self.points[self.surface]  # their reference positions (read at every trial)
-        self.surface_points.setflags(write=False)
+        self.surface_points = body.mesh.surface_points  # their reference positions
         self.diameter = body.mesh.diameter
         # A writable copy: the table's own is read-only, and numba compiles a kernel again for a read-only array
         # (the warm-up's samples are writable), so a pickup would pay a second compilation.

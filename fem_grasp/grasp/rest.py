@@ -254,7 +254,7 @@ class _Solver:
         self.force_tol = FORCE_TOL * body.weight
         self.points = body.mesh.points
         self.surface = body.mesh.surface_nodes
-        self._surface_points = self.points[self.surface]
+        self._surface_points = body.mesh.surface_points
         self.contacts: list[int] = []
         self.disp: dict[int, np.ndarray] = {}
         self.sliding: set[int] = set()

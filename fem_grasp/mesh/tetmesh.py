@@ -316,6 +316,14 @@ class TetMesh:
         return index
 
     @cached_property
+    def surface_points(self) -> np.ndarray:
+        """(s, 3) reference positions of :attr:`surface_nodes` (read-only; the tracking adds a field to them at
+        every trial state)."""
+        points = self.points[self.surface_nodes]
+        points.setflags(write=False)
+        return points
+
+    @cached_property
     def surface_normals(self) -> np.ndarray:
         """(n, 3) outward unit normal at each vertex (area-weighted; zero off the surface)."""
         return vertex_normals(self.points, self.surface_faces)

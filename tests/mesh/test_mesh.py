@@ -132,3 +132,14 @@ def test_surface_index_maps_surface_nodes_to_their_positions_and_interior_to_min
     assert np.array_equal(idx[surf], np.arange(len(surf)))
     interior = np.setdiff1d(np.arange(mesh.n_points), surf)
     assert len(interior) == 8 and np.all(idx[interior] == -1)
+
+
+def test_surface_points_are_the_surface_nodes_positions_and_read_only():
+    mesh = box_mesh((0, 0, 0), (1, 1, 1), (3, 3, 3))
+    p = mesh.surface_points
+    assert p.shape == (len(mesh.surface_nodes), 3)
+    # on the unit box every surface node has a coordinate at 0 or 1
+    assert np.all(np.any(np.isclose(p, 0.0) | np.isclose(p, 1.0), axis=1))
+    assert np.array_equal(p, mesh.points[mesh.surface_nodes])  # a gather, no arithmetic
+    with pytest.raises(ValueError):
+        p[0, 0] = 5.0  # shared by every tracker of the body: not to be written
