@@ -248,10 +248,8 @@ def _apply_switches() -> None:
         copies = [other for other in by_value_copies(mod, attribute) if f"{other}.{attribute}" not in left]
         left.update(f"{other}.{attribute}" for other in copies)
         if copies:
-            log.warning("--against %s: %s also bind%s %s to the same object (imported by value?) and keep it; "
-                        "name %s too if the setting is meant to reach %s", name, ", ".join(copies),
-                        "s" if len(copies) == 1 else "", attribute, "it" if len(copies) == 1 else "them",
-                        "it" if len(copies) == 1 else "them")
+            log.warning("--against %s: %s keep their own %s (imported by value); switch them too if meant",
+                        name, ", ".join(copies), attribute)
         setattr(mod, attribute, ast.literal_eval(value))
 
 
