@@ -37,7 +37,7 @@ from typing import Any
 
 log = logging.getLogger("bench")
 
-__all__ = ["SCENES", "SAME_FORCE", "SAME_RHO", "by_value_copies", "compare", "fingerprint", "print_tracker",
+__all__ = ["PHASES", "SCENES", "SAME_FORCE", "SAME_RHO", "by_value_copies", "compare", "fingerprint", "print_tracker",
            "section_tracker", "serve"]
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -51,6 +51,8 @@ ORANGE_YOUNG = 2e4
 #: tomato (2 %) and the football (10 %) meshed finer at the fingertips and the table, inner spacing R/4
 #: (``--routes``; #27's "time to a 5 % answer").
 ROUTES = (("tomato", 0.25), ("football", 0.25))
+#: The phases of a pickup that ``PickupResult.timings`` reports, in Algorithm 1's order, and their sum.
+PHASES = ("rest", "closure", "squeeze", "lift_test", "lift", "total")
 #: "The same answer" (#27): ρ* to 1e-9 relative ...
 SAME_RHO = 1e-9
 #: ... and final contact forces to 1e-9 of mg.
@@ -78,7 +80,7 @@ def _pickup(name: str, quick: bool = False) -> dict[str, Any]:
     t0 = time.perf_counter()
     result = scene.run(cache_dir=None)
     seconds = time.perf_counter() - t0
-    return {"seconds": seconds, "fingerprint": fingerprint(result)}
+    return _answer(seconds, result)
 
 
 def _orange_pickup(path: str) -> dict[str, Any]:
@@ -97,9 +99,20 @@ def _orange_pickup(path: str) -> dict[str, Any]:
     t0 = time.perf_counter()
     body = Body(mesh, ORANGE_YOUNG, row.poisson, weight=row.weight)
     resting = rest(body, DEFAULT_FRICTION)
+    t_rest = time.perf_counter() - t0
     result = pickup(body, mu_finger=DEFAULT_FRICTION, mu_table=DEFAULT_FRICTION, rest_state=resting,
                     placement_rule=objects.PAPER_PLACEMENT_RULE)
-    return {"seconds": time.perf_counter() - t0, "fingerprint": fingerprint(result)}
+    return _answer(time.perf_counter() - t0, result, rest=t_rest)
+
+
+def _answer(seconds: float, result: Any, rest: float | None = None) -> dict[str, Any]:
+    """A worker's answer: the pickup's wall time, its fingerprint and its phases (``PickupResult.timings``, s;
+    ``rest``: the rest computed before :func:`~fem_grasp.pickup` was called, with the body's factorisation)."""
+    phases = {k: float(v) for k, v in getattr(result, "timings", {}).items()}  # (older baselines may lack them)
+    if rest is not None and phases:
+        phases["rest"] = phases.get("rest", 0.0) + rest
+        phases["total"] = phases.get("total", 0.0) + rest
+    return {"seconds": seconds, "fingerprint": fingerprint(result), "phases": phases}
 
 
 def serve() -> int:
@@ -150,7 +163,7 @@ def _route_pickup(path: str, scene_name: str) -> dict[str, Any]:
     body = Body(mesh, scene.young, scene.poisson, gravity=scene.gravity,
                 **({"weight": scene.weight} if scene.weight is not None else {"density": scene.density}))
     result = pickup(body, **kw)
-    return {"seconds": time.perf_counter() - t0, "fingerprint": fingerprint(result), "vertices": int(len(mesh.points))}
+    return {**_answer(time.perf_counter() - t0, result), "vertices": int(len(mesh.points))}
 
 
 def route_mesh(scene_name: str, inner: float, cache: Path) -> Path:
@@ -357,7 +370,7 @@ def section_tracker(baseline: str = DEFAULT_BASELINE, reps: int = 3, scenes: tup
                 row["vertices"] = runs["current"][0].get("vertices")
             for label, rs in runs.items():
                 row[label] = {"first": rs[0]["seconds"], "median": statistics.median(r["seconds"] for r in rs[1:]),
-                              "times": [r["seconds"] for r in rs]}
+                              "times": [r["seconds"] for r in rs], "phases": _phase_medians(rs[1:])}
             row["ratio"] = row["baseline"]["median"] / row["current"]["median"]
             row["answer"] = compare(runs["baseline"][0]["fingerprint"], runs["current"][0]["fingerprint"])
             # every repetition of one tree gives its first answer (the engine is deterministic)
@@ -371,6 +384,12 @@ def section_tracker(baseline: str = DEFAULT_BASELINE, reps: int = 3, scenes: tup
             w.close()
     return {"baseline": sha, "reps": reps, "quick": quick, "rows": rows, "same_rho": SAME_RHO,
             "same_force": SAME_FORCE}
+
+
+def _phase_medians(runs: list[dict[str, Any]]) -> dict[str, float]:
+    """Median of each phase over ``runs`` (the phases every run reports)."""
+    names = set.intersection(*(set(r.get("phases", {})) for r in runs)) if runs else set()
+    return {k: statistics.median(r["phases"][k] for r in runs) for k in PHASES if k in names}
 
 
 def print_tracker(sec: dict[str, Any]) -> None:
@@ -391,6 +410,14 @@ def print_tracker(sec: dict[str, Any]) -> None:
             def fmt(evs):
                 return ", ".join(f"{k} {n} {c}" for k, n, c, _ in evs) or "nothing"
             print(f"{'':<11} event {ch['at']}: baseline {fmt(ch['removed'])}; current {fmt(ch['added'])}")
+    print("\nwhere this checkout's pickup time goes: medians of each phase (s; 'set-up' is the rest of the timed call: "
+          "the scene's loading and the body's assembly)")
+    print(f"{'scene':<14}" + "".join(f"{k.replace('_', ' '):>10}" for k in PHASES) + f"{'set-up':>9}")
+    for r in sec["rows"]:
+        ph = r["current"].get("phases", {})
+        if "total" in ph:
+            print(f"{r['scene']:<14}" + "".join(f"{ph.get(k, float('nan')):10.3f}" for k in PHASES)
+                  + f"{r['current']['median'] - ph['total']:9.3f}")
 
 
 def main(argv: list[str] | None = None) -> int:

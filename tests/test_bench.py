@@ -158,7 +158,7 @@ def test_different_event_sequences_are_reported_as_the_events_one_removes_and_th
 def test_the_tracker_section_runs_a_baseline_commit_beside_this_checkout(tmp_path):
     """Two worker processes, one on the exported baseline tree (it checks which fem_grasp it imported), time the
     same scene in turns; against this checkout's own commit the answers are the same and repeatable."""
-    from bench.tracker import section_tracker
+    from bench.tracker import PHASES, section_tracker
 
     sec = section_tracker("HEAD", reps=1, scenes=("foam_block",), warm_up=None, quick=True, export_to=tmp_path,
                           large=(400,), mesh_cache=tmp_path / "meshes")
@@ -167,6 +167,13 @@ def test_the_tracker_section_runs_a_baseline_commit_beside_this_checkout(tmp_pat
     for row in sec["rows"]:
         assert row["answer"]["same"] and row["repeatable"] and row["answer"]["events"][0] > 0
         assert len(row["baseline"]["times"]) == len(row["current"]["times"]) == 2 and row["ratio"] > 0
+        # The phases are parts of the timed call: each non-negative, together their total, which the call
+        # contains (the set-up, the body's assembly, is the rest of it).  A single run: its median is itself.
+        ph = row["current"]["phases"]
+        assert set(ph) == set(PHASES) and min(ph.values()) >= 0.0
+        assert sum(v for k, v in ph.items() if k != "total") == pytest.approx(ph["total"], rel=0.05)
+        assert ph["total"] <= row["current"]["median"]
+        assert ph["rest"] > 0.0 and ph["lift_test"] > 0.0
     with pytest.raises(SystemExit, match="not a commit"):
         section_tracker("no-such-commit", export_to=tmp_path)
 
