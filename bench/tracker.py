@@ -37,8 +37,8 @@ from typing import Any
 
 log = logging.getLogger("bench")
 
-__all__ = ["PHASES", "SCENES", "SAME_FORCE", "SAME_RHO", "by_value_copies", "compare", "fingerprint", "print_tracker",
-           "section_tracker", "serve"]
+__all__ = ["PHASES", "SCENES", "SAME_FORCE", "SAME_RHO", "SEARCH_CANDIDATES", "by_value_copies", "compare",
+           "compare_search", "fingerprint", "print_tracker", "section_tracker", "serve"]
 
 ROOT = Path(__file__).resolve().parent.parent
 #: The shipped paper scenes and the foam block (the box the tests use most).
@@ -53,6 +53,13 @@ ORANGE_YOUNG = 2e4
 ROUTES = (("tomato", 0.25), ("football", 0.25))
 #: The phases of a pickup that ``PickupResult.timings`` reports, in Algorithm 1's order, and their sum.
 PHASES = ("rest", "closure", "squeeze", "lift_test", "lift", "total")
+#: Placements of ``--search`` (the placement search's default number of candidates).
+SEARCH_CANDIDATES = 64
+#: A placement search's rows are the same answer when these columns are equal ...
+SEARCH_EXACT = ("status", "outcome", "success", "events", "events_A", "events_B", "events_C", "events_D")
+#: ... ρ* agrees to :data:`SAME_RHO` and these finger forces (each finger's resultant and Table III's normal sum) to
+#: :data:`SAME_FORCE` of mg (a row holds event counts and finger totals, not the sequence and every contact force).
+SEARCH_FORCES = ("force1", "force2", "finger_normal_force")
 #: "The same answer" (#27): ρ* to 1e-9 relative ...
 SAME_RHO = 1e-9
 #: ... and final contact forces to 1e-9 of mg.
@@ -130,7 +137,9 @@ def serve() -> int:
     for line in sys.stdin:
         request = json.loads(line)
         try:
-            if "route" in request:
+            if "search" in request:
+                answer = _search(request["search"], int(request["candidates"]), bool(request.get("quick")))
+            elif "route" in request:
                 answer = _route_pickup(request["mesh"], request["route"])
             elif "mesh" in request:
                 answer = _orange_pickup(request["mesh"])
@@ -164,6 +173,27 @@ def _route_pickup(path: str, scene_name: str) -> dict[str, Any]:
                 **({"weight": scene.weight} if scene.weight is not None else {"density": scene.density}))
     result = pickup(body, **kw)
     return {**_answer(time.perf_counter() - t0, result), "vertices": int(len(mesh.points))}
+
+
+def _search(scene_name: str, candidates: int, quick: bool) -> dict[str, Any]:
+    """A placement search of a shipped scene (``fem-grasp search``'s defaults, in this process, no files): its wall
+    time and, per placement, the columns that :func:`compare_search` compares."""
+    import math
+
+    from fem_grasp.batch.engine import search
+
+    t0 = time.perf_counter()
+    result = search(scene_name, None, candidates=candidates, workers=0, report=False, best=0, quick=quick,
+                    cache_dir=None)
+    seconds = time.perf_counter() - t0
+
+    def plain(v: Any) -> Any:  # JSON: numbers and strings, NaN (no ρ*) as None
+        v = v.item() if hasattr(v, "item") else v
+        return None if isinstance(v, float) and math.isnan(v) else v
+
+    columns = SEARCH_EXACT + ("rho_star", "weight") + SEARCH_FORCES
+    rows = {str(row["key"]): {c: plain(row[c]) for c in columns} for _, row in result.table.iterrows()}
+    return {"seconds": seconds, "placements": rows}
 
 
 def route_mesh(scene_name: str, inner: float, cache: Path) -> Path:
@@ -206,6 +236,42 @@ def compare(base: dict[str, Any], new: dict[str, Any]) -> dict[str, Any]:
     return {"same_verdict": base["success"] == new["success"], "same_events": same_events,
             "events": [len(base["events"]), len(new["events"])], "rho_rel": rho, "force_mg": force, "same": same,
             "event_changes": event_changes(base["events"], new["events"])}
+
+
+def compare_search(base: dict[str, dict[str, Any]], new: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """:func:`compare` for two placement searches, placement by placement (:data:`SEARCH_EXACT`, ρ* and
+    :data:`SEARCH_FORCES`): the same answer when every placement is; ``placements_differ`` names those that are
+    not, with what differs."""
+
+    def gap(a: Any, b: Any) -> float:  # no value on both sides (no ρ*, no force) is no difference
+        if a is None or b is None:
+            return 0.0 if a is None and b is None else float("inf")
+        return abs(float(a) - float(b))
+
+    differ, rho_max, force_max, same_events = [], 0.0, 0.0, True
+    for key in sorted(set(base) | set(new)):
+        a, b = base.get(key), new.get(key)
+        if a is None or b is None:
+            differ.append({"key": key, "what": "only in the " + ("current" if a is None else "baseline") + " search"})
+            continue
+        unequal = [c for c in SEARCH_EXACT if a[c] != b[c]]
+        same_events &= not any(c.startswith("events") for c in unequal)
+        rho = gap(a["rho_star"], b["rho_star"]) / max(abs(a["rho_star"] or 0.0), 1e-300)
+        force = max(gap(a[c], b[c]) for c in SEARCH_FORCES) / a["weight"]
+        rho_max, force_max = max(rho_max, rho), max(force_max, force)
+        if unequal or rho > SAME_RHO or force > SAME_FORCE:
+            what = [f"{c} {a[c]} -> {b[c]}" for c in unequal]
+            if rho > SAME_RHO:
+                what.append(f"rho* {1e3 * (a['rho_star'] or 0):.4g} -> {1e3 * (b['rho_star'] or 0):.4g} mm")
+            if force > SAME_FORCE:
+                what.append(f"finger forces {force:.1e} mg apart")
+            differ.append({"key": key, "what": "; ".join(what)})
+    events = [sum(r["events"] or 0 for r in side.values()) for side in (base, new)]
+    return {"same_verdict": all(base[k]["success"] == new[k]["success"] for k in set(base) & set(new)),
+            "same_events": same_events, "events": events, "rho_rel": rho_max, "force_mg": force_max,
+            "same": not differ, "event_changes": [], "placements": len(base),
+            "picked_up": [sum(bool(r["success"]) for r in side.values()) for side in (base, new)],
+            "placements_differ": differ}
 
 
 def event_changes(base: list, new: list) -> list[dict[str, Any]]:
@@ -311,10 +377,12 @@ class _Worker:
             raise RuntimeError(f"the {label} worker imported fem_grasp from {hello['fem_grasp']}, not from {tree}")
 
     def pickup(self, scene: str, quick: bool = False, mesh: Path | None = None,
-               route: str | None = None) -> dict[str, Any]:
+               route: str | None = None, search: int | None = None) -> dict[str, Any]:
         request: dict[str, Any] = {"scene": scene, "quick": quick} if mesh is None else {"mesh": str(mesh)}
         if route is not None:
             request["route"] = route
+        if search is not None:
+            request = {"search": scene, "candidates": search, "quick": quick}
         self.proc.stdin.write(json.dumps(request) + "\n")
         self.proc.stdin.flush()
         answer = json.loads(self.proc.stdout.readline())
@@ -332,11 +400,14 @@ def section_tracker(baseline: str = DEFAULT_BASELINE, reps: int = 3, scenes: tup
                     warm_up: str | None = "foam_block", quick: bool = False,
                     export_to: Path | None = None, large: tuple[int, ...] = (),
                     mesh_cache: Path | None = None, routes: tuple[tuple[str, float], ...] = (),
-                    against: tuple[str, ...] = ()) -> dict[str, Any]:
+                    against: tuple[str, ...] = (), searches: tuple[str, ...] = (),
+                    candidates: int = SEARCH_CANDIDATES) -> dict[str, Any]:
     """Time the shipped scenes' pickups (their ``[quick]`` variants with ``quick``) with the baseline's fem_grasp
     and this checkout's, interleaved (module notes); medians of ``reps`` after the first call.  ``large``: also
     the uniform orange of about that many vertices (the scaling section's, rest included), one row each;
-    ``routes``: also these (scene, inner spacing / R) graded meshes (:data:`ROUTES`).  ``against``: the baseline is
+    ``routes``: also these (scene, inner spacing / R) graded meshes (:data:`ROUTES`).  ``searches``: also a placement
+    search of ``candidates`` placements of each of these scenes, compared placement by placement
+    (:func:`compare_search`; a test of "the same answer" far wider than one pickup).  ``against``: the baseline is
     this checkout with these settings instead of a commit (module notes)."""
     if against:
         env, switches = _against(list(against))
@@ -350,21 +421,23 @@ def section_tracker(baseline: str = DEFAULT_BASELINE, reps: int = 3, scenes: tup
             if warm_up:
                 w.pickup(warm_up, quick=True)
         rows = []
-        cases: list[tuple[str, Path | None, str | None]] = [(scene, None, None) for scene in scenes]
+        cases: list[tuple[str, Path | None, str | None, str | None]] = [(scene, None, None, None) for scene in scenes]
         if large or routes:
             from bench.meshes import CACHE, cached_mesh
 
             cache = mesh_cache or CACHE
             for size in large:
                 cached_mesh("orange", size, cache)  # gmsh once, then both trees read the same file
-                cases.append((f"orange {size / 1000:g}k", cache / f"orange_{int(size)}.npz", None))
+                cases.append((f"orange {size / 1000:g}k", cache / f"orange_{int(size)}.npz", None, None))
             for name, inner in routes:
-                cases.append((f"{name} R/{1 / inner:g}", route_mesh(name, inner, cache), name))
-        for scene, mesh, route in cases:
+                cases.append((f"{name} R/{1 / inner:g}", route_mesh(name, inner, cache), name, None))
+        cases += [(f"search {name}", None, None, name) for name in searches]
+        for scene, mesh, route, searched in cases:
             runs: dict[str, list[dict[str, Any]]] = {"baseline": [], "current": []}
             for _ in range(reps + 1):
                 for label, w in workers.items():
-                    runs[label].append(w.pickup(scene, quick, mesh, route))
+                    runs[label].append(w.pickup(searched or scene, quick, mesh, route,
+                                                None if searched is None else candidates))
             row: dict[str, Any] = {"scene": scene}
             if route is not None:
                 row["vertices"] = runs["current"][0].get("vertices")
@@ -372,10 +445,10 @@ def section_tracker(baseline: str = DEFAULT_BASELINE, reps: int = 3, scenes: tup
                 row[label] = {"first": rs[0]["seconds"], "median": statistics.median(r["seconds"] for r in rs[1:]),
                               "times": [r["seconds"] for r in rs], "phases": _phase_medians(rs[1:])}
             row["ratio"] = row["baseline"]["median"] / row["current"]["median"]
-            row["answer"] = compare(runs["baseline"][0]["fingerprint"], runs["current"][0]["fingerprint"])
+            same, answer = (compare, "fingerprint") if searched is None else (compare_search, "placements")
+            row["answer"] = same(runs["baseline"][0][answer], runs["current"][0][answer])
             # every repetition of one tree gives its first answer (the engine is deterministic)
-            row["repeatable"] = all(compare(rs[0]["fingerprint"], r["fingerprint"])["same"]
-                                    for rs in runs.values() for r in rs[1:])
+            row["repeatable"] = all(same(rs[0][answer], r[answer])["same"] for rs in runs.values() for r in rs[1:])
             rows.append(row)
             log.info("tracker %s: %.3f s -> %.3f s (x%.2f), same answer %s", scene, row["baseline"]["median"],
                      row["current"]["median"], row["ratio"], row["answer"]["same"])
@@ -406,6 +479,11 @@ def print_tracker(sec: dict[str, Any]) -> None:
               f"{r['baseline']['first']:6.2f}/{r['current']['first']:<6.2f}  {'yes' if a['same'] else 'NO '} "
               f"({'same' if a['same_events'] else 'different'} {a['events'][1]} events, {a['rho_rel']:.1e}, "
               f"{a['force_mg']:.1e}){'' if r['repeatable'] else '  (not repeatable)'}")
+        if "placements" in a:
+            print(f"{'':<11} {a['placements']} placements, picked up {a['picked_up'][0]} / {a['picked_up'][1]}; "
+                  f"{len(a['placements_differ'])} differ" + (":" if a["placements_differ"] else ""))
+            for d in a["placements_differ"]:
+                print(f"{'':<13} {d['key']}: {d['what']}")
         for ch in a.get("event_changes", []):
             def fmt(evs):
                 return ", ".join(f"{k} {n} {c}" for k, n, c, _ in evs) or "nothing"
@@ -432,6 +510,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--routes", action="store_true",
                     help="also the convergence study's converged routes: " + ", ".join(
                         f"{n} graded to R/{1 / i:g} at fingertips and table" for n, i in ROUTES))
+    ap.add_argument("--search", nargs="+", default=[], metavar="SCENE",
+                    help="also a placement search of each of these scenes (fem-grasp search's candidates, in the "
+                         "worker's process), compared placement by placement")
+    ap.add_argument("--candidates", type=int, default=SEARCH_CANDIDATES, help="placements per --search")
     ap.add_argument("--against", nargs="+", default=[], metavar="SETTING",
                     help="instead of a commit, this checkout with these settings: module.ATTRIBUTE=VALUE "
                          "(e.g. fem_grasp.elastic.response.NEIGHBOUR_UPDATES=False) or ENV:NAME=VALUE "
@@ -443,7 +525,8 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
     print_tracker(section_tracker(args.baseline, args.reps, tuple(args.scenes), quick=args.quick,
                                   large=tuple(args.large), routes=ROUTES if args.routes else (),
-                                  against=tuple(args.against)))
+                                  against=tuple(args.against), searches=tuple(args.search),
+                                  candidates=args.candidates))
     return 0
 
 

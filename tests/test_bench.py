@@ -222,3 +222,45 @@ def test_a_switched_constant_imported_by_value_elsewhere_is_named(monkeypatch, c
     warned = [r.getMessage() for r in caplog.records if r.name == "bench"]
     assert len(warned) == 1 and "fem_grasp.contact.tracking" in warned[0]  # ... and the worker says so
     assert "fem_grasp.grasp.rest" not in warned[0]  # named, so not warned about
+
+
+def test_two_placement_searches_are_compared_placement_by_placement():
+    """compare_search: a placement is the same answer when its outcome and event counts are equal and its ρ* and
+    finger forces agree to the promised tolerances; no ρ* on either side (not picked up) is no difference; a
+    placement found by one search only, or one number beyond its tolerance, is named with what differs."""
+    from bench.tracker import SAME_FORCE, SAME_RHO, compare_search
+
+    row = {"status": "ok", "outcome": "picked up", "success": True, "events": 80, "events_A": 20, "events_B": 10,
+           "events_C": 30, "events_D": 20, "rho_star": 0.01, "weight": 2.0, "force1": 3.0, "force2": 3.1,
+           "finger_normal_force": 5.0}
+    missed = {**row, "outcome": "squeeze failed", "success": False, "rho_star": None}
+    base = {"a": row, "b": missed}
+    near = {"a": {**row, "rho_star": 0.01 * (1 + 0.5 * SAME_RHO), "force2": 3.1 + 0.5 * SAME_FORCE * 2.0},
+            "b": dict(missed)}
+    same = compare_search(base, near)
+    assert same["same"] and same["same_events"] and not same["placements_differ"]
+    assert same["placements"] == 2 and same["picked_up"] == [1, 1] and same["events"] == [160, 160]
+    far = compare_search(base, {"a": {**row, "rho_star": 0.0101, "events_C": 31}, "c": missed})
+    assert not far["same"] and not far["same_events"] and far["rho_rel"] == pytest.approx(0.01)
+    what = {d["key"]: d["what"] for d in far["placements_differ"]}
+    assert set(what) == {"a", "b", "c"}
+    assert "events_C 30 -> 31" in what["a"] and "rho* 10 -> 10.1 mm" in what["a"]
+    assert what["b"] == "only in the baseline search" and what["c"] == "only in the current search"
+    forces = compare_search(base, {"a": {**row, "force1": 3.0 + 4 * SAME_FORCE}, "b": missed})
+    assert not forces["same"] and forces["force_mg"] == pytest.approx(2 * SAME_FORCE)
+    assert compare_search(base, {"a": {**row, "rho_star": None}, "b": missed})["rho_rel"] == float("inf")
+
+
+def test_the_tracker_section_runs_a_placement_search_in_both_workers():
+    """--search: both workers run the placement search's candidates in their own process (the switch sets the
+    lift test's halvings the baseline worker reads at each call, here to its own value) and the rows are
+    compared placement by placement."""
+    from bench.tracker import section_tracker
+
+    sec = section_tracker(reps=1, scenes=(), warm_up=None, quick=True, searches=("foam_block",), candidates=3,
+                          against=("fem_grasp.grasp.lift_test.LOAD_HALVINGS=3",))
+    (row,) = sec["rows"]
+    assert row["scene"] == "search foam_block" and row["repeatable"]
+    a = row["answer"]
+    assert a["same"] and a["placements"] == 3 and a["events"][0] > 0 and a["picked_up"][0] == a["picked_up"][1]
+    assert "phases" not in row["current"] or row["current"]["phases"] == {}

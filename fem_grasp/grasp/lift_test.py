@@ -109,15 +109,17 @@ def hanging_state(tracker: Tracker, state: ContactState) -> HangResult:
     return _verdict(0.0, settled)
 
 
-def hang(tracker: Tracker, start: ContactState, weight: float, *, max_depth: int = LOAD_HALVINGS) -> HangResult:
+def hang(tracker: Tracker, start: ContactState, weight: float, *, max_depth: int | None = None) -> HangResult:
     """Raise the weight of a hanging configuration ``start`` to ``weight`` and settle; held or not.
 
     ``start`` is a settled finger-only configuration (:func:`hanging_state`
     or an earlier :func:`hang`).  The weight is applied at once and the
     configuration settled; if no static state is found for that jump, the
-    load step is halved (up to ``max_depth`` times) and applied in two
-    stages, each of which must be held.
+    load step is halved (up to ``max_depth`` times, default :data:`LOAD_HALVINGS` as it is at the call) and
+    applied in two stages, each of which must be held.
     """
+    if max_depth is None:
+        max_depth = LOAD_HALVINGS
     load = weight / tracker.body.weight
     try:
         begin = tracker.make_state(phase="lift test", squeeze_depth=start.squeeze_depth,

@@ -25,7 +25,7 @@ def scripted(monkeypatch):
     def hanging_state(tracker, state):
         return HangResult(0.0, True, "", object())
 
-    def hang(tracker, start, weight, *, max_depth=lift_test.LOAD_HALVINGS):
+    def hang(tracker, start, weight, *, max_depth=None):
         cap.calls += 1
         held = weight <= cap.limit * (1 + 1e-12)
         return HangResult(weight, held, "" if held else "slides", object())
@@ -74,7 +74,7 @@ def test_the_weight_is_raised_from_zero_in_steps_of_h_each_from_the_state_before
     def hanging_state(tracker, state):
         return HangResult(0.0, True, "", _Hanging(0.0))
 
-    def hang(tracker, start, weight, *, max_depth=lift_test.LOAD_HALVINGS):
+    def hang(tracker, start, weight, *, max_depth=None):
         calls.append((start.weight, weight))
         held = weight <= limit and weight - start.weight <= h * (1 + 1e-9)
         return HangResult(weight, held, "" if held else "slides", _Hanging(weight) if held else None)
@@ -89,3 +89,33 @@ def test_the_weight_is_raised_from_zero_in_steps_of_h_each_from_the_state_before
         # h, 2h, …, mg, each from the weight held before it: no jump, and nothing beyond mg
         assert [round(b, 9) for _, b in calls] == [round(h * k, 9) for k in range(1, 11)]
         assert all(b - a == pytest.approx(h) for a, b in calls)
+
+
+@pytest.mark.parametrize("halvings", [0, 1, 3])
+def test_a_weight_with_no_static_state_is_tried_at_each_halving_of_the_module_setting(monkeypatch, halvings):
+    """hang halves a load step that finds no static state LOAD_HALVINGS times — the module's value when it is
+    called (a switch set after import reaches it) — each halving one more settle of a smaller jump, every one
+    from the configuration held before."""
+    from types import SimpleNamespace
+
+    from fem_grasp.errors import TrackingError
+
+    settles = []
+
+    class NeverSettles:
+        body = SimpleNamespace(weight=2.0)
+
+        def make_state(self, *, load, **_):
+            return load
+
+        def implicit_step(self, begin, *_args, **_kw):
+            settles.append(begin)
+            raise TrackingError("no static state")
+
+    monkeypatch.setattr(lift_test, "LOAD_HALVINGS", halvings)
+    start = SimpleNamespace(load=0.25, squeeze_depth=0.0, lift_height=0.0, centers=None, nodes=None, owner=None,
+                            disp=None, sliding=None, slip=None)
+    res = lift_test.hang(NeverSettles(), start, 1.5)  # from 0.5 N held to 1.5 N
+    assert not res.held and "no static state" in res.reason
+    # the full jump, then ever smaller ones from the same start: loads 0.75, 0.5, 0.375, ... of mg
+    assert settles == [0.75] + [0.25 + 0.5 / 2 ** k for k in range(1, halvings + 1)]
