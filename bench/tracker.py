@@ -115,10 +115,10 @@ def _orange_pickup(path: str) -> dict[str, Any]:
 def _answer(seconds: float, result: Any, rest: float | None = None) -> dict[str, Any]:
     """A worker's answer: the pickup's wall time, its fingerprint and its phases (``PickupResult.timings``, s;
     ``rest``: the rest computed before :func:`~fem_grasp.pickup` was called, with the body's factorisation)."""
-    phases = {k: float(v) for k, v in getattr(result, "timings", {}).items()}  # (older baselines may lack them)
-    if rest is not None and phases:
-        phases["rest"] = phases.get("rest", 0.0) + rest
-        phases["total"] = phases.get("total", 0.0) + rest
+    phases = {k: float(v) for k, v in result.timings.items()}
+    if rest is not None:
+        phases["rest"] += rest
+        phases["total"] += rest
     return {"seconds": seconds, "fingerprint": fingerprint(result), "phases": phases}
 
 
@@ -376,18 +376,13 @@ class _Worker:
             self.close()
             raise RuntimeError(f"the {label} worker imported fem_grasp from {hello['fem_grasp']}, not from {tree}")
 
-    def pickup(self, scene: str, quick: bool = False, mesh: Path | None = None,
-               route: str | None = None, search: int | None = None) -> dict[str, Any]:
-        request: dict[str, Any] = {"scene": scene, "quick": quick} if mesh is None else {"mesh": str(mesh)}
-        if route is not None:
-            request["route"] = route
-        if search is not None:
-            request = {"search": scene, "candidates": search, "quick": quick}
+    def ask(self, request: dict[str, Any]) -> dict[str, Any]:
+        """One request of :func:`serve`'s protocol (a scene, a mesh, a route or a search) and its answer."""
         self.proc.stdin.write(json.dumps(request) + "\n")
         self.proc.stdin.flush()
         answer = json.loads(self.proc.stdout.readline())
         if "error" in answer:
-            raise RuntimeError(f"{self.label}, {scene}: {answer['error']}")
+            raise RuntimeError(f"{self.label}, {request}: {answer['error']}")
         return answer
 
     def close(self) -> None:
@@ -419,33 +414,33 @@ def section_tracker(baseline: str = DEFAULT_BASELINE, reps: int = 3, scenes: tup
     try:
         for w in workers.values():  # numba's kernels loaded (or compiled) before any scene is timed
             if warm_up:
-                w.pickup(warm_up, quick=True)
+                w.ask({"scene": warm_up, "quick": True})
         rows = []
-        cases: list[tuple[str, Path | None, str | None, str | None]] = [(scene, None, None, None) for scene in scenes]
+        # (row label, the request each worker answers)
+        cases: list[tuple[str, dict[str, Any]]] = [(scene, {"scene": scene, "quick": quick}) for scene in scenes]
         if large or routes:
             from bench.meshes import CACHE, cached_mesh
 
             cache = mesh_cache or CACHE
             for size in large:
                 cached_mesh("orange", size, cache)  # gmsh once, then both trees read the same file
-                cases.append((f"orange {size / 1000:g}k", cache / f"orange_{int(size)}.npz", None, None))
+                cases.append((f"orange {size / 1000:g}k", {"mesh": str(cache / f"orange_{int(size)}.npz")}))
             for name, inner in routes:
-                cases.append((f"{name} R/{1 / inner:g}", route_mesh(name, inner, cache), name, None))
-        cases += [(f"search {name}", None, None, name) for name in searches]
-        for scene, mesh, route, searched in cases:
+                cases.append((f"{name} R/{1 / inner:g}", {"mesh": str(route_mesh(name, inner, cache)), "route": name}))
+        cases += [(f"search {name}", {"search": name, "candidates": candidates, "quick": quick}) for name in searches]
+        for scene, request in cases:
             runs: dict[str, list[dict[str, Any]]] = {"baseline": [], "current": []}
             for _ in range(reps + 1):
                 for label, w in workers.items():
-                    runs[label].append(w.pickup(searched or scene, quick, mesh, route,
-                                                None if searched is None else candidates))
+                    runs[label].append(w.ask(request))
             row: dict[str, Any] = {"scene": scene}
-            if route is not None:
+            if "route" in request:
                 row["vertices"] = runs["current"][0].get("vertices")
             for label, rs in runs.items():
                 row[label] = {"first": rs[0]["seconds"], "median": statistics.median(r["seconds"] for r in rs[1:]),
                               "times": [r["seconds"] for r in rs], "phases": _phase_medians(rs[1:])}
             row["ratio"] = row["baseline"]["median"] / row["current"]["median"]
-            same, answer = (compare, "fingerprint") if searched is None else (compare_search, "placements")
+            same, answer = (compare_search, "placements") if "search" in request else (compare, "fingerprint")
             row["answer"] = same(runs["baseline"][0][answer], runs["current"][0][answer])
             # every repetition of one tree gives its first answer (the engine is deterministic)
             row["repeatable"] = all(same(rs[0][answer], r[answer])["same"] for rs in runs.values() for r in rs[1:])
