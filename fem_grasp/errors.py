@@ -86,7 +86,30 @@ class FrictionError(RuntimeError):
 
 
 class RelaxationFailure(RuntimeError):
-    """No static stick/slip/release state was found (friction cannot hold the contacts: gross slip)."""
+    """No static stick/slip/release state was found (friction cannot hold the contacts: gross slip).
+
+    Parameters
+    ----------
+    message : what failed, in words
+    kind : the verdict's kind, one of :attr:`KINDS`: ``"gross slip"`` (friction cannot hold the contacts: no static
+        state), ``"lost support"`` (a contact would move away without bound to carry no force), ``"singular"``
+        (a contact's own stiffness block is singular) or ``"non-finite"`` (the sweeps produced NaN or inf)
+    contact : the contact the sweeps were at when they stopped, if one is named; on a load with no static state
+        which contact the sweep order meets first is decided by round-off, so it is a pointer, not part of the
+        verdict
+    """
+
+    KINDS = ("gross slip", "lost support", "singular", "non-finite")
+
+    def __init__(self, message: str, kind: str = "gross slip", contact: int | None = None):
+        if kind not in self.KINDS:
+            raise ValueError(f"unknown relaxation failure kind {kind!r}; expected one of {self.KINDS}")
+        super().__init__(message)
+        self.kind = kind
+        self.contact = contact
+
+    def __reduce__(self):  # pickles (subprocesses, Dask workers) with its kind and contact
+        return type(self), (str(self), self.kind, self.contact)
 
 
 class TrackingError(RuntimeError):

@@ -301,11 +301,11 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
     idx = np.arange(m)
     ckk = np.ascontiguousarray(c.reshape(m, 3, m, 3)[idx, :, idx, :])  # (m, 3, 3): each contact's own block
     if m and np.any(np.linalg.det(ckk) == 0.0):
-        raise RelaxationFailure("a contact's own stiffness block C_kk is singular")
+        raise RelaxationFailure("a contact's own stiffness block C_kk is singular", "singular")
     try:
         rec = gs.contact_records(np.asarray(positions, float).reshape(m, 3), centers, up, ckk)
     except np.linalg.LinAlgError:
-        raise RelaxationFailure("a contact's own stiffness block C_kk is singular") from None
+        raise RelaxationFailure("a contact's own stiffness block C_kk is singular", "singular") from None
     fs_scale = max(float(force_scale), 1e-300)
     local_tol = 1e-3 * tol * fs_scale
     stick_tol = tol * fs_scale
@@ -326,10 +326,10 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
                                                    float(max_slip), memo, unsolved_force)
         if code == gs.FREE_TOO_FAR:
             raise RelaxationFailure(f"contact {k} would move more than {1e3 * max_slip:.3g} mm to carry no "
-                                    "force: the remaining contacts no longer hold the object")
+                                    "force: the remaining contacts no longer hold the object", "lost support", k)
         if code == gs.SLIDE_TOO_FAR:
             raise RelaxationFailure(f"contact {k} slides more than {1e3 * max_slip:.3g} mm: friction cannot "
-                                    "hold the object (gross slip)")
+                                    "hold the object (gross slip)", "gross slip", k)
         if unsolved >= 0:
             stuck += 1
             if stuck > STUCK_SWEEPS:
@@ -337,7 +337,7 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
                 raise RelaxationFailure(
                     f"contact {unsolved} can neither stick, slide nor lift off with its neighbours held "
                     f"(force {fs.round(12).tolist()} N, μ = {mu[unsolved]:g}; sweep {sweep}): friction cannot "
-                    "hold it")
+                    "hold it", "gross slip", unsolved)
         else:
             stuck = 0
         if change <= tol * fs_scale and unsolved < 0:
@@ -383,7 +383,7 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
     u[~sliding] = 0.0
     f = f0 + (c @ d.reshape(-1)).reshape(m, 3)
     if not (np.isfinite(f).all() and np.isfinite(d).all()):
-        raise RelaxationFailure("the relaxation produced non-finite forces or displacements")
+        raise RelaxationFailure("the relaxation produced non-finite forces or displacements", "non-finite")
     normals = rec[:, gs.REC_N0:gs.REC_N0 + 3].copy()
     for k in np.flatnonzero(sliding):
         normals[k] = gs.motion(rec[k], float(u[k, 0]), float(u[k, 1]))[3:6]

@@ -82,9 +82,29 @@ def test_a_sideways_load_no_friction_can_hold_is_refused():
 def test_a_release_beyond_the_slip_bound_is_refused_not_returned():
     # A nearly free contact pulled off the table would fly a kilometre to carry no force: refused by name
     # (never an overflow or a NaN in the result).
-    with pytest.raises(RelaxationFailure, match="no longer hold"):
+    with pytest.raises(RelaxationFailure, match="no longer hold") as failure:
         relax_contacts(1e-3 * np.eye(3), np.array([[0.0, 0.0, -1.0]]), np.zeros((1, 3)), [None], UP,
                        np.array([0.5]), force_scale=1.0, max_slip=1e-2)
+    assert (failure.value.kind, failure.value.contact) == ("lost support", 0)
+
+
+def test_a_failure_says_its_kind_and_keeps_it_across_processes():
+    """The verdict of a return mapping with no static state is its kind (what the callers and the cross-path
+    tests compare), not its message; it survives pickling (Dask workers, subprocesses)."""
+    import pickle
+
+    c, f, q, centers, mu = box_on_the_table_pushed_sideways(1.0)
+    with pytest.raises(RelaxationFailure) as failure:
+        relax_contacts(c, f, q, centers, UP, mu, 1.0, max_slip=1.0)
+    assert failure.value.kind == "gross slip" and 0 <= failure.value.contact < len(f)
+    again = pickle.loads(pickle.dumps(failure.value))
+    assert (again.kind, again.contact, str(again)) == (failure.value.kind, failure.value.contact, str(failure.value))
+    with pytest.raises(RelaxationFailure, match="singular") as singular:
+        relax_contacts(np.zeros((3, 3)), np.array([[0.0, 0.0, 1.0]]), np.zeros((1, 3)), [None], UP, np.array([0.5]),
+                       1.0)
+    assert singular.value.kind == "singular"
+    with pytest.raises(ValueError, match="unknown relaxation failure kind"):
+        RelaxationFailure("x", "slipped")
 
 
 # ------------------------------------------------------------ every iteration bound ends in a named failure
