@@ -136,6 +136,124 @@ def box_on_the_table_pushed_sideways(tangential):
     return c, f, p[table], [None] * len(table), np.full(len(table), 0.5)
 
 
+# ------------------------------------------------------------ two code paths, one answer
+#: Relative size of the jitter added to the inputs of the tests that compare two code paths (compiled and plain
+#: kernels, a kernel and its numpy reference), as the perturbation harness jitters mesh coordinates: far below any
+#: tolerance the code promises, far above the last bit.  A comparison that holds only because both paths round
+#: alike on one CPU fails on the jittered inputs on every CPU.
+JITTER = 1e-12
+
+#: The jitter's seeds; None is the unjittered input.
+JITTER_SEEDS = (None, 1, 2, 3)
+
+
+def jittered(a, rng: np.random.Generator | None, amount: float = JITTER) -> np.ndarray:
+    """``a`` with each entry moved by up to ``amount`` of its own size (a copy; ``rng`` None: unmoved)."""
+    a = np.array(a, float)
+    return a if rng is None else a * (1.0 + amount * rng.uniform(-1.0, 1.0, a.shape))
+
+
+def relaxation_problems(seed: int | None = None) -> list[tuple[tuple, dict]]:
+    """Return mappings with a static state and without one: the squeezed box (four friction/depth pairs) and the
+    box on the table pushed sideways (held, steady drift, a contact with no local state), as ``(args, kwargs)`` of
+    :func:`fem_grasp.contact.relax_contacts`; every input jittered by :data:`JITTER` unless ``seed`` is None
+    (C kept symmetric)."""
+    rng = None if seed is None else np.random.default_rng(seed)
+
+    def sym(c):
+        c = jittered(c, rng)
+        return 0.5 * (c + c.T)
+
+    up = np.array([0.0, 0.0, 1.0])
+    out = []
+    for mu, depth in [(0.5, 2e-3), (0.3, 2e-3), (0.5, 4e-3), (0.2, 1e-3)]:
+        c, f0, q0, centers, mu_k, _ = squeezed_box_contacts(mu, depth)
+        centers = [None if x is None else jittered(x, rng) for x in centers]
+        f0 = jittered(f0, rng)
+        out.append(((sym(c), f0, jittered(q0, rng), centers, up, mu_k, float(np.abs(f0).max())), {}))
+    for tangential in (0.49, 0.6, 1.0):  # held; steady drift; a contact with no local state
+        c, f, q, centers, mu_k = box_on_the_table_pushed_sideways(tangential)
+        out.append(((sym(c), jittered(f, rng), jittered(q, rng), centers, up, mu_k, 1.0), {"max_slip": 1.0}))
+    return out
+
+
+def relaxation_outcomes(seed: int | None = None) -> list:
+    """Each :func:`relaxation_problems` problem's outcome: ``(statuses, forces, displacements, force scale)`` of
+    its static state, or the kind of its :class:`~fem_grasp.errors.RelaxationFailure` (a string)."""
+    from fem_grasp.contact.relaxation import RelaxationFailure, relax_contacts
+
+    out = []
+    for args, kwargs in relaxation_problems(seed):
+        try:
+            r = relax_contacts(*args, **kwargs)
+            out.append((r.status, r.forces, r.displacements, args[6]))
+        except RelaxationFailure as exc:
+            out.append(exc.kind)
+    return out
+
+
+#: Two return mappings of one problem by two code paths agree to this many times the relaxation's tolerance
+#: ``tol`` × the force scale F_s (its default tol, 1e-11): each stops once a sweep changes no force by more than
+#: tol F_s or its Newton polish meets 1e-3 tol F_s, and rounding in another order may stop them a sweep apart.
+RELAXATION_AGREEMENT = 100 * 1e-11
+
+
+def assert_same_relaxation(a, b) -> None:
+    """``a`` and ``b`` (:func:`relaxation_outcomes` entries of one problem) are the same answer: both fail with the
+    same kind (which contact the sweeps meet first, after how many sweeps, is round-off's choice on a load with no
+    static state), or both hold with the same statuses and the same forces and displacements within
+    :data:`RELAXATION_AGREEMENT`.  Sweep counts are not compared: a last-bit difference in a change measured
+    against the tolerance can move the stopping sweep."""
+    if isinstance(a, str) or isinstance(b, str):
+        assert a == b, f"one path fails ({a if isinstance(a, str) else b}), the other does not, or not alike"
+        return
+    (sa, fa, da, scale), (sb, fb, db, _) = a, b
+    np.testing.assert_array_equal(sa, sb)
+    tol = RELAXATION_AGREEMENT * max(scale, float(np.abs(fb).max()))
+    np.testing.assert_allclose(fa, fb, rtol=0, atol=tol)
+    np.testing.assert_allclose(da, db, rtol=0, atol=RELAXATION_AGREEMENT * max(float(np.abs(db).max()), 1e-300))
+
+
+#: Two code paths' pickups of one scene: the finger forces (each finger's resultant, Table III's Σ f·n̂) agree to this
+#: fraction of mg where they lift at the same depth (the same branch agrees to ~1e-9 mg; the margin is for a
+#: stick/slip flip at a knife edge), the squeeze depth within one increment (the perturbation harness's promise).
+PICKUP_FORCE_AGREEMENT = 0.01
+
+
+def assert_same_pickup(a: PickupResult, b: PickupResult) -> None:
+    """``a`` and ``b`` are the same answer: the verdict, ρ* within one squeeze increment, and where ρ* is the same
+    (to 1e-6 of an increment) each finger's resultant and Σ f·n̂ within :data:`PICKUP_FORCE_AGREEMENT` × mg.
+    Event sequences are not compared: where round-off decides a tie (a zero-force touch released or kept) they
+    may differ, the answer not."""
+    assert (a.success, a.outcome) == (b.success, b.outcome), (a.reason, b.reason)
+    step = max(a.step, b.step)
+    assert abs(a.squeeze_depth - b.squeeze_depth) <= step, (a.squeeze_depth, b.squeeze_depth, step)
+    if abs(a.squeeze_depth - b.squeeze_depth) > 1e-6 * step or a.finger_forces is None:
+        return
+    tol = PICKUP_FORCE_AGREEMENT * a.body.weight
+    assert abs(a.finger_normal_force - b.finger_normal_force) <= tol
+    for fa, fb in zip(a.finger_forces, b.finger_forces):
+        assert np.linalg.norm(fa.resultant - fb.resultant) <= tol, (fa.resultant, fb.resultant)
+
+
+def in_plain_python(function: str, *args) -> object:
+    """``function(*args)`` (``"module:name"``) run in a subprocess with FEM_GRASP_NO_JIT=1: the plain-Python
+    kernels (the choice is made at import)."""
+    import os
+    import pickle
+    import subprocess
+    import sys
+
+    module, name = function.split(":")
+    env = dict(os.environ, FEM_GRASP_NO_JIT="1")
+    code = ("import pickle, sys; from fem_grasp.contact.kernels import jit; assert not jit.ENABLED; "
+            f"from {module} import {name}; "
+            "sys.stdout.buffer.write(pickle.dumps(" + name + "(*pickle.loads(sys.stdin.buffer.read()))))")
+    done = subprocess.run([sys.executable, "-c", code], cwd=ROOT, env=env, check=True, capture_output=True,
+                          input=pickle.dumps(args))
+    return pickle.loads(done.stdout)
+
+
 # ------------------------------------------------------------ surfaces and the CLI
 def icosphere(radius: float = 0.03, levels: int = 2) -> tuple[np.ndarray, np.ndarray]:
     """A closed, outward-oriented triangulated sphere: (points, faces)."""

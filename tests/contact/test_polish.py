@@ -2,7 +2,10 @@
 
 ``relaxation._polish`` stays as the reference of the kernel the return mappings call where numba is installed
 (``relaxation.COMPILED_POLISH``).  The two run the same iteration in another summation order: on every polish
-of the test problems both converge or both give up, to the same state within the polish's own tolerance.
+of the test problems both converge or both give up, to the same state within the polish's own tolerance; the
+return mappings that call either reach the same answer (:func:`tests.helpers.assert_same_relaxation`).  Each
+comparison runs on the problems as they are and jittered by :data:`tests.helpers.JITTER`, so one that holds only
+by bitwise luck fails on every CPU.
 """
 
 import numpy as np
@@ -11,7 +14,7 @@ import pytest
 from fem_grasp.contact import relaxation
 from fem_grasp.contact.kernels import jit
 from fem_grasp.contact.kernels import polish as kernel
-from tests.contact.test_jit import _problems
+from tests.helpers import JITTER_SEEDS, assert_same_relaxation, relaxation_problems
 
 #: Compiled against numpy polish, relative to each array's largest entry: both stop once every residual is below
 #: ``local_tol`` (1e-3 × tol × the force scale), one chord step apart at most.
@@ -24,7 +27,16 @@ def test_the_kernel_has_the_reference_iteration_limits():
     assert relaxation.COMPILED_POLISH == jit.ENABLED
 
 
-def _polish_calls(monkeypatch):
+def _outcome(args, kwargs):
+    """A return mapping's answer as :func:`tests.helpers.relaxation_outcomes` gives it."""
+    try:
+        r = relaxation.relax_contacts(*args, **kwargs)
+        return r.status, r.forces, r.displacements, args[6]
+    except relaxation.RelaxationFailure as exc:
+        return exc.kind
+
+
+def _polish_calls(monkeypatch, seed):
     """Every polish the test problems' return mappings call (their arguments), and the problems' outcomes."""
     calls = []
     reference = relaxation._polish
@@ -35,17 +47,12 @@ def _polish_calls(monkeypatch):
 
     monkeypatch.setattr(relaxation, "COMPILED_POLISH", False)
     monkeypatch.setattr(relaxation, "_polish", recording)
-    outcomes = []
-    for args, kwargs in _problems():
-        try:
-            outcomes.append(relaxation.relax_contacts(*args, **kwargs))
-        except relaxation.RelaxationFailure as exc:
-            outcomes.append(str(exc))
-    return calls, outcomes
+    return calls, [_outcome(args, kwargs) for args, kwargs in relaxation_problems(seed)]
 
 
-def test_every_polish_of_the_test_problems_ends_alike_compiled_and_in_numpy(monkeypatch):
-    calls, _ = _polish_calls(monkeypatch)
+@pytest.mark.parametrize("seed", JITTER_SEEDS)
+def test_every_polish_of_the_test_problems_ends_alike_compiled_and_in_numpy(monkeypatch, seed):
+    calls, _ = _polish_calls(monkeypatch, seed)
     monkeypatch.undo()
     assert len(calls) >= 5
     converged = 0
@@ -62,22 +69,17 @@ def test_every_polish_of_the_test_problems_ends_alike_compiled_and_in_numpy(monk
     assert converged >= 3
 
 
-def test_return_mappings_with_the_compiled_polish_reach_the_reference_states(monkeypatch):
-    """The test problems' static states (statuses, sweeps, forces) with either polish, or the same failure."""
-    _, reference = _polish_calls(monkeypatch)
+@pytest.mark.parametrize("seed", JITTER_SEEDS)
+def test_return_mappings_with_the_compiled_polish_reach_the_reference_states(monkeypatch, seed):
+    """The test problems' static states (statuses, forces, displacements) with either polish, or the same kind of
+    failure."""
+    _, reference = _polish_calls(monkeypatch, seed)
     monkeypatch.undo()
     monkeypatch.setattr(relaxation, "COMPILED_POLISH", True)
-    for (args, kwargs), ref in zip(_problems(), reference):
-        try:
-            comp = relaxation.relax_contacts(*args, **kwargs)
-        except relaxation.RelaxationFailure as exc:
-            assert str(exc) == ref
-            continue
-        assert not isinstance(ref, str)
-        np.testing.assert_array_equal(comp.status, ref.status)
-        assert comp.sweeps == ref.sweeps
-        np.testing.assert_allclose(comp.forces, ref.forces, rtol=0,
-                                   atol=POLISH_AGREEMENT * np.abs(ref.forces).max())
+    compiled = [_outcome(args, kwargs) for args, kwargs in relaxation_problems(seed)]
+    assert len(compiled) == len(reference) == 7
+    for comp, ref in zip(compiled, reference):
+        assert_same_relaxation(comp, ref)
 
 
 @pytest.mark.parametrize("status", [(relaxation.SLIDE,), (relaxation.RELEASE,), (relaxation.STICK,)])

@@ -10,7 +10,18 @@ from fem_grasp.grasp import evaluation
 from fem_grasp.grasp.candidates import placement_candidates
 from fem_grasp.grasp.evaluation import ROW_COLUMNS, Evaluator, SearchSetup, evaluate, evaluator_for
 
-MU, RADIUS = 0.5, 0.01
+MU, RADIUS, STEP = 0.5, 0.01, 1e-3
+
+
+def assert_same_answer(res, row, weight):
+    """A pickup and a row of the same candidate by two code paths (columns shared or not, an evaluator or a direct
+    pickup) give the same answer: the outcome; the squeeze depth within one squeeze increment; and, where the two
+    stop at the same depth, Table III's finger normal sum within 1 % of mg.  Event counts are not compared: at a
+    knife edge that round-off decides (a hanging contact that slides or lifts off) they may differ, the answer not."""
+    assert res.outcome == row["outcome"]
+    assert abs(res.squeeze_depth - row["squeeze_depth"]) <= STEP
+    if abs(res.squeeze_depth - row["squeeze_depth"]) <= 1e-6 * STEP:
+        assert abs(res.finger_normal_force - row["finger_normal_force"]) <= 0.01 * weight
 
 
 @pytest.fixture(scope="module")
@@ -52,10 +63,9 @@ def test_a_row_is_the_pickup_of_the_candidate_and_does_not_depend_on_what_ran_be
     # lifts off under the first weight step, and with it "passes at 13.2 mm" or "not by 16.8 mm").
     row_a = evaluate(setup, a)
     direct = pickup(rs.body, mu_finger=MU, mu_table=MU, finger_radius=RADIUS, contacts=a.finger_nodes,
-                    directions=a.directions, ratio=a.ratio, max_squeeze=a.max_squeeze, step=1e-3, rest_state=rs,
+                    directions=a.directions, ratio=a.ratio, max_squeeze=a.max_squeeze, step=STEP, rest_state=rs,
                     lift=False)
-    assert direct.outcome == row_a["outcome"] and len(direct.events) == row_a["events"]
-    assert np.isclose(direct.squeeze_depth, row_a["squeeze_depth"], rtol=1e-9)
+    assert_same_answer(direct, row_a, body.weight)
 
 
 def test_columns_too_large_to_share_give_the_same_rows(case, monkeypatch):
@@ -65,8 +75,7 @@ def test_columns_too_large_to_share_give_the_same_rows(case, monkeypatch):
     ev = Evaluator(setup)
     assert not ev.shared_columns and ev.rest is None
     res = ev.pickup(cands[0])
-    assert res.outcome == shared["outcome"] and len(res.events) == shared["events"]
-    assert np.isclose(res.squeeze_depth, shared["squeeze_depth"], rtol=1e-9)
+    assert_same_answer(res, shared, shared["weight"])
 
 
 def test_an_exception_becomes_an_error_row(case):

@@ -18,7 +18,7 @@ from fem_grasp.errors import ContactNodeError, DirectionError, PlacementError, S
 from fem_grasp.grasp.lift_test import hang, hanging_state
 from fem_grasp.grasp.pickup import PickupResult, pickup
 from fem_grasp.grasp.rest import rest
-from tests.helpers import RADIUS, WEIGHT, face_centres, pick_up_box, pickup_box
+from tests.helpers import RADIUS, WEIGHT, assert_same_pickup, face_centres, pick_up_box, pickup_box
 
 
 @pytest.fixture(scope="module")
@@ -138,10 +138,7 @@ def test_rigid_comparison_is_reported(lifted):
 def test_sparse_and_spectral_backends_agree_on_a_full_pickup(lifted, lifted_spectral):
     a, b = lifted, lifted_spectral
     assert b.success and b.check()
-    assert [(e.kind, e.node, e.contact) for e in a.events] == [(e.kind, e.node, e.contact) for e in b.events]
-    assert a.squeeze_depth == pytest.approx(b.squeeze_depth, rel=1e-9)
-    np.testing.assert_allclose(a.final.all_forces, b.final.all_forces, atol=1e-8 * WEIGHT)
-    np.testing.assert_allclose(a.final.positions, b.final.positions, atol=1e-10)
+    assert_same_pickup(a, b)
 
 
 def test_implicit_increments_alone_pick_up_the_box_at_the_same_depth(lifted, monkeypatch):

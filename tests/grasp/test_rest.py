@@ -211,8 +211,12 @@ def test_rest_backends_agree(box):
     small = Body(box_mesh((0, 0, 0), (0.03, 0.02, 0.02), (3, 2, 2)), 5e4, 0.3, weight=1.0)
     a = rest(small, 0.3)
     b = rest(small, 0.3, backend="spectral")
-    np.testing.assert_array_equal(a.contact_nodes, b.contact_nodes)
-    np.testing.assert_allclose(a.contact_forces, b.contact_forces, atol=1e-9 * small.weight)
+    # The same table forces node by node (a node in one contact set and not the other carries none within the
+    # tolerance: which way a zero-force node goes is round-off's choice, not part of the answer).
+    fa, fb = np.zeros((small.mesh.n_points, 3)), np.zeros((small.mesh.n_points, 3))
+    fa[a.contact_nodes], fb[b.contact_nodes] = a.contact_forces, b.contact_forces
+    np.testing.assert_allclose(fa, fb, rtol=0, atol=1e-9 * small.weight)
+    assert len(a.contact_nodes) >= 3 and len(b.contact_nodes) >= 3
     np.testing.assert_allclose(a.positions, b.positions, atol=1e-9 * small.mesh.diameter)
 
 
