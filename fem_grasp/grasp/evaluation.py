@@ -89,6 +89,7 @@ ROW_COLUMNS: dict[str, tuple[str, str]] = {
     "rho_star": ("float", "ρ*: the squeeze depth at which the successful lift started (or, when the lift is not "
                           "simulated, the lift test passed), m; NaN when not grasped"),
     "squeeze_depth": ("float", "the squeeze depth when the lift started or the squeeze stopped, m"),
+    "step": ("float", "the squeeze increment of the lift tests' schedule, m (ρ* is resolved to it)"),
     "margin": ("float", "w(ρ)/mg at the last lift test: ≥ 1 once the lift test passes"),
     "liftable_max": ("float", "the largest liftable weight the lift test found, up to the deepest squeeze reached, N"),
     "weight": ("float", "the object's weight mg, N"),
@@ -329,7 +330,7 @@ def result_row(candidate: Candidate, result: PickupResult, seconds: float = math
     row.update({
         "status": "ok", "outcome": result.outcome, "success": bool(result.success), "grasped": grasped,
         "reason": result.reason, "rho_star": float(result.squeeze_depth) if grasped else math.nan,
-        "squeeze_depth": float(result.squeeze_depth), "margin": float(last_w) / weight,
+        "squeeze_depth": float(result.squeeze_depth), "step": float(result.step), "margin": float(last_w) / weight,
         "liftable_max": float(max((w for _, w in result.liftable), default=0.0)), "weight": weight,
         "finger_normal_force": float(result.finger_normal_force),
         "rigid_normal_force": (float(result.rigid.total_normal_force)
