@@ -730,9 +730,29 @@ def resolve_scene(name_or_path: str | Path) -> Path:
                      f"{', '.join(shipped)}")
 
 
+#: Scene fields whose change leaves the answer of a single run as it was (the backends agree to round-off; the
+#: accuracy target and the lift's extent do not change ρ* or the forces at lift-off): a change of any other field
+#: makes the scene's stated error (``[solver] expected_error``, measured by the convergence study at the scene's
+#: own settings) no longer the run's.
+_ERROR_NEUTRAL = frozenset({"backend", "accuracy", "lift", "max_lift"})
+
+
+def _without_borrowed_error(scene: Scene, new: Scene, fields: Any) -> Scene:
+    """``new`` without the stated error of ``scene`` when one of ``fields`` changes the answer (a changed modulus,
+    friction, weight, mesh, … gets no error measured at other settings)."""
+    changed = [f for f in fields if f not in _ERROR_NEUTRAL and getattr(new, f) != getattr(scene, f)]
+    if changed and new.expected_error is not None:
+        log.info("the scene's stated error (%g) was measured at its own settings, not with %s changed: the run "
+                 "states none", new.expected_error, ", ".join(changed))
+        return replace(new, expected_error=None)
+    return new
+
+
 def with_overrides(scene: Scene, **changes: Any) -> Scene:
-    """A copy of ``scene`` with some fields replaced (e.g. ``backend="spectral"``)."""
-    return replace(scene, **{k: v for k, v in changes.items() if v is not None})
+    """A copy of ``scene`` with some fields replaced (e.g. ``backend="spectral"``); a change that moves the answer
+    drops the error the scene states for its own settings."""
+    given = {k: v for k, v in changes.items() if v is not None}
+    return _without_borrowed_error(scene, replace(scene, **given), given)
 
 
 # ------------------------------------------------------------------ running a scene
@@ -838,7 +858,7 @@ def _with_changes(scene: Scene, changes: dict[str, Any]) -> Scene:
             if scene.object.kind == "box":
                 raise SceneError(f"{w}: a box is meshed by its divisions, not a vertex count")
             new["object"] = replace(scene.object, vertices=value)
-    return replace(scene, **new)
+    return _without_borrowed_error(scene, replace(scene, **new), new)
 
 
 def pickup_scene(scene: Scene, cache_dir: Path | None = None, phase: Any = None) -> tuple["PickupResult", bool]:
@@ -874,15 +894,14 @@ def pickup_scene(scene: Scene, cache_dir: Path | None = None, phase: Any = None)
                                 **scene.pickup_kwargs())
             else:
                 result = pickup(body, rest_state=rs, **scene.pickup_kwargs())
-                if scene.quick or scene.expected_error is not None:
-                    from ..grasp.accuracy import single_run_report
+                from ..grasp.accuracy import single_run_report
 
-                    # One run: not converged; the scene states how far such a run is from the converged answer
-                    # (its [quick] solver.expected_error, measured by the convergence study).
-                    result.accuracy = single_run_report(
-                        result, scene.accuracy, scene.expected_error,
-                        "--quick: one run on the coarse mesh, no refinement" if scene.quick else
-                        "one run on the scene's mesh (accuracy off)")
+                # One run, always said so: not converged; the scene states how far such a run is from the converged
+                # answer (its solver.expected_error, measured by the convergence study), or nothing is known.
+                result.accuracy = single_run_report(
+                    result, scene.accuracy, scene.expected_error,
+                    "--quick: one run on the coarse mesh, no refinement" if scene.quick else
+                    "one run on the scene's mesh (accuracy off)")
         except SceneError as exc:
             raise _in_scene(scene, exc) from None
     result.timings["rest"] = t_rest

@@ -333,3 +333,32 @@ def test_object_vertices_remeshes_a_volume_mesh(tmp_path):
     mesh = scene.load_mesh(tmp_path / "cache")
     assert isinstance(mesh, TetMesh) and abs(mesh.n_points - 150) <= 15 < abs(fine.n_points - 150)
     assert mesh.volume == pytest.approx(fine.volume, rel=0.05)
+
+
+def test_a_changed_setting_gets_no_error_measured_at_the_scenes_own_settings():
+    """The error a scene states for a single run was measured by the convergence study at its own modulus,
+    friction, weight and mesh: a run with any of them changed states none (never a borrowed one); a change that
+    cannot move the answer (the backend, the lift's extent) keeps it."""
+    from fem_grasp import Scene
+    from fem_grasp.io.scene import with_overrides
+
+    tomato = Scene.load("tomato")
+    assert tomato.expected_error is not None
+    for change in ({"young": "10 kPa"}, {"mu_finger": 0.4}, {"weight": "2 N"}, {"finger_radius": "8 mm"},
+                   {"vertices": 2000}, {"step": "0.5 mm"}):
+        assert tomato.with_(**change).expected_error is None, change
+    assert tomato.with_(young=tomato.young).expected_error == tomato.expected_error  # no change: kept
+    assert tomato.with_(backend="spectral", lift=False).expected_error == tomato.expected_error
+    assert with_overrides(tomato, young=1e4).expected_error is None  # the CLI's --young
+    assert with_overrides(tomato, backend="spectral", young=None).expected_error == tomato.expected_error
+
+
+def test_a_single_run_of_a_scene_that_states_no_error_says_it_is_one_level_and_unmeasured():
+    """A user's own scene without an accuracy setting: one run on its mesh, whose result says so (one level, error
+    unknown) instead of no accuracy statement at all."""
+    scene = load_scene(_write_box_scene_without_contacts())
+    assert scene.accuracy is None and scene.expected_error is None
+    res = scene.run(cache_dir=None)
+    acc = res.accuracy
+    assert acc is not None and not acc["converged"] and len(acc["levels"]) == 1
+    assert acc["expected_error_stated"] is False and acc["estimated_error"]["squeeze_depth"] == float("inf")
