@@ -642,6 +642,17 @@ def _logging(args: argparse.Namespace) -> Iterator[None]:
     for h in handlers:
         root.addHandler(h)
     root.propagate = False
+    # The accuracy loop's levels are shown as they finish, even at the default level: a refinement can take
+    # minutes, and silence then reads as a hang.
+    levels = logging.getLogger("fem_grasp.grasp.accuracy")
+    old_levels_level = levels.level
+    progress = None
+    if not args.quiet and level > logging.INFO:
+        progress = logging.StreamHandler(sys.stderr)
+        progress.setFormatter(logging.Formatter("%(message)s"))
+        progress.addFilter(lambda record: record.levelno == logging.INFO and record.msg.startswith("accuracy level"))
+        levels.setLevel(logging.INFO)
+        levels.addHandler(progress)
     old_show = warnings.showwarning
 
     def show(message: Any, category: type, filename: str, lineno: int, file: Any = None, line: Any = None) -> None:
@@ -659,6 +670,10 @@ def _logging(args: argparse.Namespace) -> Iterator[None]:
         for h in handlers:
             root.removeHandler(h)
             h.close()
+        if progress is not None:
+            levels.removeHandler(progress)
+            progress.close()
+        levels.setLevel(old_levels_level)
         root.setLevel(old_level)
         root.propagate = old_propagate
 

@@ -295,3 +295,23 @@ def test_progress_bars_only_on_a_terminal_and_never_in_ci(monkeypatch):
     assert not progress_enabled()  # pytest captures stderr: not a terminal
     items = [1, 2, 3]
     assert progress(items) is items and PhaseBar(["a"]).bar is None
+
+
+def test_the_accuracy_levels_are_shown_as_they_finish_unless_quiet(capsys):
+    """A refinement can take minutes: each level's line reaches stderr at the default verbosity (other INFO records
+    do not), and nothing does with --quiet; the logger's level is restored afterwards."""
+    import argparse
+    import logging
+
+    from fem_grasp.cli import _logging
+
+    levels = logging.getLogger("fem_grasp.grasp.accuracy")
+    before = levels.level
+    for quiet in (False, True):
+        with _logging(argparse.Namespace(quiet=quiet, verbose=0, log_file=None)):
+            levels.info("accuracy level %d: %d vertices", 1, 4985)
+            logging.getLogger("fem_grasp.grasp.rest").info("rest: 12 iterations")
+        err = capsys.readouterr().err
+        assert ("accuracy level 1: 4985 vertices" in err) is not quiet
+        assert "rest: 12 iterations" not in err
+    assert levels.level == before

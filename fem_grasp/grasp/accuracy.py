@@ -388,8 +388,8 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
     inner = spacing(body.mesh, fin_nodes)
     outer = spacing(body.mesh)
     report.levels.append(AccuracyLevel(0, inner, outer, ans))
-    log.info("accuracy level 0: %d vertices, %s, rho* = %.4g m, finger force %.4g N", ans.n_vertices,
-             "picked up" if ans.success else "not picked up", ans.squeeze_depth, ans.finger_force)
+    log.info("accuracy level 0: %d vertices, %s, rho* = %.4g mm, finger force %.4g N (%.1f s)", ans.n_vertices,
+             "picked up" if ans.success else "not picked up", 1e3 * ans.squeeze_depth, ans.finger_force, ans.seconds)
     if on_level is not None:
         on_level(report)
     fingers, table = patch_points(result)
@@ -427,10 +427,10 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
             if _failure_kind(ans.reason) != _failure_kind(before.reason):
                 change["max_liftable"] = math.inf
         report.levels.append(AccuracyLevel(level, inner_l, outer_l, ans, t_mesh, change))
-        log.info("accuracy level %d: %d vertices (spacing %.3g m at the patches), %s, rho* = %.4g m (change %.2g), "
-                 "finger force %.4g N (change %.2g)", level, ans.n_vertices, inner_l,
-                 "picked up" if ans.success else "not picked up", ans.squeeze_depth, change["squeeze_depth"],
-                 ans.finger_force, change["finger_force"])
+        log.info("accuracy level %d: %d vertices (spacing %.3g mm at the patches), %s, rho* = %.4g mm (change %.2g), "
+                 "finger force %.4g N (change %.2g) (%.1f s)", level, ans.n_vertices, 1e3 * inner_l,
+                 "picked up" if ans.success else "not picked up", 1e3 * ans.squeeze_depth, change["squeeze_depth"],
+                 ans.finger_force, change["finger_force"], ans.seconds + t_mesh)
         if on_level is not None:
             on_level(report)
         report.estimated_error = estimated_error(change, ans)
