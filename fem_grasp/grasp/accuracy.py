@@ -404,7 +404,9 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         predicted = max(f["nodes"] for f in report.levels[-1].answer.fingers) * LEVEL_RATIO**2
         if predicted > max_finger_contacts:
             report.note = (f"stopped before level {level}: it would put about {predicted:.0f} contacts on a fingertip "
-                           f"(max_finger_contacts = {max_finger_contacts}; the contact algebra is dense in them)")
+                           f"(max_finger_contacts = {max_finger_contacts}; the contact algebra is dense in them, so "
+                           f"each level costs several times the last; to go on, call "
+                           f"fem_grasp.grasp.accuracy.converged_pickup with a larger max_finger_contacts)")
             break
         outer_l = max(outer / LEVEL_RATIO ** (0.5 * level), inner_l)
         t0 = time.perf_counter()
