@@ -88,9 +88,9 @@ meshes: setup
 spectral-vs-sparse: setup
 	$(PY) scripts/spectral_vs_sparse.py
 
-# The README's rest table: printed, and written between its markers in README.md.
+# The rest table of the guide: printed, and written between its markers in docs/physics.md.
 rest-table: setup
-	$(PY) scripts/rest_table.py --readme README.md
+	$(PY) scripts/rest_table.py --into docs/physics.md
 
 .PHONY: search
 # Where to grasp: a placement search on the local cores (Dask), out/search-tomato/report.html and results.parquet.
