@@ -128,7 +128,7 @@ paper: setup
 	$(PY) -m fem_grasp.paper --merge out/paper/*.json
 
 .PHONY: paper-scenes
-# The README's table: Table I's moduli as printed, and the paper scenes' effective moduli (no search).
+# The table of docs/physics.md ("The paper's objects"): Table I's moduli as printed, and the paper scenes' effective moduli (no search).
 paper-scenes: setup
 	@mkdir -p out/paper-scenes
 	@for o in tomato orange steam_bun football; do \
