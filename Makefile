@@ -72,7 +72,7 @@ verify-quick: setup
 	$(PY) -m verification.run --quick
 
 .PHONY: friction-reference softness
-# Issue 24: one scene against the independent frictional-contact reference (exit 1 when they disagree), and the
+# One scene against the independent frictional-contact reference (exit 1 when they disagree), and the
 # Table III study (softness against the rigid grasp); both are stages of `make verify` too.
 SCENE ?= tomato
 friction-reference: setup
@@ -88,9 +88,9 @@ meshes: setup
 spectral-vs-sparse: setup
 	$(PY) scripts/spectral_vs_sparse.py
 
-# The README's rest table: printed, and written between its markers in README.md.
+# The rest table of the guide: printed, and written between its markers in docs/physics.md.
 rest-table: setup
-	$(PY) scripts/rest_table.py --readme README.md
+	$(PY) scripts/rest_table.py --into docs/physics.md
 
 .PHONY: search
 # Where to grasp: a placement search on the local cores (Dask), out/search-tomato/report.html and results.parquet.
@@ -101,18 +101,18 @@ search: setup
 	  status=$$?; if [ $$status -gt 1 ]; then exit $$status; fi
 
 .PHONY: bench
-# Issue #7 benchmarks: contact solve against dolfinx, cost against vertex count (1k-100k), per-object pickups,
+# Benchmarks: contact solve against dolfinx, cost against vertex count (1k-100k), per-object pickups,
 # sparse against spectral, compiled against plain kernels, column batches, the floor of the method (flops
 # against the dense peak; about 10 GiB at 100k), the placement search serially and on Dask (section search), and
 # the time to a 10/5/2 % answer (section converge, from the cached study of `make converge`), and the pickup
-# engine against a baseline commit side by side (section tracker, #27; BENCH_ARGS="--only tracker --baseline REV");
+# engine against a baseline commit side by side (section tracker; BENCH_ARGS="--only tracker --baseline REV");
 # tables on stdout and bench/out/bench.json
 # (long: shorter with BENCH_ARGS="--max-vertices 10000").
 bench: setup
 	$(PY) -m bench.bench $(BENCH_ARGS)
 
 .PHONY: converge
-# Issue #23: the pickup answer (verdict, rho*, finger forces, patches, w(rho)) of the five shipped scenes under
+# The convergence study: the pickup answer (verdict, rho*, finger forces, patches, w(rho)) of the five shipped scenes under
 # uniform and graded refinement, halved increments and seeds, and the adaptive accuracy loop; one subprocess per
 # run, cached in verification/out/converge/cache (a re-run only reads). Tables on stdout, converge.json and plots
 # in verification/out/converge. From an empty cache: hours on 2 cores (CONVERGE_ARGS=--quick: minutes).
@@ -128,7 +128,7 @@ paper: setup
 	$(PY) -m fem_grasp.paper --merge out/paper/*.json
 
 .PHONY: paper-scenes
-# The README's table: Table I's moduli as printed, and the paper scenes' effective moduli (no search).
+# The table of docs/physics.md ("The paper's objects"): Table I's moduli as printed, and the paper scenes' effective moduli (no search).
 paper-scenes: setup
 	@mkdir -p out/paper-scenes
 	@for o in tomato orange steam_bun football; do \

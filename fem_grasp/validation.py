@@ -26,7 +26,7 @@ from .errors import LockingWarning, MaterialError, SceneError
 
 __all__ = ["LOCKING_POISSON", "check_friction", "check_material", "check_positive", "check_real", "check_vector"]
 
-#: ν above which :class:`fem_grasp.elastic.body.Body` warns that P1 tetrahedra lock (README: a coarse
+#: ν above which :class:`fem_grasp.elastic.body.Body` warns that P1 tetrahedra lock (docs/verification.md: a coarse
 #: cantilever's P1 deflection is 0.32 of P2's at ν = 0.45, 0.14 at 0.49, 0.053 at 0.4999).
 LOCKING_POISSON = 0.45
 

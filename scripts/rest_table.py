@@ -10,10 +10,11 @@ Usage::
     python scripts/rest_table.py                 # E = 1e4 Pa (objects.EFFECTIVE_YOUNG_ESTIMATE)
     python scripts/rest_table.py --young 3e4
     python scripts/rest_table.py --young table   # Table I's printed moduli (micrometre sag)
-    python scripts/rest_table.py --readme README.md   # also rewrite the README's table (``make rest-table``)
+    python scripts/rest_table.py --into docs/physics.md   # also rewrite the guide's table (``make rest-table``)
 
-The README's table sits between the markers :data:`BEGIN` and :data:`END`; ``--readme`` replaces what is
-between them, so the README shows what this script printed last.
+The guide's table (docs/physics.md, "Resting on the table") sits between the markers :data:`BEGIN` and
+:data:`END`; ``--into`` replaces what is between them, so the page shows what this script printed last.
+``--readme`` is another name for ``--into``.
 """
 
 from __future__ import annotations
@@ -27,15 +28,15 @@ from typing import Sequence
 from fem_grasp.grasp import objects
 from fem_grasp.grasp.rest import rest
 
-#: The README's rest table is between these lines.
-BEGIN = "<!-- rest-table: written by `make rest-table` (scripts/rest_table.py --readme README.md) -->"
+#: The guide's rest table (docs/physics.md) is between these lines.
+BEGIN = "<!-- rest-table: written by `make rest-table` (scripts/rest_table.py --into docs/physics.md) -->"
 END = "<!-- rest-table: end -->"
 
 
 def replace_block(text: str, block: str, begin: str = BEGIN, end: str = END) -> str:
     """``text`` with what lies between the lines ``begin`` and ``end`` replaced by ``block``."""
     if begin not in text or end not in text:
-        raise SystemExit(f"the README has no {begin!r} … {end!r} block to rewrite")
+        raise SystemExit(f"the file has no {begin!r} … {end!r} block to rewrite")
     head, rest_ = text.split(begin, 1)
     _, tail = rest_.split(end, 1)
     return f"{head}{begin}\n{block}\n{end}{tail}"
@@ -77,16 +78,17 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--young", default=str(objects.EFFECTIVE_YOUNG_ESTIMATE),
                         help="Young's modulus in Pa, or 'table' for Table I's printed values (default %(default)s)")
     parser.add_argument("--objects", nargs="*", default=list(objects.NAMES), choices=objects.NAMES)
-    parser.add_argument("--readme", type=Path, help="rewrite the table between the markers of this README")
+    parser.add_argument("--into", "--readme", dest="into", type=Path, metavar="FILE",
+                        help="rewrite the table between the markers of FILE (docs/physics.md)")
     args = parser.parse_args(argv)
     young = args.young if args.young == "table" else float(args.young)
     print(f"Resting configurations on the table (paper §III-A), Table I weight, ν and μ, "
           f"E = {'Table I' if young == 'table' else f'{young:g} Pa'}; table at z = 0.")
     table = format_table(rows(young, args.objects))
     print(table)
-    if args.readme is not None:
-        args.readme.write_text(replace_block(args.readme.read_text(encoding="utf-8"), table), encoding="utf-8")
-        print(f"wrote the table into {args.readme}")
+    if args.into is not None:
+        args.into.write_text(replace_block(args.into.read_text(encoding="utf-8"), table), encoding="utf-8")
+        print(f"wrote the table into {args.into}")
     return 0
 
 

@@ -362,8 +362,8 @@ def test_rest_table_script_reports_the_tomato():
     assert rows[0]["contacts"] >= 3 and rows[0]["sag_mm"] > 1 and rows[0]["residual"] < 1e-10
     table = module.format_table(rows)
     assert table.splitlines()[2].startswith(f"| tomato | {rows[0]['nodes']} |")
-    # the README's table is the script's: `make rest-table` rewrites it between its markers (issue 25)
-    readme = (path.parents[1] / "README.md").read_text(encoding="utf-8")
+    # the guide's table is the script's: `make rest-table` rewrites it between its markers
+    readme = (path.parents[1] / "docs" / "physics.md").read_text(encoding="utf-8")
     block = readme.split(module.BEGIN, 1)[1].split(module.END, 1)[0]
     assert table.splitlines()[0] in block
     tomato = next(line for line in block.splitlines() if line.startswith("| tomato |")).split(" | ")

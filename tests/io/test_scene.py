@@ -45,7 +45,7 @@ def test_shipped_scenes_parse_full_and_quick_and_paper_ones_carry_table_one():
             row = objects.TABLE_I[name]
             assert (full.weight, full.poisson, full.mu_finger, full.mu_table) == (row.weight, row.poisson,
                                                                                   row.friction, row.friction)
-            # the effective modulus (README, "Units"): 10 kPa for the football, 20 kPa for the others (their scenes
+            # the effective modulus (docs/physics.md, "Units"): 10 kPa for the football, 20 kPa for the others (their scenes
             # say why)
             assert full.young == (1 if name == "football" else 2) * objects.EFFECTIVE_YOUNG_ESTIMATE
             assert full.placement_rule == objects.PAPER_PLACEMENT_RULE and full.contacts is None

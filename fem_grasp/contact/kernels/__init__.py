@@ -13,7 +13,7 @@
 * :mod:`~fem_grasp.contact.kernels.events` — the event functions A–D at a trial state;
 * :mod:`~fem_grasp.contact.kernels.dense` — LAPACK's LU for the kernels' dense systems.
 
-The kernels of issue #27 (polish, slip_trial, events) replace numpy code that stays as the reference path:
+The kernels polish, slip_trial and events replace numpy code that stays as the reference path:
 ``tracking.COMPILED_TRIALS`` and ``relaxation.COMPILED_POLISH`` (both on where numba is installed) choose, and
 the tests compare the two.
 """

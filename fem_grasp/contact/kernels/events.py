@@ -1,4 +1,4 @@
-"""The event functions of the contact tracking (paper §III-C, events A–D) at one trial state, compiled (issue #27).
+"""The event functions of the contact tracking (paper §III-C, events A–D) at one trial state, compiled.
 
 ``Tracker.event_values`` evaluates, at every trial state, the penetration of
 every surface node into ℱ₁, ℱ₂ and 𝒫 (A), the normal force of every contact

@@ -1,4 +1,4 @@
-"""The return mapping's Newton polish in one compiled kernel (issue #27).
+"""The return mapping's Newton polish in one compiled kernel.
 
 Once the Gauss–Seidel sweeps of :func:`fem_grasp.contact.relaxation.relax_contacts`
 stop changing the contacts' statuses, Newton's method on the smooth system of

@@ -1,4 +1,4 @@
-"""One trial's slip system (eqs. 6–8) assembled, solved and read out in compiled kernels (issue #27).
+"""One trial's slip system (eqs. 6–8) assembled, solved and read out in compiled kernels.
 
 :class:`fem_grasp.contact.slip_system.MixedSlipSystem` builds the affine maps
 from the slip unknowns x to the sliding nodes' forces and slips with about
