@@ -1,4 +1,4 @@
-"""The ``tracker`` section of ``make bench`` (issue #27): the pickup engine against a baseline commit, side by side.
+"""The ``tracker`` section of ``make bench``: the pickup engine against a baseline commit, side by side.
 
 Two worker processes, one importing fem_grasp from this checkout and one from a baseline commit (exported with
 ``git archive`` into ``bench/out/baseline-<sha>``), take turns on the same scenes: for each scene a first call
@@ -6,7 +6,7 @@ Two worker processes, one importing fem_grasp from this checkout and one from a 
 and then ``reps`` pickups, alternating baseline and current so both see the same load on a shared machine.
 Per scene the table gives the medians, their ratio, the first calls, and whether the answers are the same:
 identical event sequences and verdicts, ρ* to :data:`SAME_RHO` relative, final contact forces to
-:data:`SAME_FORCE` of the weight (the targets of #27).
+:data:`SAME_FORCE` of the weight.
 
 ``--against SETTING …`` compares this checkout with itself instead: the "baseline" worker runs this checkout's
 fem_grasp with each SETTING applied — ``module.ATTRIBUTE=VALUE`` (a switch such as
@@ -43,13 +43,13 @@ __all__ = ["PHASES", "SCENES", "SAME_FORCE", "SAME_RHO", "SEARCH_CANDIDATES", "b
 ROOT = Path(__file__).resolve().parent.parent
 #: The shipped paper scenes and the foam block (the box the tests use most).
 SCENES = ("tomato", "orange", "steam_bun", "football", "foam_block")
-#: The baseline of #27: main before the new engine's work began (the convergence study's last change).
+#: The default baseline: the engine before the event-tracking rewrite (the convergence study's last change).
 DEFAULT_BASELINE = "8d4802882b8d0ef62be1f91ccaf5e132eca56f11"
 #: The orange scene's modulus, for the uniform oranges of ``--large`` (as in the scaling section).
 ORANGE_YOUNG = 2e4
 #: The convergence study's cheapest routes to a converged answer (docs/convergence.md, "time to target"): the
 #: tomato (2 %) and the football (10 %) meshed finer at the fingertips and the table, inner spacing R/4
-#: (``--routes``; #27's "time to a 5 % answer").
+#: (``--routes``; the "time to a 5 % answer").
 ROUTES = (("tomato", 0.25), ("football", 0.25))
 #: The phases of a pickup that ``PickupResult.timings`` reports, in Algorithm 1's order, and their sum.
 PHASES = ("rest", "closure", "squeeze", "lift_test", "lift", "total")
@@ -60,7 +60,7 @@ SEARCH_EXACT = ("status", "outcome", "success", "events", "events_A", "events_B"
 #: ... ρ* agrees to :data:`SAME_RHO` and these finger forces (each finger's resultant and Table III's normal sum) to
 #: :data:`SAME_FORCE` of mg (a row holds event counts and finger totals, not the sequence and every contact force).
 SEARCH_FORCES = ("force1", "force2", "finger_normal_force")
-#: "The same answer" (#27): ρ* to 1e-9 relative ...
+#: "The same answer": ρ* to 1e-9 relative ...
 SAME_RHO = 1e-9
 #: ... and final contact forces to 1e-9 of mg.
 SAME_FORCE = 1e-9
@@ -496,7 +496,7 @@ def print_tracker(sec: dict[str, Any]) -> None:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.tracker", description=__doc__.split("\n\n")[0])
     ap.add_argument("--baseline", default=DEFAULT_BASELINE,
-                    help=f"commit to compare against (default {DEFAULT_BASELINE[:12]}, main before #27's engine)")
+                    help="commit to compare against (default: the engine before the event-tracking rewrite)")
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--scenes", nargs="+", default=list(SCENES))
     ap.add_argument("--quick", action="store_true", help="the scenes' [quick] variants")

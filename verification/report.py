@@ -1,306 +1,48 @@
-"""The full verification report: ``python -m verification.run [--quick] [--out DIR]``.
+"""The full verification report: every study in turn, ``python -m verification all [--quick] [--out DIR]``.
 
-Writes ``report.html``, the PNGs it embeds and ``summary.json`` (every number
-the report quotes) to ``verification/out/`` by default.  The full run takes
-about a quarter of an hour on a two-core machine before the frictional-contact
-stages (:mod:`verification.friction_verify`), which add about three quarters
-of an hour, the 500 random scenes (about 50 minutes on one core) and the
-pickup's convergence study (hours from an empty cache; ``make converge`` fills
-the same cache); ``--quick`` took 15 minutes on two cores (AMD EPYC, shared
-with a test run), every headline check passing.  The exit status is 1 if a stage failed or a headline check failed.
+Runs the stages of each study (:data:`STUDIES`, in this order), collects their headline checks, and writes
+``report.html`` — the checks, then each study's own section — the PNGs it embeds and ``summary.json`` (every
+number the report quotes, under each study's name) to ``verification/out/`` by default.  This module imports
+the studies; no study imports it.
+
+The full run takes about a quarter of an hour on a two-core machine for the dolfinx and Hertz studies, about
+50 minutes for the 500 random scenes (one core), three quarters of an hour for the frictional contact and the
+softness study, and hours for the pickup's convergence study from an empty cache (``make converge`` fills the
+same cache).  ``--quick`` took 15 minutes on two cores (AMD EPYC, shared with a test run), every headline check
+passing.  The exit status is 1 if a stage failed or a headline check failed.
 """
 
 from __future__ import annotations
 
-import argparse
-import contextlib
 import datetime
+import importlib
 import json
-import logging
 import os
 import platform
-import sys
-import time
-import traceback
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
-from fem_grasp import Body, TetMesh, box_mesh, solve_contact
 from fem_grasp.io.output import json_safe
 
-from . import converge, crosscheck, hertz, manufactured, perturbation, plots, random_scenes, render, report, stability
-from .dolfinx_ref import warm_up
-from .linalg import fem_grasp_factorization_by_mumps
+from ._common.html import checks_table, fmt, table, write_page
+from ._common.run import DEFAULT_OUT, Stages, print_checks, setup_logging, study_parser
 
-log = logging.getLogger("verification.run")
-
-ROOT = Path(__file__).resolve().parents[1]
-DEFAULT_OUT = ROOT / "verification" / "out"
-
-#: Table I of the paper: weight w (N), Young's modulus E (Pa), Poisson's ratio ν.
-TABLE_I = {
-    "tomato": (1.246, 1.0e9, 0.4),
-    "orange": (1.868, 1.4e9, 0.4),
-    "steam_bun": (0.467, 2.0e9, 0.2),
-    "football": (0.489, 6.0e9, 0.3),
-}
-
-#: Young's modulus for the pictures: Table I's moduli deform the objects by micrometres (DESIGN.md, "Units").
-RENDER_YOUNG = 2e4
-
-CONFIGS: dict[str, dict[str, Any]] = {
-    "full": {
-        "spectral_max_vertices": 1000,
-        "eigen_max_vertices": 8000,
-        "sparse_contact_max_vertices": 15000,
-        "refinement_object": "orange",
-        "refinement_sizes": [0.0045, 0.003, 0.00145],
-        "refinement_min_top": 50000,
-        "p1_levels": [4, 8, 16, 24, 32],
-        "p2_levels": [4, 8, 12, 16],
-        "locking_divisions": 8,
-        "beam": {"divisions": (10, 2, 2), "reference_divisions": (40, 8, 8)},
-        "hertz_pole_sizes": [0.04, 0.02, 0.01, 0.007, 0.005],
-        "hertz_deltas": [0.0025, 0.005, 0.01, 0.02],
-        "collinear_angles": [10.0**-k for k in range(1, 13)] + [0.0],
-        "random_scenes": 500,
-    },
-    "quick": {
-        "spectral_max_vertices": 1000,
-        "eigen_max_vertices": 3000,
-        "sparse_contact_max_vertices": 15000,
-        "refinement_object": "orange",
-        "refinement_sizes": [0.009, 0.006, 0.0045],
-        "refinement_min_top": 0,
-        "p1_levels": [2, 4, 8, 16],
-        "p2_levels": [2, 4, 8],
-        "locking_divisions": 4,
-        "beam": {"divisions": (10, 2, 2), "reference_divisions": (20, 4, 4)},
-        "hertz_pole_sizes": [0.04, 0.02],
-        "hertz_deltas": [0.0025, 0.005, 0.01, 0.02],
-        "collinear_angles": [10.0**-k for k in range(1, 13, 2)] + [0.0],
-        "random_scenes": 40,
-    },
-}
-
-POISSONS = [0.0, 0.3, 0.45, 0.49, 0.499, 0.4999]
-YOUNGS = [1e2, 1e4, 1e6, 1e8, 1e10, 1e12]
+#: The studies of the report, in the report's order: each a package with ``STAGES``, ``run``, ``checks`` and
+#: ``section`` (:mod:`verification._common.run`).
+STUDIES = ("dolfinx", "hertz", "roundoff", "random_scenes", "converge", "friction", "softness")
 
 
-# ----------------------------------------------------------------- meshes
-def small_meshes() -> list[tuple[str, TetMesh]]:
-    """The test-suite's small meshes: a box and (with gmsh) a small ellipsoid."""
-    out = [("box 4x3x3", box_mesh((0, 0, 0), (0.04, 0.03, 0.02), (4, 3, 3)))]
-    try:
-        from fem_grasp.mesh.shapes import ellipsoid
-
-        out.append(("ellipsoid (gmsh)", TetMesh(*ellipsoid((0.04, 0.03, 0.025), 0.012))))
-    except ImportError as exc:
-        log.warning("no gmsh: %s", exc)
-    return out
-
-
-def paper_mesh(name: str) -> tuple[TetMesh, str]:
-    """The paper object ``name`` from ``meshes/<name>.vtu``, else generated by fem_grasp.mesh.shapes."""
-    path = ROOT / "meshes" / f"{name}.vtu"
-    if path.exists():
-        return TetMesh.from_file(path), str(path.relative_to(ROOT))
-    from fem_grasp.mesh.shapes import paper_mesh as make
-
-    log.warning("%s not found; generating the mesh with fem_grasp.mesh.shapes.paper_mesh", path)
-    return make(name), "generated by fem_grasp.mesh.shapes.paper_mesh (meshes/*.vtu missing)"
-
-
-def refinement_mesh(name: str, size: float, min_vertices: int) -> TetMesh:
-    """``paper_shape(name, size)``, shrinking the size by 3 % steps until it has ``min_vertices``."""
-    from fem_grasp.mesh.shapes import paper_shape
-
-    for _ in range(10):
-        mesh = TetMesh(*paper_shape(name, size))
-        if mesh.n_points >= min_vertices:
-            return mesh
-        size *= 0.97
-    raise RuntimeError(f"could not reach {min_vertices} vertices")
-
-
-# ----------------------------------------------------------------- stages
-def _label(result: dict, label: str, **extra) -> dict:
-    result = dict(result, label=label)
-    result.update(extra)
-    return result
-
-
-def stage_small(cfg: dict, rng: np.random.Generator) -> list[dict]:
-    out = []
-    for label, mesh in small_meshes():
-        body = Body(mesh, 5e4, 0.3, weight=1.0)
-        out.append(_label(crosscheck.crosscheck_mesh(body, rng, eigen=True), label))
-    return out
-
-
-def stage_paper(cfg: dict, rng: np.random.Generator, out_dir: Path, images: dict) -> list[dict]:
-    results, jobs = [], []
-    for name, (weight, young, nu) in TABLE_I.items():
-        mesh, source = paper_mesh(name)
-        body = Body(mesh, young, nu, weight=weight)
-        res = crosscheck.crosscheck_mesh(body, rng, eigen=mesh.n_points <= cfg["eigen_max_vertices"],
-                                         spectral=mesh.n_points <= cfg["spectral_max_vertices"])
-        results.append(_label(res, name, source=source, young=young, poisson=nu, weight=weight))
-        print(f"  {name}: {mesh.n_points} vertices, K {res['K_rel_diff']:.1e}, contact u "
-              f"{crosscheck.worst(res, 'u_rel_diff'):.1e}, f {crosscheck.worst(res, 'f_rel_diff'):.1e}", flush=True)
-        soft = Body(mesh, RENDER_YOUNG, nu, weight=weight)
-        case = crosscheck.contact_cases(soft, np.random.default_rng(0))[0]
-        case.displacements[:, 0] *= 2.0  # a 2 % squeeze from each side
-        sol = solve_contact(soft, case.nodes, case.displacements)
-        jobs += [render.mesh_job(mesh, out_dir / f"mesh_{name}.png", title=name),
-                 render.contact_job(sol, out_dir / f"contact_{name}.png", title=name)]
-    for path in render.render(jobs):
-        images[path.stem] = path.name
-    return results
-
-
-def stage_refinement(cfg: dict, rng: np.random.Generator) -> list[dict]:
-    name = cfg["refinement_object"]
-    weight, young, nu = TABLE_I[name]
-    results = []
-    sizes = cfg["refinement_sizes"]
-    for i, size in enumerate(sizes):
-        t0 = time.perf_counter()
-        mesh = refinement_mesh(name, size, cfg["refinement_min_top"] if i == len(sizes) - 1 else 0)
-        mesh_seconds = time.perf_counter() - t0
-        body = Body(mesh, young, nu, weight=weight)
-        native = mesh.n_points <= cfg["sparse_contact_max_vertices"] or _has_cholmod()
-        # Beyond SuperLU's reach, fem_grasp's sparse backend runs with its factorisation swapped for MUMPS.
-        with contextlib.nullcontext() if native else fem_grasp_factorization_by_mumps():
-            res = crosscheck.crosscheck_mesh(body, rng, eigen=mesh.n_points <= cfg["eigen_max_vertices"],
-                                             spectral=mesh.n_points <= cfg["spectral_max_vertices"])
-        results.append(_label(res, f"{name} h={size * 1e3:.3g} mm", mesh_seconds=mesh_seconds,
-                              sparse_factorization="fem_grasp default" if native else "MUMPS (patched in)"))
-        print(f"  {name} level {i}: {mesh.n_points} vertices, K {res['K_rel_diff']:.1e}, "
-              f"energy {res['energy_rel_diff']:.1e}, null {res['null_fem_grasp']:.1e}", flush=True)
-    return results
-
-
-def _has_cholmod() -> bool:
-    try:
-        import sksparse.cholmod  # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-# ----------------------------------------------------------------- checks
-def _max(values) -> float:
-    vals = [float(v) for v in values if v is not None and not (isinstance(v, float) and np.isnan(v))]
-    return max(vals) if vals else float("nan")
-
-
-def headline_checks(s: dict) -> list[dict]:
-    """The pass/fail table: the bounds of issue #3 applied to every mesh of the run."""
-    checks = []
-
-    def add(name: str, value: float, threshold: str, ok: bool) -> None:
-        checks.append({"name": name, "value": float(value), "threshold": threshold, "ok": bool(ok)})
-
-    cross = s.get("crosscheck", {})
-    meshes = [r for key in ("small", "paper", "refinement") for r in cross.get(key, [])]
-    sliver = s.get("stability", {}).get("sliver")
-    if sliver:
-        meshes = meshes + [sliver]
-    if meshes:
-        for key, label in (("K_rel_diff", "K: max |ΔK_ij| / max |K_ij|"), ("G_rel_diff", "G: max relative difference"),
-                           ("energy_rel_diff", "strain energy of random fields")):
-            v = _max(r[key] for r in meshes)
-            add(f"{label} (all {len(meshes)} meshes)", v, "≤ 1e-12", v <= 1e-12)
-        v = _max([r["null_dolfinx"] for r in meshes] + [r["null_fem_grasp"] for r in meshes])
-        add("rigid modes: ‖K r‖ / (‖K‖₂‖r‖), both matrices", v, "≤ 1e-12", v <= 1e-12)
-        v = _max(r.get("eig6_max_fem_grasp") for r in meshes)
-        add("six smallest eigenvalues of K / ‖K‖₂ (meshes where computed)", v, "≤ 1e-12", v <= 1e-12)
-        v = _max(r.get("eig7_diff_over_norm") for r in meshes)
-        add("λ7, λ8 of fem_grasp's K vs dolfinx's, |Δλ| / ‖K‖₂", v, "≤ 1e-12", v <= 1e-12)
-        for key, label in (("u_rel_diff", "contact displacement fields"), ("f_rel_diff", "contact forces")):
-            v = _max(crosscheck.worst(r, key) for r in meshes)
-            add(f"{label}, both backends vs dolfinx", v, "≤ 1e-9", v <= 1e-9)
-        v = _max(max(crosscheck.worst(r, "equilibrium_force"), crosscheck.worst(r, "equilibrium_torque"))
-                 for r in meshes)
-        add("equilibrium of contact forces + gravity (relative)", v, "≤ 1e-10", v <= 1e-10)
-        add("largest mesh in the refinement series (vertices)", _max(r["n_vertices"] for r in cross.get("refinement", [])),
-            "≥ 50,000 (full run)", s.get("quick") or _max(r["n_vertices"] for r in cross.get("refinement", [])) >= 5e4)
-    conv = s.get("convergence")
-    if conv:
-        expected = {"fem_grasp P1": (2, 1), "dolfinx P1": (2, 1), "dolfinx P2": (3, 2)}
-        for m, (l2, en) in expected.items():
-            r = conv["rates"][m]
-            add(f"{m} L2 rate (last pair)", r["l2_last"], f"{l2} ± 0.15", abs(r["l2_last"] - l2) <= 0.15)
-            add(f"{m} energy rate (last pair)", r["energy_last"], f"{en} ± 0.15", abs(r["energy_last"] - en) <= 0.15)
-        add("fem_grasp P1 vs dolfinx P1 errors, relative difference", conv["p1_error_max_rel_diff"], "≤ 1e-3",
-            conv["p1_error_max_rel_diff"] <= 1e-3)
-    hz = s.get("hertz")
-    if hz:
-        fine = hz["levels"][-1]
-        add("Hertz: fitted exponent of F(δ), finest mesh", fine["exponent"], "1.5 ± 0.05",
-            abs(fine["exponent"] - 1.5) <= 0.05)
-        add("Hertz: F/F_Hertz extrapolated to δ → 0, finest mesh", fine["extrapolated_ratio"], "1 ± 0.05",
-            abs(fine["extrapolated_ratio"] - 1) <= 0.05)
-        worst_ratio = max(abs(r["ratio"] - 1) for r in fine["rows"])
-        add("Hertz: max |F/F_Hertz − 1| over δ/R ≤ 0.02, finest mesh", worst_ratio, "≤ 0.15 (finite-size effect)",
-            worst_ratio <= 0.15)
-    st = s.get("stability", {})
-    if st.get("young"):
-        add("E from 1e2 to 1e12: deviation from exact scaling", st["young"]["max_deviation"], "≤ 1e-10",
-            st["young"]["max_deviation"] <= 1e-10)
-    if st.get("locking"):
-        g = st["locking"]["l2_growth"]
-        add("locking: P1 L2 error growth ν 0 → 0.4999 (fem_grasp / dolfinx)", g["fem_grasp P1"] / g["dolfinx P1"],
-            "= 1 ± 0.01 (same locking)", abs(g["fem_grasp P1"] / g["dolfinx P1"] - 1) <= 0.01)
-    if st.get("beam"):
-        v = st["beam"]["max_fem_grasp_vs_dolfinx_p1"]
-        add("cantilever tip deflection, fem_grasp P1 vs dolfinx P1, all ν", v, "≤ 1e-9", v <= 1e-9)
-    gc = s.get("grasp_convergence")
-    if gc:
-        # The adaptive loop's estimated error against its actual error (vs the study's reference), wherever a
-        # target was reached; the reference's own uncertainty is added to the estimate.
-        worst, n = 0.0, 0
-        for obj in gc.get("objects", {}).values():
-            ref = obj.get("reference") or {}
-            band = {"rho": (ref.get("rho") or {}).get("error", np.inf), "force": (ref.get("force") or {}).get("error",
-                                                                                                          np.inf)}
-            for r in obj.get("series", {}).get("adaptive", []):
-                for v in (r.get("targets") or {}).values():
-                    if not v or not ref:
-                        continue
-                    for q, key in (("rho", "squeeze_depth"), ("force", "finger_force")):
-                        allowed = v["estimated_error"][key] + (band[q] if np.isfinite(band[q]) else 0.0)
-                        worst = max(worst, v[f"{q}_error"] / allowed if allowed > 0 else np.inf)
-                        n += 1
-        if n:
-            add(f"grasp convergence: adaptive error / (its estimate + the reference's band), {n} answers", worst,
-                "≤ 1", worst <= 1.0)
-    if st.get("poisson_operators"):
-        v = _max(r["K_rel_diff"] for r in st["poisson_operators"])
-        add("K vs dolfinx for ν up to 0.4999", v, "≤ 1e-12", v <= 1e-12)
-    pert = s.get("perturbation")
-    if pert:
-        n = len(pert["violations"])
-        add(f"round-off perturbations: cases × variants outside the promise ({len(pert['rows'])} runs)", n,
-            "0 (same verdict, ρ* within an increment, forces within "
-            f"{pert['tolerances']['force_of_weight']:g} mg, checks pass)", n == 0)
-    rnd = s.get("random_scenes")
-    if rnd:
-        n = len(rnd["problems"])
-        add(f"random valid scenes that crash or fail a check ({rnd['scenes']} scenes)", n, "0", n == 0)
-    return checks
-
-
-# ----------------------------------------------------------------- driver
-def environment() -> dict:
+def environment() -> dict[str, Any]:
+    """Versions of the libraries the checks ran with, the CPU count and the date."""
     import dolfinx
     import scipy
 
+    from .dolfinx import has_cholmod
+
     env = {"python": platform.python_version(), "numpy": np.__version__, "scipy": scipy.__version__,
-           "dolfinx": dolfinx.__version__, "cpus": os.cpu_count(), "cholmod": _has_cholmod(),
+           "dolfinx": dolfinx.__version__, "cpus": os.cpu_count(), "cholmod": has_cholmod(),
            "date": datetime.datetime.now().isoformat(timespec="seconds")}
     for mod in ("gmsh", "pyvista", "matplotlib"):
         try:
@@ -310,146 +52,56 @@ def environment() -> dict:
     return env
 
 
-#: Stages of a run (the progress bar's length).
-STAGES = 17
+def write_report(summary: dict[str, Any], out_dir: str | Path) -> Path:
+    """Write ``report.html`` in ``out_dir`` from ``summary`` alone; return its path."""
+    s = summary
+    env = s.get("environment", {})
+    body = [f"<p class='note'>Mode: <b>{'quick' if s.get('quick') else 'full'}</b>; total wall time "
+            f"{fmt(s.get('total_seconds'))} s; {fmt(env.get('date'))}; dolfinx {fmt(env.get('dolfinx'))}, "
+            f"numpy {fmt(env.get('numpy'))}, scipy {fmt(env.get('scipy'))}, gmsh {fmt(env.get('gmsh'))}, "
+            f"pyvista {fmt(env.get('pyvista'))}; {fmt(env.get('cpus'))} CPUs. Every number below is also in "
+            f"<code>summary.json</code>.</p>"]
+    if s.get("failures"):
+        body.append("<h2 class='fail'>Stages that failed</h2>"
+                    + table(["stage", "error"], [[k, v] for k, v in s["failures"].items()]))
+    body += ["<h2>Headline checks</h2>", checks_table(s.get("checks", []))]
+    images = s.get("images", {})
+    for name in STUDIES:
+        if s.get(name):
+            body.append(importlib.import_module(f"verification.{name}").section(s[name], images))
+    if s.get("stage_seconds"):
+        body.append("<h2>Timing</h2>" + table(["stage", "seconds"], [[k, v] for k, v in s["stage_seconds"].items()]))
+    return write_page(Path(out_dir) / "report.html", "fem_grasp verification report", body)
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m verification.run", description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="small meshes and fewer levels (about 15 minutes)")
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"output directory (default {DEFAULT_OUT})")
-    parser.add_argument("-v", "--verbose", action="store_true", help="log progress of every solve")
-    parser.add_argument("--log-file", metavar="FILE", help="also write the log (info and up) to FILE")
+    parser = study_parser("python -m verification all", "The full verification report: every study in turn, its "
+                          "checks and sections in report.html, every number in summary.json.",
+                          "small meshes, fewer levels and scenes (about 15 minutes)")
     args = parser.parse_args(argv)
-    handlers: list[logging.Handler] = [logging.StreamHandler()]
-    handlers[0].setLevel(logging.INFO if args.verbose else logging.WARNING)
-    if args.log_file:
-        handlers.append(logging.FileHandler(args.log_file, encoding="utf-8"))
-        handlers[1].setLevel(logging.INFO)
-    logging.basicConfig(level=logging.INFO if (args.verbose or args.log_file) else logging.WARNING,
-                        format="%(asctime)s %(name)s %(levelname)s %(message)s", handlers=handlers)
-    logging.getLogger("root").setLevel(logging.WARNING)
-    cfg = CONFIGS["quick" if args.quick else "full"]
-    out_dir = args.out
+    setup_logging(args.verbose, args.log_file)
+    out_dir: Path = args.out
     out_dir.mkdir(parents=True, exist_ok=True)
-    rng = np.random.default_rng(2024)
-    t_start = time.perf_counter()
-    summary: dict[str, Any] = {"quick": args.quick, "config": cfg, "environment": environment(),
-                               "stage_seconds": {}, "failures": {}, "images": {}, "crosscheck": {},
-                               "stability": {},
-                               "render_note": f"grasp-like contact solution (six lowest nodes held, 2 % squeeze at "
-                                              f"±x), E = {RENDER_YOUNG:g} Pa, Table I ν and weight; arrows: forces "
-                                              "on the object"}
-    images = summary["images"]
-
-    from fem_grasp.progress import PhaseBar
-
-    bar = PhaseBar(["stage"] * STAGES)  # a bar on a terminal, nothing in CI or a pipe (fem_grasp.progress)
-
-    def stage(name: str, fn: Callable[[], Any], store: Callable[[Any], None]) -> None:
-        print(f"[{time.perf_counter() - t_start:6.1f} s] {name} ...", flush=True)
-        t0 = time.perf_counter()
-        try:
-            with bar.phase(name):
-                store(fn())
-        except Exception as exc:  # noqa: BLE001 - a failed stage is reported, the rest still run
-            summary["failures"][name] = f"{type(exc).__name__}: {exc}"
-            traceback.print_exc()
-        summary["stage_seconds"][name] = time.perf_counter() - t0
-
-    cross, stab = summary["crosscheck"], summary["stability"]
-    stage("JIT warm-up", lambda: warm_up(manufactured.GENERAL_FIELD), lambda v: None)
-    stage("small meshes", lambda: stage_small(cfg, rng), lambda v: cross.__setitem__("small", v))
-    stage("paper objects", lambda: stage_paper(cfg, rng, out_dir, images), lambda v: cross.__setitem__("paper", v))
-    cross["refinement_object"] = cfg["refinement_object"]
-    big = (f"above {cfg['sparse_contact_max_vertices']:,} vertices its SuperLU factorisation is swapped for MUMPS "
-           "(everything else is fem_grasp's own code): SuperLU needs minutes and gigabytes there and CHOLMOD is "
-           "absent" if not _has_cholmod() else "natively (CHOLMOD present)")
-    cross["refinement_note"] = (
-        f"The sparse backend runs at every size; {big}. The spectral backend (dense O(n³)) runs up to "
-        f"{cfg['spectral_max_vertices']:,} vertices and the six smallest eigenvalues up to "
-        f"{cfg['eigen_max_vertices']:,}; K, G, energies and ‖K r‖ are checked at every size.")
-    stage("refinement series", lambda: stage_refinement(cfg, rng), lambda v: cross.__setitem__("refinement", v))
-    stage("convergence", lambda: manufactured.convergence_study(cfg["p1_levels"], cfg["p2_levels"]),
-          lambda v: summary.__setitem__("convergence", v))
-    stage("locking", lambda: manufactured.locking_study(POISSONS, cfg["locking_divisions"]),
-          lambda v: stab.__setitem__("locking", v))
-    stage("beam locking", lambda: manufactured.beam_locking_study(POISSONS, **cfg["beam"]),
-          lambda v: stab.__setitem__("beam", v))
-    stage("Poisson operators", lambda: stability.poisson_operator_table(POISSONS),
-          lambda v: stab.__setitem__("poisson_operators", v))
-    stage("Hertz", lambda: hertz.hertz_study(cfg["hertz_pole_sizes"], cfg["hertz_deltas"]),
-          lambda v: summary.__setitem__("hertz", v))
-
-    def young():
-        mesh, _ = paper_mesh("tomato")
-        w, e, nu = TABLE_I["tomato"]
-        res = stability.young_scaling(Body(mesh, e, nu, weight=w), YOUNGS)
-        res["label"] = f"tomato ({mesh.n_points} vertices), grasp-like contact set"
-        return res
-
-    stage("Young's modulus scaling", young, lambda v: stab.__setitem__("young", v))
-    stage("near-collinear contacts", lambda: stability.collinear_study(cfg["collinear_angles"]),
-          lambda v: stab.__setitem__("collinear", v))
-    stage("sliver mesh", lambda: stability.sliver_study(), lambda v: stab.__setitem__("sliver", v))
-    stage("round-off perturbations", lambda: perturbation.sweep(quick=args.quick),
-          lambda v: summary.__setitem__("perturbation", {k: v[k] for k in v if k != "runs"} | {
-              "table": perturbation.spread_table(v)}))
-    stage("random scenes", lambda: random_scenes.sweep(cfg["random_scenes"]),
-          lambda v: summary.__setitem__("random_scenes", {k: v[k] for k in v if k != "rows"}))
-
-    def grasp_convergence():
-        # The pickup answer under refinement (verification.converge, `make converge`): cached runs are reused, so
-        # after `make converge` this only reads; from an empty cache it computes the whole study (hours).  --quick
-        # runs the quick study of the foam block alone (a few minutes; the paper objects' quick study is half
-        # an hour: `make converge CONVERGE_ARGS=--quick`).
-        objects = ("foam_block",) if args.quick else converge.OBJECTS
-        res = converge.study(quick=args.quick, out=out_dir / "converge", objects=objects)
-        for key, name in res.pop("images", {}).items():
-            images[key] = f"converge/{name}"
-        return res
-
-    stage("grasp convergence", grasp_convergence, lambda v: summary.__setitem__("grasp_convergence", v))
-
-    def figures():
-        if "convergence" in summary:
-            images["convergence"] = plots.convergence_plot(summary["convergence"], out_dir / "convergence.png").name
-            images["error_time"] = plots.error_time_plot(summary["convergence"], out_dir / "error_time.png").name
-        if "hertz" in summary:
-            images["hertz"] = plots.hertz_plot(summary["hertz"], out_dir / "hertz.png").name
-        if "locking" in stab:
-            images["locking"] = plots.locking_plot(stab["locking"], stab.get("beam"), out_dir / "locking.png").name
-        if "collinear" in stab:
-            images["collinear"] = plots.collinear_plot(stab["collinear"], out_dir / "collinear.png").name
-
-    stage("plots", figures, lambda v: None)
-
-    def friction():
-        from . import friction_verify
-
-        part, imgs = friction_verify.run(args.quick, out_dir)
-        images.update(imgs)
-        return part
-
-    stage("frictional contact reference", friction, lambda v: summary.__setitem__("friction", v))
-    bar.close()
-    summary["checks"] = headline_checks(summary)
-    if "friction" in summary:
-        from . import friction_verify
-
-        summary["checks"] += friction_verify.checks(summary["friction"])
-    summary["total_seconds"] = time.perf_counter() - t_start
+    studies = {name: importlib.import_module(f"verification.{name}") for name in STUDIES}
+    stages = Stages(sum(study.STAGES for study in studies.values()))
+    summary: dict[str, Any] = {"quick": args.quick, "environment": environment(), "images": {}}
+    for name, study in studies.items():
+        part, images = study.run(args.quick, out_dir, stages)
+        summary[name] = part
+        summary["images"].update(images)
+    stages.close()
+    summary["checks"] = [c for name, study in studies.items() for c in study.checks(summary[name])]
+    summary["stage_seconds"], summary["failures"] = stages.seconds, stages.failures
+    summary["total_seconds"] = stages.elapsed()
     summary = json_safe(summary)
     (out_dir / "summary.json").write_text(json.dumps(summary, indent=1), encoding="utf-8")
-    path = report.write_report(summary, out_dir)
-    failed = [c["name"] for c in summary["checks"] if not c["ok"]]
+    path = write_report(summary, out_dir)
     print(f"[{summary['total_seconds']:6.1f} s] wrote {path} and summary.json")
-    for c in summary["checks"]:
-        print(f"  {'PASS' if c['ok'] else 'FAIL'}  {c['name']}: {report.fmt(c['value'])} ({c['threshold']})")
+    print_checks(summary["checks"])
     if summary["failures"]:
         print("failed stages:", ", ".join(summary["failures"]))
+    failed = [c["name"] for c in summary["checks"] if not c["ok"]]
     return 1 if failed or summary["failures"] else 0
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+__all__ = ["DEFAULT_OUT", "STUDIES", "environment", "main", "write_report"]

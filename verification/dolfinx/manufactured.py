@@ -25,9 +25,9 @@ import numpy as np
 
 from fem_grasp import Body, TetMesh, box_mesh
 
-from .dolfinx_ref import ManufacturedResult, lame, max_edge_length, solve_clamped_gravity, solve_manufactured
 from .linalg import dirichlet_solve
 from .quadrature import p1_errors, p1_load_vector
+from .reference import ManufacturedResult, lame, max_edge_length, solve_clamped_gravity, solve_manufactured
 
 log = logging.getLogger(__name__)
 
