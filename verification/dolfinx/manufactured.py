@@ -1,6 +1,6 @@
 """Manufactured-solution convergence: fem_grasp P1 against dolfinx P1 and P2.
 
-A point-held body has no continuum limit (DESIGN.md), so convergence is
+A point-held body has no continuum limit (a point force has infinite energy), so convergence is
 measured on a smooth displacement field prescribed on the whole boundary of
 the unit box, with the body force that makes it an exact solution of
 −div σ(u) = f.

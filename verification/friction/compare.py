@@ -72,7 +72,7 @@ DEFAULT_LEVELS = (1, 2, 4, 8)
 REST_LEVELS = (4, 16, 64)
 #: Exit 1 when the finest level's max |Δf| / F_s exceeds this: the reference's own O(Δρ) error at M = 8
 #: plus fem_grasp's implicit increments (where it takes them) stay well below it on every listed scene, while a
-#: wrong friction direction, cone or gap shows up as an O(1) difference (README, "Agreement").
+#: wrong friction direction, cone or gap shows up as an O(1) difference (verification/friction/README.md, "Tolerances").
 FORCE_TOL = 0.05
 #: A set or state mismatch within this many reference increments of a fem_grasp event of the same node is
 #: "near an event": an incremental solution crosses a threshold O(Δρ) away from the exact crossing.

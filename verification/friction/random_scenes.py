@@ -27,7 +27,7 @@ log = logging.getLogger(__name__)
 
 #: Seed of the scenes of the full report (``make verify``).
 DEFAULT_SEED = 24
-#: Largest vertex count of an ellipsoid draw (the brief: a few hundred nodes at most).
+#: Largest vertex count of an ellipsoid draw (a few hundred nodes at most: each comparison stays quick).
 MAX_ELLIPSOID_VERTICES = 320
 
 

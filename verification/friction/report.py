@@ -102,8 +102,9 @@ AGREEMENT_HEADERS = ["scene", "vertices", "fem_grasp", "reference", "verdicts", 
 def section(fr: dict[str, Any], images: dict[str, str]) -> str:
     """The report's section on the frictional-contact reference (agreement, convergence, rest, random scenes)."""
     parts = ["<h2>Frictional contact: fem_grasp against an independent reference</h2>"]
-    parts.append("<p class='note'>The reference (verification/friction/reference/, formulation in verification/friction/README.md) "
-                 "solves each increment of squeeze depth, lift height or hanging weight as one static contact "
+    parts.append("<p class='note'>The reference (verification/friction/reference/, formulation in "
+                 "verification/friction/README.md) solves each increment of squeeze depth, lift height or "
+                 "hanging weight as one static contact "
                  "problem with Coulomb friction — a semismooth Newton method on the Alart–Curnier equations, exact "
                  "sphere and plane gaps, slip measured from the previous increment — on K and G assembled by "
                  "dolfinx; it shares no code with fem_grasp's contact modules and takes only the placement from "
