@@ -65,7 +65,7 @@ demo: setup
 # Every study of the verification (python -m verification --help lists them): cross-checks against dolfinx,
 # manufactured solutions, locking, stability, Hertz, round-off, random scenes, the pickup convergence study (hours
 # from an empty cache), the frictional-contact reference and the softness study; writes
-# verification/out/report.html and summary.json. verify-quick: about 15 minutes.
+# verification/out/report.html and summary.json. verify-quick: about 10 minutes.
 verify: setup
 	$(PY) -m verification all
 

@@ -8,7 +8,7 @@ the studies; no study imports it.
 The full run takes about a quarter of an hour on a two-core machine for the dolfinx and Hertz studies, about
 50 minutes for the 500 random scenes (one core), three quarters of an hour for the frictional contact and the
 softness study, and hours for the pickup's convergence study from an empty cache (``make converge`` fills the
-same cache).  ``--quick`` took 15 minutes on two cores (AMD EPYC, shared with a test run), every headline check
+same cache).  ``--quick`` took 9 minutes on two cores (AMD EPYC, shared with other jobs), every headline check
 passing.  The exit status is 1 if a stage failed or a headline check failed.
 """
 
@@ -77,7 +77,7 @@ def write_report(summary: dict[str, Any], out_dir: str | Path) -> Path:
 def main(argv: list[str] | None = None) -> int:
     parser = study_parser("python -m verification all", "The full verification report: every study in turn, its "
                           "checks and sections in report.html, every number in summary.json.",
-                          "small meshes, fewer levels and scenes (about 15 minutes)")
+                          "small meshes, fewer levels and scenes (about 10 minutes)")
     args = parser.parse_args(argv)
     setup_logging(args.verbose, args.log_file)
     out_dir: Path = args.out
