@@ -29,7 +29,7 @@ Pictures (PNG, beside report.html):
 
 The 3D views are rendered off-screen with pyvista in a freshly *spawned*
 process (VTK aborts in a process that has loaded dolfinx; see
-``verification/render.py``), from plain arrays read back from the time series.
+``verification/_common/render.py``), from plain arrays read back from the time series.
 Nothing here runs unless a report is asked for (``fem-grasp run --report``
 or ``fem-grasp report DIR``).
 """

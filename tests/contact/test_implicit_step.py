@@ -9,8 +9,8 @@ slides in an increment ends on its cone).  The returned states pass
 ``PickupResult.check()``, which tests cones, not the slip-friction pairing.
 On every shipped scene 10–50 % of the implicit steps (most in the lift test)
 return such contacts, moved by up to 2.9 % of the diameter (found by the
-independent reference, verification/friction_reference.py; evidence and the
-proposed fix in verification/README.md, "Disagreements found").
+independent reference, verification/friction/; evidence and the
+proposed fix in verification/friction/README.md, "Disagreements found").
 
 The obvious fix — every round relaxes from the held state of the increment —
 removes them, but then ``relax_contacts`` reports gross slip on the ν = 0.4999
@@ -30,7 +30,7 @@ from fem_grasp import Body, box_mesh, pickup
 
 
 @pytest.mark.xfail(strict=True, reason="known defect: implicit_step's later rounds keep earlier rounds' slips "
-                                       "(verification/README.md, 'Disagreements found')")
+                                       "(verification/friction/README.md, 'Disagreements found')")
 def test_sticking_contacts_do_not_move_within_an_implicit_step(monkeypatch):
     moved: list[tuple[str, int, float]] = []
     steps = [0]
