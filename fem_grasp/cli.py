@@ -82,6 +82,11 @@ def _load_scene(args: argparse.Namespace) -> Any:
         check_quantity("--young", young, "Pa")
     scene = with_overrides(scene, backend=getattr(args, "backend", None), young=young,
                            lift=False if getattr(args, "no_lift", False) else None)
+    if getattr(args, "allow_implausible_units", False):
+        if scene.object.kind != "mesh":
+            raise _BadInput("--allow-implausible-units: only a mesh file's size and density are checked for their "
+                            f"unit; the scene's object is a {scene.object.kind}")
+        scene = scene.with_(allow_implausible_units=True)
     accuracy = getattr(args, "accuracy", None)
     if accuracy is not None:
         from dataclasses import replace
@@ -510,6 +515,10 @@ def build_parser() -> argparse.ArgumentParser:
     scene_opts.add_argument("--cache", metavar="DIR", help="cache folder for meshes and resting states "
                                                            "(default: $XDG_CACHE_HOME/fem_grasp or ~/.cache/fem_grasp)")
     scene_opts.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
+    scene_opts.add_argument("--allow-implausible-units", action="store_true",
+                            help="compute even when the object's size (over 1 m) or density (outside 10–20,000 "
+                                 "kg/m^3) says its mesh is in another unit; without it such a scene is refused "
+                                 "(exit 2): set units = \"mm\" in the scene's [object] table instead")
 
     ap = argparse.ArgumentParser(prog="fem-grasp", description=__doc__.split("\n\n")[0],
                                  epilog="Exit status: 0 success, 1 the grasp failed, 2 bad input, 3 internal error. "
