@@ -49,6 +49,7 @@ from ..grasp.evaluation import SearchSetup, error_row, evaluate, evaluator_for
 from ..grasp.pickup import DEFAULT_FRICTION
 from ..io.cache import cached_rest, rest_code_digest
 from ..io.output import MARKER, add_to_marker, atomic_write_text, json_safe, package_version, prepare_out_dir
+from ..validation import check_finger_friction
 from .store import CSV_FILE, PARQUET_FILE, ResultStore, read_results
 
 __all__ = ["MANIFEST", "RANKINGS", "SCHEMA", "SchedulerError", "SearchError", "SearchResult", "rank_table",
@@ -166,7 +167,7 @@ def _object(scene: Any, quick: bool, cache_dir: Path | None, kwargs: dict[str, A
         unknown = set(kwargs) - {"mu_finger", "mu_table", "finger_radius", "max_squeeze", "down", "name", *_SETTINGS}
         if unknown:
             raise TypeError(f"search() got unexpected keyword arguments {sorted(unknown)}")
-        mu_f = float(kwargs.get("mu_finger", DEFAULT_FRICTION))
+        mu_f = check_finger_friction(kwargs.get("mu_finger", DEFAULT_FRICTION))
         settings = {k: kwargs[k] for k in (*_SETTINGS, "max_squeeze") if k in kwargs}
         return _Object(str(kwargs.get("name", "object")), scene, None, mu_f, float(kwargs.get("mu_table", mu_f)),
                        float(kwargs.get("finger_radius", DEFAULT_RADIUS)), kwargs.get("down"), settings)

@@ -676,6 +676,10 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
         raise SceneError(f"{src}: friction.finger (μ between object and fingertips) is required")
     mu_t = f.get("table", row.friction if row else mu_f)
     check_quantity(f.where("finger"), mu_f, "friction coefficient", allow_zero=True)
+    if mu_f == 0:
+        from ..validation import FRICTIONLESS_FINGERS
+
+        raise SceneError(f"{f.where('finger')} (μ_F) must be > 0, got 0: {FRICTIONLESS_FINGERS}")
     check_quantity(f.where("table"), mu_t, "friction coefficient", allow_zero=True)
 
     # [fingers]
@@ -841,6 +845,10 @@ def _with_changes(scene: Scene, changes: dict[str, Any]) -> Scene:
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise SceneError(f"{w}: expected a number, got {value!r}")
             check_quantity(w, float(value), "dimensionless", allow_zero=True)
+            if key in ("mu", "mu_finger") and value == 0:
+                from ..validation import FRICTIONLESS_FINGERS
+
+                raise SceneError(f"{w}: μ_F must be > 0, got 0: {FRICTIONLESS_FINGERS}")
             if key == "mu":
                 new["mu_finger"] = new["mu_table"] = float(value)
             else:
