@@ -20,7 +20,8 @@ Bad input (``ValueError`` subclasses):
 Computations that cannot go on (``RuntimeError`` subclasses): :class:`FrictionError` (the resting
 iteration's table slip, eq. 6), :class:`RelaxationFailure` (no static stick/slip state: gross slip),
 :class:`TrackingError` (the event tracking), :class:`RestConvergenceError` (the object does not come to
-rest on the table).
+rest on the table), :class:`MainGuardError` (a script that starts worker processes outside
+``if __name__ == "__main__":``).
 
 Results that break a contact law (``AssertionError`` subclasses): :class:`RestCheckError`,
 :class:`PickupCheckError`.  Output folders that are not ours or not writable: :class:`OutputError`
@@ -31,7 +32,7 @@ says the mesh is in another unit, run anyway because the scene allows it: :class
 from __future__ import annotations
 
 __all__ = ["CollinearContactError", "ContactNodeError", "DirectionError", "FrictionError", "LockingWarning",
-           "MaterialError", "MeshError", "OutputError", "PickupCheckError", "PlacementError", "RelaxationFailure",
+           "MainGuardError", "MaterialError", "MeshError", "OutputError", "PickupCheckError", "PlacementError", "RelaxationFailure",
            "RestCheckError", "RestConvergenceError", "SceneError", "SurfaceError", "TrackingError", "UnitsError", "UnitsWarning"]
 
 
@@ -97,6 +98,11 @@ class RelaxationFailure(RuntimeError):
 
 class TrackingError(RuntimeError):
     """The quasi-static tracking cannot go on (no slip solution, lost support, pinched node, …)."""
+
+
+class MainGuardError(RuntimeError):
+    """A call that starts spawned processes (a search's local Dask cluster, the reports' pictures) from a script's
+    top level outside ``if __name__ == "__main__":``, where every spawned process would run it again."""
 
 
 class RestConvergenceError(RuntimeError):

@@ -312,7 +312,10 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
     out : the search folder (results.parquet, results.csv, search.json, report.html, best/), or None
     candidates, heights, azimuths, tilts, ratios, seed, cone : the candidates
         (:func:`~fem_grasp.grasp.candidates.placement_candidates`; angles in degrees)
-    workers : 0 for a plain loop in this process; else the LocalCluster's processes (default: the cores)
+    workers : 0 for a plain loop in this process; else the LocalCluster's processes (default: the cores).  They
+        are spawned, and each imports the calling script: call ``search`` under ``if __name__ == "__main__":``
+        in a script (a call outside it raises :class:`~fem_grasp.errors.MainGuardError` before anything starts;
+        :mod:`fem_grasp.spawn`); the report's pictures are drawn in a spawned process too
     scheduler : the address of a running Dask scheduler ("tcp://HOST:8786") instead of a LocalCluster
     client : a ``dask.distributed.Client`` to use instead (not closed here)
     resume : skip the candidates whose rows ``out`` already holds (the same search: same object, settings
@@ -336,9 +339,18 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
     ------
     SearchError, SchedulerError
         A search that cannot run as asked; a scheduler that cannot be reached.
+    MainGuardError
+        Called from a script's top level outside ``if __name__ == "__main__":`` with worker processes or a
+        report to start (``workers`` ≠ 0, or ``out`` and ``report``).
     """
     t_start = time.perf_counter()
     timings: dict[str, float] = {}
+    local_cluster = workers != 0 and client is None and not scheduler
+    if local_cluster or (out is not None and report):
+        from ..spawn import check_main_guard
+
+        check_main_guard("fem_grasp.search(...)" + (f" with workers={workers}" if local_cluster else " with a report"),
+                         "or run the search in this process with workers=0" + (", report=False" if out else ""))
     cache = None if cache_dir is None else Path(cache_dir)
     if rank not in RANKINGS:
         raise SearchError(f"unknown ranking {rank!r}; choose one of {sorted(RANKINGS)}")

@@ -65,6 +65,9 @@ def _point_colours(table: Any) -> list[str]:
 # ------------------------------------------------------------------ pictures of the object
 def render_candidates(out: Path, result: Any, size: tuple[int, int] = (900, 700)) -> list[Path]:
     """candidates.png and candidates_top.png (pyvista in a spawned process)."""
+    from ..spawn import check_main_guard
+
+    check_main_guard("rendering a search report's pictures (pyvista, in a spawned process)")
     table = result.table
     pts = np.asarray(result.rest_positions if result.rest_positions is not None else result.setup.points, float)
     lo, hi = _rho_range(table)

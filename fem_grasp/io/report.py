@@ -131,6 +131,9 @@ def render_views(out: Path, doc: dict[str, Any], size: tuple[int, int] = (1000, 
     """
     if colour not in COLOURINGS:
         raise ValueError(f"colour must be one of {', '.join(COLOURINGS)}, got {colour!r}")
+    from ..spawn import check_main_guard
+
+    check_main_guard("rendering a report's pictures (pyvista, in a spawned process)")
     picks = _pick_frames(doc)
     data = [_read_frame(out, f, doc) for _, _, f in picks]
     res = doc["result"]
