@@ -232,7 +232,9 @@ def test_scene_with_takes_units_and_checks_them():
     assert base.young == 2e4 and base.contacts == (52, 72)  # a copy: the loaded scene is unchanged
     for bad, words in (({"young": "15 mPa"}, "did you mean 'MPa'"), ({"young": "3 mm"}, "is a length"),
                        ({"poisson": 0.5}, "(-1, 0.5)"), ({"mu": -1}, "≥ 0"), ({"colour": 3}, "unknown setting"),
-                       ({"contacts": "highest"}, "placement rule")):
+                       ({"contacts": "highest"}, "placement rule"), ({"yong": 1e4}, "did you mean 'young'"),
+                       ({"finger_radus": "1 cm"}, "did you mean 'finger_radius'"),
+                       ({"mu_fingers": 0.3}, "did you mean 'mu_finger'")):
         with pytest.raises(SceneError, match=None) as exc:
             base.with_(**bad)
         assert words in str(exc.value) and "Scene.with_" in str(exc.value), str(exc.value)
