@@ -11,7 +11,10 @@ Pictures (PNG, beside report.html):
   object (one length scale; red on the fingers, blue on the table); every
   contact node is a dot, green when it sticks and orange when it slides, with
   a legend.  The fingertips are drawn translucent, so that the arrows and
-  dots on their patches show through them.  After a successful pickup
+  dots on their patches show through them.  The camera looks across the
+  squeeze axis from 30° above (:func:`view_direction`), the same for the
+  three pictures, so that neither fingertip is behind the object.  After a
+  successful pickup
   ``lifted.png`` shows the object and the fingers raised a further
   :data:`LIFTED_CLEARANCE` × the object's height above the lift-off state, off
   the table: once the table lets go, raising the fingers moves the hanging
