@@ -40,7 +40,7 @@ FLUSH_INTERVAL = 1.0
 
 _DTYPES = {"int": "int64", "float": "float64", "str": "object", "bool": "bool"}
 
-_MM = ("height", "max_squeeze", "xi", "yi", "zi", "xj", "yj", "zj", "rho_star", "squeeze_depth")
+_MM = ("height", "max_squeeze", "xi", "yi", "zi", "xj", "yj", "zj", "rho_star", "squeeze_depth", "step")
 _N = ("liftable_max", "weight", "grip1", "vertical1", "normal1", "force1", "grip2", "vertical2", "normal2", "force2",
       "finger_normal_force", "rigid_normal_force")
 _S = ("time", "cpu_time", "setup_time")
