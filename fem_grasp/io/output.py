@@ -57,6 +57,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from .._files import atomic_write, atomic_write_bytes, atomic_write_mesh, atomic_write_text
+from .._version import version
 from ..errors import OutputError
 
 __all__ = ["SCHEMA", "SCHEMA_VERSION", "OutputError", "atomic_write_bytes", "atomic_write_text", "json_safe", "prepare_out_dir",
@@ -83,13 +84,8 @@ FILE_SUFFIXES = (".xdmf", ".xmf", ".h5", ".hdf5", ".vtu", ".vtk", ".pvd", ".json
 
 
 def package_version() -> str:
-    """The installed fem_grasp version ("unknown" when run from a source tree without metadata)."""
-    try:
-        from importlib.metadata import version
-
-        return version("fem_grasp")
-    except Exception:  # noqa: BLE001 - metadata missing
-        return "unknown"
+    """fem_grasp's version (``fem_grasp.__version__``: the installed metadata, or the source tree's pyproject.toml)."""
+    return version()
 
 
 # ------------------------------------------------------------ the folder
