@@ -45,10 +45,11 @@ from typing import Any
 
 import numpy as np
 
+from ..errors import require
 from .output import MARKER, add_to_marker, atomic_write_text, read_result
 
 __all__ = ["COLOURINGS", "LIFTED_CLEARANCE", "PICTURES", "plot_liftable", "plot_patches", "plot_timeline",
-           "render_frames", "render_views", "write_report"]
+           "render_frames", "render_views", "require_report_extra", "write_report"]
 
 log = logging.getLogger(__name__)
 
@@ -600,6 +601,21 @@ the time value is the finger path (m: ρ, then ρ + lift height); colour by <cod
 """
 
 
+def require_report_extra(purpose: str = "report.html") -> None:
+    """Check that the ``report`` extra (matplotlib, pyvista) is installed, without importing either.
+
+    ``fem-grasp run --report`` calls it before the pickup, so that a missing extra is said at once, not
+    after minutes of simulation.
+
+    Raises
+    ------
+    fem_grasp.errors.MissingExtraError
+        matplotlib or pyvista is not installed (an ImportError naming the extra).
+    """
+    for module in ("matplotlib", "pyvista"):  # pyvista is imported only in the spawned renderer (module notes)
+        require(module, "report", purpose, load=False)
+
+
 def write_report(out: str | Path, colour: str = "von_mises") -> Path:
     """Render the pictures and ``report.html`` into the output folder ``out``; return the HTML path.
 
@@ -609,7 +625,10 @@ def write_report(out: str | Path, colour: str = "von_mises") -> Path:
     ------
     fem_grasp.io.output.OutputError
         No (readable) result.json in ``out``.
+    fem_grasp.errors.MissingExtraError
+        The ``report`` extra (matplotlib, pyvista) is not installed.
     """
+    require_report_extra("report.html")
     out = Path(out)
     doc = read_result(out)
     if not doc.get("series") or not doc["series"].get("frames"):

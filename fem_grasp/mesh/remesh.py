@@ -26,7 +26,7 @@ mesh frame) into a size field: spacing ``size`` within ``radius`` of any
 patch point, growing at ``grading`` metres of spacing per metre of distance
 to the outer size.
 
-gmsh is needed to build meshes (Debian ``python3-gmsh``); it is imported
+gmsh is needed to build meshes (the ``mesh`` extra, or Debian's ``python3-gmsh``); it is imported
 only inside the functions that mesh.
 """
 
