@@ -24,8 +24,9 @@ rest on the table).
 Results that break a contact law (``AssertionError`` subclasses): :class:`RestCheckError`,
 :class:`PickupCheckError`.  Output folders that are not ours or not writable: :class:`OutputError`
 (an ``OSError``).  An optional dependency that is not installed: :class:`MissingExtraError` (an
-``ImportError`` naming the extra that brings it, raised by :func:`require`).  ν close to ½: :class:`LockingWarning` (P1 tetrahedra lock); a size or density that
-says the mesh is in another unit: :class:`UnitsWarning`.
+``ImportError`` naming the extra that brings it, raised by :func:`require`).  ν close to ½:
+:class:`LockingWarning` (P1 tetrahedra lock); a size or density that says the mesh is in another unit:
+:class:`UnitsWarning`.
 """
 
 from __future__ import annotations
@@ -35,8 +36,9 @@ import importlib.util
 from types import ModuleType
 
 __all__ = ["EXTRAS", "CollinearContactError", "ContactNodeError", "DirectionError", "FrictionError", "LockingWarning",
-           "MaterialError", "MeshError", "MissingExtraError", "OutputError", "PickupCheckError", "PlacementError", "RelaxationFailure",
-           "RestCheckError", "RestConvergenceError", "SceneError", "SurfaceError", "TrackingError", "UnitsWarning", "require"]
+           "MaterialError", "MeshError", "MissingExtraError", "OutputError", "PickupCheckError", "PlacementError",
+           "RelaxationFailure", "RestCheckError", "RestConvergenceError", "SceneError", "SurfaceError", "TrackingError",
+           "UnitsWarning", "require"]
 
 
 # ------------------------------------------------------------------ bad input
@@ -141,7 +143,9 @@ def require(module: str, extra: str, purpose: str, *, load: bool = True) -> Modu
                 raise ModuleNotFoundError(f"No module named {module!r}", name=module)
             return None
         return importlib.import_module(module)
-    except (ImportError, OSError, ValueError) as exc:  # ValueError: find_spec of a module without __spec__  # OSError: a module found whose shared library is not (libgmsh)
+    # OSError: a module found whose shared library is not (libgmsh); ValueError: find_spec of a module without
+    # __spec__
+    except (ImportError, OSError, ValueError) as exc:
         missing = getattr(exc, "name", None) if isinstance(exc, ModuleNotFoundError) else None
         why = (f"{missing} is not installed" if missing
                else f"{module} cannot be imported ({type(exc).__name__}: {exc})")
