@@ -19,7 +19,7 @@ from fem_grasp.errors import MissingExtraError
 
 #: The extra that brings each optional module (for the skip reasons).
 EXTRA_OF = {"gmsh": "mesh", "numba": "fast", "pyvista": "report", "matplotlib": "report", "pandas": "search",
-            "dask": "search", "distributed": "search", "pyarrow": "search", "h5py": "xdmf", "sksparse": "cholmod"}
+            "dask": "search", "distributed": "search", "pyarrow": "search", "h5py": "xdmf", "sksparse": "cholmod", "tqdm": "report"}
 
 
 def _absent(module: str) -> bool:

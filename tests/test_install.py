@@ -151,9 +151,13 @@ def test_run_report_without_the_report_extra_exits_2_before_the_pickup(module, m
 
 
 def test_report_command_without_the_report_extra_exits_2(monkeypatch, capsys, tmp_path):
+    out = tmp_path / "o"
+    assert main(["run", "foam_block", "--quick", "--no-lift", "--no-cache", "--quiet", "--out", str(out)]) in (0, 1)
     _missing(monkeypatch, "pyvista")
-    assert main(["report", str(tmp_path)]) == 2
-    assert _names_the_extra(capsys.readouterr().err, "report")
+    assert main(["report", str(tmp_path / "no-such-run")]) == 2  # a wrong folder is said first
+    assert "result.json" in capsys.readouterr().err
+    assert main(["report", str(out)]) == 2
+    assert _names_the_extra(capsys.readouterr().err, "report") and not (out / "report.html").exists()
 
 
 @pytest.mark.parametrize("module,workers", [("pandas", "0"), ("pyarrow", "0"), ("distributed", "2")])
@@ -242,6 +246,7 @@ def test_a_slow_first_compilation_is_announced_once(fresh_kernels, monkeypatch, 
     from fem_grasp.contact.kernels import jit
 
     monkeypatch.setattr(jit, "ENABLED", True)
+    monkeypatch.setattr(jit, "backend_name", lambda: "numba")
     monkeypatch.setattr(fresh_kernels, "COMPILE_NOTICE_DELAY", 0.05)
     monkeypatch.setattr(fresh_kernels, "warm_up", lambda: time.sleep(0.5) or 0.5)
     with caplog.at_level(logging.INFO, logger="fem_grasp"):
@@ -255,6 +260,7 @@ def test_a_cached_load_is_not_announced(fresh_kernels, monkeypatch, caplog):
     from fem_grasp.contact.kernels import jit
 
     monkeypatch.setattr(jit, "ENABLED", True)
+    monkeypatch.setattr(jit, "backend_name", lambda: "numba")
     monkeypatch.setattr(fresh_kernels, "COMPILE_NOTICE_DELAY", 0.3)
     monkeypatch.setattr(fresh_kernels, "warm_up", lambda: 0.0)
     with caplog.at_level(logging.INFO, logger="fem_grasp"):

@@ -628,7 +628,6 @@ def write_report(out: str | Path, colour: str = "von_mises") -> Path:
     fem_grasp.errors.MissingExtraError
         The ``report`` extra (matplotlib, pyvista) is not installed.
     """
-    require_report_extra("report.html")
     out = Path(out)
     doc = read_result(out)
     if not doc.get("series") or not doc["series"].get("frames"):
@@ -637,6 +636,7 @@ def write_report(out: str | Path, colour: str = "von_mises") -> Path:
         raise OutputError(f"{out}/result.json has no time series to draw")
     if colour not in COLOURINGS:
         raise ValueError(f"colour must be one of {', '.join(COLOURINGS)}, got {colour!r}")
+    require_report_extra("report.html")
     render_frames(out, doc, colour=colour)
     plot_patches(out, doc, out / "patches.png")
     plot_liftable(doc, out / "liftable.png")

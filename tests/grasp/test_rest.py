@@ -348,6 +348,8 @@ def test_rest_table_script_reports_the_tomato():
     from pathlib import Path
 
     path = Path(__file__).resolve().parents[2] / "scripts" / "rest_table.py"
+    if not path.exists():
+        pytest.skip("scripts/ is in the source tree, not in the installed package")
     spec = importlib.util.spec_from_file_location("rest_table", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
