@@ -166,7 +166,7 @@ class Geometry:
 
 @dataclass(frozen=True)
 class PaperGeometry(Geometry):
-    """One of the paper's objects (:data:`fem_grasp.mesh.shapes.PAPER_SHAPES`), in the frame of ``meshes/*.vtu``."""
+    """One of the paper's objects (:data:`fem_grasp.mesh.shapes.PAPER_SHAPES`), in the frame of the committed paper meshes (``fem_grasp/scenes/meshes``)."""
 
     name: str
 
