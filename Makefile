@@ -11,7 +11,7 @@ APT_PACKAGES := python3-dolfinx python3-gmsh python3-venv python3-pip python3-de
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 PYTEST_ARGS ?=
 
-.PHONY: setup test docs lint demo verify verify-quick meshes spectral-vs-sparse rest-table clean-venv paper-scenes converge
+.PHONY: setup test test-pip docs lint demo verify verify-quick meshes spectral-vs-sparse rest-table clean-venv paper-scenes converge
 
 setup: $(STAMPS)/venv
 
@@ -24,6 +24,8 @@ $(STAMPS)/apt:
 	@touch $@
 
 # The venv sees Debian's dolfinx and gmsh; numpy stays at Debian's version, which dolfinx was built against.
+# Not the [mesh] extra: Debian's gmsh is no pip distribution, so pip would add PyPI's gmsh in front of it (another
+# version than the one the committed meshes and the mesh cache were made with).
 $(STAMPS)/venv: $(STAMPS)/apt pyproject.toml
 	$(SYSPY) -m venv --system-site-packages $(VENV)
 	$(SYSPY) -c "import numpy; print('numpy==' + numpy.__version__)" > $(STAMPS)/constraints.txt
@@ -41,6 +43,37 @@ $(STAMPS)/venv: $(STAMPS)/apt pyproject.toml
 
 test: setup
 	$(PY) -m pytest $(PYTEST_ARGS)
+
+.PHONY: test-pip
+# The plain pip route, as a user without Debian's packages takes it: a wheel of the package installed with the
+# [dev] extra (pytest, hypothesis, ruff) into a fresh venv without system site packages, made from a Python that
+# is not Debian's (PIP_PYTHON, default: the python3 first on PATH). From a folder outside the source tree:
+# `fem-grasp --version`, a one-level pickup of the shipped tomato (its committed mesh, no gmsh; plain-Python
+# kernels, no numba) and the test suite against the installed wheel (a copy of tests/; fem_grasp must come from
+# the venv). No extra is installed, so the tests of gmsh, numba, pyvista, dask/pandas, dolfinx and of the
+# verification/bench/examples/scripts folders skip, each saying why (tests/conftest.py). The tests marked slow are
+# left out (-m "not slow"): on the plain-Python kernels they take more than 10 minutes each (a pickup test rerun
+# under OpenBLAS's oldest kernels); the rest takes about 10 minutes on 2 cores.
+PIP_PYTHON ?= $(shell command -v python3)
+PIP_VENV := $(STAMPS)/pip-venv
+PIP_WHEELS := $(STAMPS)/pip-wheels
+test-pip:
+	@if [ -z "$(PIP_PYTHON)" ] || [ "$$(readlink -f "$(PIP_PYTHON)")" = "$$(readlink -f $(SYSPY))" ]; then \
+	  echo "test-pip: PIP_PYTHON='$(PIP_PYTHON)' must be a Python other than Debian's $(SYSPY) (make test-pip PIP_PYTHON=...)"; \
+	  exit 2; fi
+	rm -rf $(PIP_VENV) $(PIP_WHEELS)
+	"$(PIP_PYTHON)" -m venv $(PIP_VENV)
+	$(PIP_VENV)/bin/python -m pip install -q --upgrade pip
+	$(PIP_VENV)/bin/python -m pip wheel -q --no-deps -w $(PIP_WHEELS) .
+	$(PIP_VENV)/bin/python -m pip install -q "$$(ls $(PIP_WHEELS)/fem_grasp-*.whl)[dev]"
+	@venv="$(abspath $(PIP_VENV))"; tmp="$$(mktemp -d)"; trap 'rm -rf "$$tmp"' EXIT; \
+	  cp -r tests pyproject.toml "$$tmp"/ && cd "$$tmp" && set -x && \
+	  "$$venv/bin/python" -c "import sys, fem_grasp; print('fem_grasp', fem_grasp.__version__, 'from', \
+	    fem_grasp.__file__); sys.exit(not fem_grasp.__file__.startswith('$$venv/'))" && \
+	  "$$venv/bin/fem-grasp" --version && \
+	  { "$$venv/bin/fem-grasp" run tomato --accuracy off --no-cache --out tomato; [ $$? -le 1 ]; } && \
+	  test -s tomato/result.json && \
+	  FEM_GRASP_INSTALLED=1 "$$venv/bin/python" -m pytest -p no:cacheprovider -m "not slow" $(PYTEST_ARGS) tests
 
 # The API reference from the docstrings and docs/*.md: docs/_build/html/index.html. A docstring that
 # does not render (bad reStructuredText) fails the build.

@@ -346,7 +346,7 @@ def export_baseline(rev: str, into: Path | None = None) -> tuple[str, Path]:
         tree.mkdir(parents=True, exist_ok=True)
         tar = tree.with_suffix(".tar")
         # the package and the committed paper meshes it loads (grasp.objects.MESH_DIR)
-        subprocess.run(["git", "archive", "--format=tar", "-o", str(tar), sha, "fem_grasp", "meshes"], cwd=ROOT,
+        subprocess.run(["git", "archive", "--format=tar", "-o", str(tar), sha], cwd=ROOT,  # all: meshes moved
                        check=True)
         with tarfile.open(tar) as t:
             t.extractall(tree)

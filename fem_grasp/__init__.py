@@ -18,7 +18,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from . import contact, elastic, errors, grasp, io, mesh
+from . import _version, contact, elastic, errors, grasp, io, mesh
 from .contact import ContactEvent, ContactState, Fingertip, TablePlane
 from .elastic import Body, ContactResponse, ContactSolution, solve_contact
 from .errors import (
@@ -51,7 +51,8 @@ from .grasp import (
 from .io import Scene, run_scene
 from .mesh import TetMesh, box_mesh
 
-__version__ = "0.1.0"
+#: The installed distribution's version (:mod:`importlib.metadata`), or a source tree's ``pyproject.toml``.
+__version__ = _version.version()
 
 #: Modules reachable as attributes of the package, imported on first use (``fem_grasp.objects.load(...)``).
 _LAZY = {"objects": "fem_grasp.grasp.objects", "placement": "fem_grasp.grasp.placement",

@@ -16,7 +16,9 @@ drawn on a terminal only (:mod:`fem_grasp.progress`).  SCENE is a TOML file (:mo
 or the name of a shipped scene (``tomato``, ``orange``, ``steam_bun``, ``football``, ``foam_block``,
 ``slippery_ball``); ``run`` takes the same path as :func:`fem_grasp.run_scene`.  Exit status: 0 success, 1 the grasp failed (a valid
 answer: the object cannot be picked up so), 2 bad input (the message names
-it), 3 an internal error (a bug: please report it).
+it) or a missing optional dependency (the message names the extra that installs it, e.g.
+``pip install "fem_grasp[report]"``), 3 an internal error (a bug: please report it).  ``fem-grasp --version``
+prints the version.
 
 :func:`main` takes ``argv`` and returns the exit status, so tests call it
 in-process.
@@ -34,6 +36,7 @@ from typing import Any, Iterator, Sequence
 
 import numpy as np
 
+from ._version import version as fem_grasp_version
 from .progress import PhaseBar, progress_enabled
 
 __all__ = ["main", "EXIT_OK", "EXIT_FAILED", "EXIT_BAD_INPUT", "EXIT_INTERNAL"]
@@ -216,6 +219,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else None
     if args.report and out is None:
         raise _BadInput("--report needs --out DIR (the report is written there)")
+    if args.report:  # before the pickup: a missing extra is said now, not after minutes of simulation
+        from .io.report import require_report_extra
+
+        require_report_extra("--report")
     if out is not None:
         check_out_path(out)
         prepare_out_dir(out, args.force)
@@ -630,8 +637,10 @@ def build_parser() -> argparse.ArgumentParser:
                                  description="fem-grasp (also python -m fem_grasp): will two fingers pick up a soft "
                                              "object by squeezing and lifting it? Every command takes -v, --log-file "
                                              "and -q; `fem-grasp COMMAND --help` for its options.",
-                                 epilog="Exit status: 0 success, 1 the grasp failed, 2 bad input, 3 internal error. "
-                                        "Units are SI (m, N, Pa) unless a scene string says otherwise.")
+                                 epilog="Exit status: 0 success, 1 the grasp failed, 2 bad input or a missing "
+                                        "optional dependency (the message names the extra to install), 3 internal "
+                                        "error. Units are SI (m, N, Pa) unless a scene string says otherwise.")
+    ap.add_argument("--version", action="version", version=f"%(prog)s {fem_grasp_version()}")
     sub = ap.add_subparsers(dest="command", metavar="COMMAND", required=True)
 
     p = sub.add_parser("run", parents=[common, scene_opts], help="squeeze and lift the object of a scene",
@@ -813,10 +822,21 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 def _dispatch(args: argparse.Namespace) -> int:
-    from .errors import FrictionError, MeshError, OutputError, RestConvergenceError, SceneError, SurfaceError
+    from .errors import (
+        FrictionError,
+        MeshError,
+        MissingExtraError,
+        OutputError,
+        RestConvergenceError,
+        SceneError,
+        SurfaceError,
+    )
 
     try:
         return int(args.func(args))
+    except MissingExtraError as exc:  # an optional dependency: the message names the extra that brings it
+        print(f"fem-grasp {args.command}: error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     except (_BadInput, SceneError, SurfaceError, MeshError, OutputError, FileNotFoundError) as exc:
         print(f"fem-grasp {args.command}: error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT

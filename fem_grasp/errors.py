@@ -25,15 +25,22 @@ rest on the table), :class:`MainGuardError` (a script that starts worker process
 
 Results that break a contact law (``AssertionError`` subclasses): :class:`RestCheckError`,
 :class:`PickupCheckError`.  Output folders that are not ours or not writable: :class:`OutputError`
-(an ``OSError``).  ν close to ½: :class:`LockingWarning` (P1 tetrahedra lock); a size or density that
-says the mesh is in another unit, run anyway because the scene allows it: :class:`UnitsWarning`.
+(an ``OSError``).  An optional dependency that is not installed: :class:`MissingExtraError` (an
+``ImportError`` naming the extra that brings it, raised by :func:`require`).  ν close to ½:
+:class:`LockingWarning` (P1 tetrahedra lock); a size or density that says the mesh is in another unit, run
+anyway because the scene allows it: :class:`UnitsWarning`.
 """
 
 from __future__ import annotations
 
-__all__ = ["CollinearContactError", "ContactNodeError", "DirectionError", "FrictionError", "LockingWarning",
-           "MainGuardError", "MaterialError", "MeshError", "OutputError", "PickupCheckError", "PlacementError", "RelaxationFailure",
-           "RestCheckError", "RestConvergenceError", "SceneError", "SurfaceError", "TrackingError", "UnitsError", "UnitsWarning"]
+import importlib
+import importlib.util
+from types import ModuleType
+
+__all__ = ["EXTRAS", "CollinearContactError", "ContactNodeError", "DirectionError", "FrictionError", "LockingWarning",
+           "MainGuardError", "MaterialError", "MeshError", "MissingExtraError", "OutputError", "PickupCheckError",
+           "PlacementError", "RelaxationFailure", "RestCheckError", "RestConvergenceError", "SceneError", "SurfaceError",
+           "TrackingError", "UnitsError", "UnitsWarning", "require"]
 
 
 # ------------------------------------------------------------------ bad input
@@ -85,6 +92,73 @@ class CollinearContactError(ValueError):
 
 class OutputError(OSError):
     """An output folder cannot be used (not ours and not empty, or not writable)."""
+
+
+# ------------------------------------------------------- optional dependencies
+#: The optional extras of the package (``pip install "fem_grasp[extra]"``) and what each brings.
+EXTRAS: dict[str, str] = {
+    "report": "pyvista and matplotlib: report.html and its pictures (`--report`, `fem-grasp report`)",
+    "search": "dask, pandas and pyarrow: the placement search (`fem-grasp search`, fem_grasp.search)",
+    "mesh": "gmsh: meshing (`fem-grasp mesh`, `--quick`, scans, object.vertices, accuracy)",
+    "xdmf": "h5py: object.xdmf + object.h5 beside the ParaView series",
+    "fast": "numba: the compiled contact kernels (about 5x faster pickups)",
+    "cholmod": "scikit-sparse: the CHOLMOD sparse Cholesky factorisation (needs SuiteSparse's headers to build)",
+}
+
+
+class MissingExtraError(ImportError):
+    """An optional dependency is not installed: the message names the extra that brings it.
+
+    ``extra`` is the extra's name (a key of :data:`EXTRAS`), ``name`` the module that could not be imported.
+    """
+
+    def __init__(self, message: str, *, extra: str, name: str | None = None) -> None:
+        super().__init__(message, name=name)
+        self.extra = extra
+
+
+#: How to get gmsh besides the extra: Debian's gmsh is not a pip distribution, so the extra would add a second one.
+_GMSH_DEBIAN = ("; on Debian/Ubuntu the package python3-gmsh serves as well (`apt-get install python3-gmsh`, "
+                "then a venv made with --system-site-packages)")
+
+
+def require(module: str, extra: str, purpose: str, *, load: bool = True) -> ModuleType | None:
+    """Import ``module``, or raise :class:`MissingExtraError` naming the ``extra`` that installs it.
+
+    Parameters
+    ----------
+    module : the module to import (``"pyvista"``, ``"dask.distributed"``)
+    extra : the extra of fem_grasp that brings it (a key of :data:`EXTRAS`)
+    purpose : what needs it, the start of the message (``"fem-grasp run --report"``)
+    load : False to check only that ``module`` is installed, without importing it here (pyvista is imported
+        in a process of its own: :mod:`fem_grasp.io.report`)
+
+    Returns
+    -------
+    The imported module (None with ``load=False``).
+
+    Raises
+    ------
+    MissingExtraError
+        ``module`` (or a library it needs) cannot be imported.
+    """
+    if extra not in EXTRAS:
+        raise ValueError(f"unknown extra {extra!r}; choose one of {', '.join(EXTRAS)}")
+    try:
+        if not load:
+            if importlib.util.find_spec(module) is None:  # None also for a module set to None in sys.modules
+                raise ModuleNotFoundError(f"No module named {module!r}", name=module)
+            return None
+        return importlib.import_module(module)
+    # OSError: a module found whose shared library is not (libgmsh); ValueError: find_spec of a module without
+    # __spec__
+    except (ImportError, OSError, ValueError) as exc:
+        missing = getattr(exc, "name", None) if isinstance(exc, ModuleNotFoundError) else None
+        why = (f"{missing} is not installed" if missing
+               else f"{module} cannot be imported ({type(exc).__name__}: {exc})")
+        hint = _GMSH_DEBIAN if extra == "mesh" else ""
+        raise MissingExtraError(f"{purpose} needs the {extra!r} extra ({why}): pip install \"fem_grasp[{extra}]\""
+                                f"{hint}", extra=extra, name=missing or module) from exc
 
 
 # ------------------------------------------------------- computations that stop

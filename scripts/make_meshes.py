@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Regenerate meshes/{tomato,orange,steam_bun,football}.vtu at the paper's Table I vertex counts.
+"""Regenerate fem_grasp/scenes/meshes/{tomato,orange,steam_bun,football}.vtu at the paper's Table I vertex counts.
 
 Each mesh is graded to the fingertips (``fem_grasp.grasp.objects.graded_paper_mesh``):
 spacing R/2 within 2R of where the paper scenes' placement rule puts the
@@ -11,7 +11,7 @@ deterministic: re-running gives identical files with the same gmsh version.
 
 Usage::
 
-    python scripts/make_meshes.py [--out-dir meshes] [--rel-tol 0.01] [--no-write]
+    python scripts/make_meshes.py [--out-dir fem_grasp/scenes/meshes] [--rel-tol 0.01] [--no-write]
 
 The vertex-count search aims at ``--rel-tol`` (default 1 %) and falls back to the
 contract's ±5 % if gmsh cannot land that close.
@@ -94,7 +94,8 @@ def _describe(spec: shapes.PaperShape) -> tuple[str, str]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out-dir", type=Path, default=REPO / "meshes", help="where to write the .vtu files")
+    parser.add_argument("--out-dir", type=Path, default=REPO / "fem_grasp" / "scenes" / "meshes",
+                        help="where to write the .vtu files (default: the package data of the shipped scenes)")
     parser.add_argument(
         "--rel-tol", type=float, default=0.01, help="aimed relative tolerance on the vertex count (falls back to 0.05)"
     )

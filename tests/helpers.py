@@ -6,6 +6,7 @@ No test module imports another; they import from here.
 from __future__ import annotations
 
 import atexit
+import importlib.util
 import shutil
 import tempfile
 from functools import lru_cache
@@ -13,6 +14,7 @@ from pathlib import Path
 from typing import Callable
 
 import numpy as np
+import pytest
 
 from fem_grasp import Body, ContactResponse, PickupResult, TetMesh, box_mesh, pickup, rest
 
@@ -301,6 +303,8 @@ def cli_run(scene: str, *flags: str) -> tuple[int, Path]:
 
     out = _TMP / ("run-" + "-".join([scene, *[f.strip("-") for f in flags]]))
     code = main(["run", scene, "--quick", "--quiet", "--out", str(out), "--cache", str(_TMP / "cache"), *flags])
+    if code == 2 and importlib.util.find_spec("gmsh") is None:
+        pytest.skip("gmsh is not installed (the 'mesh' extra): the quick variant remeshes the object")
     return code, out
 
 

@@ -4,7 +4,9 @@ import json
 
 import pytest
 
-from bench import profile
+pytest.importorskip("bench", reason="the source tree's bench/ package (not installed with fem_grasp)")
+
+from bench import profile  # noqa: E402
 from fem_grasp.contact import tracking
 from tests.helpers import perturbed_box
 

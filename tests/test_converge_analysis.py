@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pytest
 
+pytest.importorskip("verification", reason="the source tree's verification/ package (not installed with fem_grasp)")
+
 from verification.converge.analysis import analyse, explain, flips, liftable_gap, liftable_slope, within
 
 WEIGHT = 1.0

@@ -23,7 +23,8 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-import dolfinx  # noqa: E402,F401  - a hard requirement, as for tests/test_verification.py
+pytest.importorskip("verification", reason="the source tree's verification/ package (not installed with fem_grasp)")
+import dolfinx  # noqa: E402,F401  - a hard requirement beside verification/, as for tests/test_verification.py
 
 from tests.helpers import box_scene_toml  # noqa: E402
 from verification.friction import compare as fr  # noqa: E402

@@ -13,6 +13,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+pytest.importorskip("verification", reason="the source tree's verification/ package (not installed with fem_grasp)")
+
 from verification.random_scenes import RANGES, RandomScene, problems, run_scene
 
 pytest.importorskip("gmsh")

@@ -17,7 +17,8 @@ ROOT = Path(__file__).resolve().parents[1]
 if str(ROOT) not in sys.path:  # `pytest` run without `python -m` does not put the root on sys.path
     sys.path.insert(0, str(ROOT))
 
-import dolfinx  # noqa: E402,F401  - a hard requirement: ImportError must fail the run
+pytest.importorskip("verification", reason="the source tree's verification/ package (not installed with fem_grasp)")
+import dolfinx  # noqa: E402,F401  - a hard requirement beside verification/: ImportError must fail the run
 
 from fem_grasp import Body, CollinearContactError, TetMesh, box_mesh, solve_contact  # noqa: E402
 from verification._common import render  # noqa: E402

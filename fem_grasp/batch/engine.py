@@ -43,7 +43,7 @@ from typing import Any, Callable, Iterator, Sequence
 
 from ..contact.obstacles import DEFAULT_RADIUS
 from ..elastic.body import Body
-from ..errors import SceneError
+from ..errors import SceneError, require
 from ..grasp.candidates import Candidate, CandidateSet, placement_candidates
 from ..grasp.evaluation import SearchSetup, error_row, evaluate, evaluator_for
 from ..grasp.pickup import DEFAULT_FRICTION
@@ -53,7 +53,7 @@ from ..validation import check_finger_friction
 from .store import CSV_FILE, FILE_COLUMNS, PARQUET_FILE, ResultStore, read_results
 
 __all__ = ["MANIFEST", "RANKINGS", "SCHEMA", "SchedulerError", "SearchError", "SearchResult", "rank_table",
-           "search"]
+           "require_search_extra", "search"]
 
 log = logging.getLogger(__name__)
 
@@ -216,11 +216,8 @@ def _dask(client: Any, scheduler: str | None, workers: int | None, connect_timeo
     """A Dask client: the caller's, one connected to ``scheduler``, or one of a LocalCluster; with its name and
     its start-up time."""
     t0 = time.perf_counter()
-    try:
-        from dask.distributed import Client, LocalCluster
-    except ImportError:
-        raise SearchError("the Dask engine needs dask.distributed: pip install \"fem_grasp[search]\" "
-                          "(or run serially with workers=0, --workers 0)") from None
+    distributed = require("dask.distributed", "search", "A search on Dask (workers=0, --workers 0: a plain loop)")
+    Client, LocalCluster = distributed.Client, distributed.LocalCluster
     if client is not None:
         yield client, f"the given client ({client.scheduler.address})", 0.0
         return
@@ -317,6 +314,26 @@ def _progress(total: int, initial: int, enabled: bool) -> Any:
 
 
 # ------------------------------------------------------------------ search
+def require_search_extra(*, dask: bool = True, files: bool = True, report: bool = True) -> None:
+    """Check, before any work, that what a search needs is installed: pandas (the result table), Dask
+    (``dask``: the engine unless ``workers=0``), pyarrow (``files``: results.parquet) and matplotlib (``report``:
+    the search's report.html).
+
+    Raises
+    ------
+    fem_grasp.errors.MissingExtraError
+        One of them is not installed (an ImportError naming the extra, ``search`` or ``report``).
+    """
+    purpose = "A placement search"
+    require("pandas", "search", purpose, load=False)
+    if dask:
+        require("distributed", "search", purpose + " on Dask (workers=0, --workers 0: a plain loop)", load=False)
+    if files:
+        require("pyarrow", "search", purpose + " writing results.parquet", load=False)
+    if report:
+        require("matplotlib", "report", "The search's report.html (--no-report: none)", load=False)
+
+
 def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, heights: Any = None,
            azimuths: Any = None, tilts: Any = None, ratios: Any = None, seed: int = 0, cone: float | None = None,
            workers: int | None = None, scheduler: str | None = None, client: Any = None, resume: bool = False,
@@ -366,6 +383,9 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
     MainGuardError
         Called from a script's top level outside ``if __name__ == "__main__":`` with worker processes or a
         report to start (``workers`` ≠ 0, or ``out`` and ``report``).
+    fem_grasp.errors.MissingExtraError
+        The ``search`` extra (pandas, Dask, pyarrow) or, for the report, the ``report`` extra is not installed
+        (:func:`require_search_extra`).
     """
     t_start = time.perf_counter()
     timings: dict[str, float] = {}
@@ -382,6 +402,8 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
         raise SearchError(f"workers must be >= 0 (0: a plain loop in this process), got {workers}")
     if scheduler and (client is not None or workers):
         raise SearchError("give a scheduler address or workers (a local cluster) or a client, not several")
+    require_search_extra(dask=not (workers == 0 and client is None and not scheduler), files=out is not None,
+                         report=report and out is not None)
     obj = _object(scene, quick, cache, dict(settings))
     settings = obj.settings
 
@@ -550,7 +572,8 @@ def _write_best(out: Path, setup: SearchSetup, cset: CandidateSet, ranked: Any, 
 
             write_report(folder, pool=pool)
         except ImportError:
-            log.warning("pyvista is not installed: no pictures for %s", folder)
+            log.warning("pyvista is not installed (the 'report' extra: pip install \"fem_grasp[report]\"): no "
+                        "pictures for %s", folder)
         folders.append(folder)
     if folders:
         add_to_marker(out, [str(p.relative_to(out)) for f in folders for p in f.rglob("*") if p.is_file()])

@@ -375,7 +375,8 @@ def write_search_report(out: str | Path, result: Any, pool: Any = None) -> Path:
             render_candidates(out, result, pool=pool)
             pictures += ["candidates.png", "candidates_top.png"]
         except ImportError:
-            log.warning("pyvista is not installed: the search report has no pictures of the object")
+            log.warning("pyvista is not installed (the 'report' extra: pip install \"fem_grasp[report]\"): the search "
+                        "report has no pictures of the object")
         plot_search(result.table, out / "search_plots.png", result.setup.lift)
         pictures.append("search_plots.png")
     path = atomic_write_text(out / "report.html", _html(out, result, pictures))

@@ -53,6 +53,7 @@ import scipy.linalg as la
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ..errors import MissingExtraError
 from ..mesh.tetmesh import check_rotation
 from ..threads import outer_blas_threads
 
@@ -91,8 +92,8 @@ def choose_solver(solver: str | None = None) -> str:
     ------
     ValueError
         For an unknown solver name.
-    ImportError
-        When CHOLMOD is asked for explicitly but scikit-sparse is not installed.
+    MissingExtraError
+        When CHOLMOD is asked for explicitly but scikit-sparse is not installed (an ImportError).
     """
     source = "solver argument"
     if solver is None:
@@ -103,8 +104,9 @@ def choose_solver(solver: str | None = None) -> str:
     if solver not in SOLVERS:
         raise ValueError(f"unknown sparse solver {solver!r} ({source}); choose 'auto' or one of {SOLVERS}")
     if solver == "cholmod" and not cholmod_available():
-        raise ImportError("the CHOLMOD solver needs scikit-sparse: pip install 'fem_grasp[cholmod]' "
-                          "(with Debian's libsuitesparse-dev installed), or choose 'superlu'")
+        raise MissingExtraError("the CHOLMOD solver needs the 'cholmod' extra (scikit-sparse is not installed): "
+                                "pip install \"fem_grasp[cholmod]\" (with Debian's libsuitesparse-dev installed), or "
+                                "choose 'superlu'", extra="cholmod", name="sksparse")
     return solver
 
 

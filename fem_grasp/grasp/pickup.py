@@ -80,6 +80,7 @@ import numpy as np
 
 from ..contact.obstacles import DEFAULT_RADIUS, FINGER1, FINGER2, OBSTACLES, TABLE, Fingertip, TablePlane
 from ..contact.tracking import ContactEvent, ContactState, Tracker
+from ..contact.warm_up import prepare_kernels
 from ..elastic.body import Body
 from ..errors import ContactNodeError, PickupCheckError, PlacementError, SceneError, TrackingError
 from ..validation import check_finger_friction, check_friction, check_positive
@@ -594,6 +595,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
     PickupResult
         ``success`` and ``reason``; see its attributes.  Failures are results.
     """
+    prepare_kernels()  # once per process: compile or load the kernels, or say they run as plain Python
     if accuracy is not None:
         from .accuracy import converged_pickup
 

@@ -182,7 +182,8 @@ def triangle_margin(points: np.ndarray, triangle: np.ndarray, point: np.ndarray,
     frame = _plane_frame(normal)
     tri2 = points[np.asarray(triangle)] @ frame.T
     p2 = np.asarray(point) @ frame.T
-    area2 = np.cross(tri2[1] - tri2[0], tri2[2] - tri2[0])
+    a, b = tri2[1] - tri2[0], tri2[2] - tri2[0]
+    area2 = a[0] * b[1] - a[1] * b[0]  # twice the signed area (NumPy 2 deprecates np.cross of 2-vectors)
     if area2 < 0:
         margin, j = _polygon_margin(tri2[::-1], p2)
         return margin, (1 - j) % 3  # map the reversed edge index back

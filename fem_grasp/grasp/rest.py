@@ -73,6 +73,7 @@ import numpy as np
 
 from ..contact import friction, plane_slip
 from ..contact.obstacles import TABLE, TablePlane
+from ..contact.warm_up import prepare_kernels
 from ..elastic.body import Body
 from ..elastic.compliance import PREFETCH_NODES
 from ..elastic.response import (
@@ -514,6 +515,7 @@ def rest(body: Body, mu_table: float, *, down: np.ndarray | None = None, table_z
     fem_grasp.errors.FrictionError
         If a slip system (6) has no admissible solution.
     """
+    prepare_kernels()  # once per process: compile or load the kernels, or say they run as plain Python
     start = time.perf_counter()
     if not np.isfinite(mu_table) or mu_table < 0:
         raise ValueError(f"mu_table must be a finite friction coefficient >= 0, got {mu_table!r}")

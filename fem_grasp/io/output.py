@@ -57,6 +57,7 @@ from xml.sax.saxutils import quoteattr
 import numpy as np
 
 from .._files import atomic_write, atomic_write_bytes, atomic_write_mesh, atomic_write_text
+from .._version import version
 from ..errors import OutputError
 
 __all__ = ["SCHEMA", "SCHEMA_VERSION", "OutputError", "atomic_write_bytes", "atomic_write_text", "json_safe", "prepare_out_dir",
@@ -83,13 +84,8 @@ FILE_SUFFIXES = (".xdmf", ".xmf", ".h5", ".hdf5", ".vtu", ".vtk", ".pvd", ".json
 
 
 def package_version() -> str:
-    """The installed fem_grasp version ("unknown" when run from a source tree without metadata)."""
-    try:
-        from importlib.metadata import version
-
-        return version("fem_grasp")
-    except Exception:  # noqa: BLE001 - metadata missing
-        return "unknown"
+    """fem_grasp's version (``fem_grasp.__version__``: the installed metadata, or the source tree's pyproject.toml)."""
+    return version()
 
 
 # ------------------------------------------------------------ the folder
@@ -104,7 +100,7 @@ def check_out_path(path: str | Path) -> Path:
     out = Path(path)
     if out.suffix.lower() in FILE_SUFFIXES and not out.is_dir():
         xdmf = (" The XDMF/HDF5 time series is written inside the folder as object.xdmf + object.h5"
-                + ("" if _has_h5py() else " (install h5py for it: pip install h5py)") + ".")
+                + ("" if _has_h5py() else ' (with h5py: pip install "fem_grasp[xdmf]")') + ".")
         raise OutputError(f"--out {out}: --out names a folder, not a file (it would create a folder called "
                           f"{out.name!r}); give a folder such as {str(out.with_suffix('')) or 'out'!r}. fem_grasp "
                           f"writes result.json, object.pvd (ParaView) and the steps there.{xdmf}")
@@ -122,6 +118,8 @@ def _has_h5py() -> bool:
             import h5py  # noqa: F401
             _H5PY.append(True)
         except ImportError:
+            log.info("h5py is not installed: no object.xdmf, the .pvd series holds the same data "
+                     "(pip install \"fem_grasp[xdmf]\" adds it)")
             _H5PY.append(False)
         except Exception as exc:  # noqa: BLE001 - installed but cannot load here
             log.warning("h5py cannot be loaded in this process (%s: %s; another HDF5 library was loaded first, "

@@ -49,10 +49,12 @@ from typing import Any, Iterator
 
 import numpy as np
 
+from ..errors import require
 from .output import MARKER, add_to_marker, atomic_write_text, read_result
 
-__all__ = ["COLOURINGS", "LIFTED_CLEARANCE", "PICTURES", "VIEW_ELEVATION", "bar_title_above", "plot_liftable", "plot_patches",
-           "plot_timeline", "render_frames", "render_process", "render_views", "view_direction", "write_report"]
+__all__ = ["COLOURINGS", "LIFTED_CLEARANCE", "PICTURES", "VIEW_ELEVATION", "bar_title_above", "plot_liftable",
+           "plot_patches", "plot_timeline", "render_frames", "render_process", "render_views", "require_report_extra",
+           "view_direction", "write_report"]
 
 log = logging.getLogger(__name__)
 
@@ -696,6 +698,21 @@ the time value is the finger path (m: ρ, then ρ + lift height); colour by <cod
 """
 
 
+def require_report_extra(purpose: str = "report.html") -> None:
+    """Check that the ``report`` extra (matplotlib, pyvista) is installed, without importing either.
+
+    ``fem-grasp run --report`` calls it before the pickup, so that a missing extra is said at once, not
+    after minutes of simulation.
+
+    Raises
+    ------
+    fem_grasp.errors.MissingExtraError
+        matplotlib or pyvista is not installed (an ImportError naming the extra).
+    """
+    for module in ("matplotlib", "pyvista"):  # pyvista is imported only in the spawned renderer (module notes)
+        require(module, "report", purpose, load=False)
+
+
 def write_report(out: str | Path, colour: str = "von_mises", pool: Any = None) -> Path:
     """Render the pictures and ``report.html`` into the output folder ``out``; return the HTML path.
 
@@ -706,6 +723,8 @@ def write_report(out: str | Path, colour: str = "von_mises", pool: Any = None) -
     ------
     fem_grasp.io.output.OutputError
         No (readable) result.json in ``out``.
+    fem_grasp.errors.MissingExtraError
+        The ``report`` extra (matplotlib, pyvista) is not installed.
     """
     out = Path(out)
     doc = read_result(out)
@@ -715,6 +734,7 @@ def write_report(out: str | Path, colour: str = "von_mises", pool: Any = None) -
         raise OutputError(f"{out}/result.json has no time series to draw")
     if colour not in COLOURINGS:
         raise ValueError(f"colour must be one of {', '.join(COLOURINGS)}, got {colour!r}")
+    require_report_extra("report.html")
     render_frames(out, doc, colour=colour, pool=pool)
     plot_patches(out, doc, out / "patches.png")
     plot_liftable(doc, out / "liftable.png")

@@ -768,9 +768,11 @@ def shipped_scenes() -> dict[str, Path]:
 def resolve_scene(name_or_path: str | Path) -> Path:
     """A scene file path from a path or the name of a shipped scene (``tomato`` → ``scenes/tomato.toml``)."""
     p = Path(name_or_path).expanduser()
+    shipped = shipped_scenes()
+    if p.is_dir() and str(name_or_path) in shipped:  # a folder named like a shipped scene (`--out tomato`)
+        return shipped[str(name_or_path)]
     if p.exists() or p.suffix == ".toml" or p.parent != Path("."):
         return p
-    shipped = shipped_scenes()
     if str(name_or_path) in shipped:
         return shipped[str(name_or_path)]
     raise SceneError(f"no scene file {str(name_or_path)!r} and no shipped scene of that name; shipped scenes: "

@@ -5,8 +5,8 @@ Every gmsh call runs in its own quiet, single-threaded, deterministic session (:
 same arguments give bit-identical arrays.  The tetrahedra are read back with boundary slivers removed and
 vertices renumbered (:func:`extract_tets`); :func:`mesh_with_vertex_count` finds the mesh size that gives a
 wanted number of vertices; :class:`Refinement` grades the mesh around given points (where the fingertips
-touch).  gmsh is an optional dependency (Debian package ``python3-gmsh``), imported only when a mesh is
-made (:func:`import_gmsh`).
+touch).  gmsh is an optional dependency (the ``mesh`` extra, or Debian's ``python3-gmsh``), imported only
+when a mesh is made (:func:`import_gmsh`).
 """
 
 from __future__ import annotations
@@ -19,7 +19,9 @@ from typing import Any, Callable, Iterator, Sequence
 
 import numpy as np
 
-__all__ = ["AUTO_MESHADAPT_MAX_VERTICES", "Builder", "GMSH_MISSING", "GMSH_OPTIONS", "Refinement", "SLIVER_QUALITY",
+from ..errors import require
+
+__all__ = ["AUTO_MESHADAPT_MAX_VERTICES", "Builder", "GMSH_OPTIONS", "Refinement", "SLIVER_QUALITY",
            "SURFACE_ALGORITHMS", "apply_refinement", "check_lengths", "extract_tets", "generate", "gmsh_model",
            "import_gmsh", "mesh_with_vertex_count", "orient_positive", "remove_boundary_slivers", "shape_quality",
            "surface_algorithm"]
@@ -86,13 +88,6 @@ def apply_refinement(gmsh: Any, refine: "Refinement | Sequence[Refinement] | Non
     field.setNumbers(smallest, "FieldsList", balls)
     field.setAsBackgroundMesh(smallest)
 
-GMSH_MISSING = (
-    "fem_grasp.mesh.shapes needs gmsh's Python module to generate meshes. On Debian/Ubuntu install "
-    "the package python3-gmsh (`apt-get install python3-gmsh`) and run with /usr/bin/python3 or a "
-    "venv created with `--system-site-packages`; elsewhere `pip install gmsh`. "
-    "Ready-made meshes of the paper's objects are in meshes/*.vtu."
-)
-
 #: gmsh options fixed for every session: quiet, single-threaded and reproducible.
 GMSH_OPTIONS: dict[str, float] = {
     "General.Terminal": 0,
@@ -139,12 +134,10 @@ def surface_algorithm(algorithm: str, volume: float, mesh_size: float) -> int:
 
 
 def import_gmsh() -> Any:
-    """Import gmsh, or raise an ImportError that says how to install it."""
-    try:
-        import gmsh
-    except (ImportError, OSError) as exc:  # OSError: module found but libgmsh missing
-        raise ImportError(GMSH_MISSING) from exc
-    return gmsh
+    """Import gmsh, or raise :class:`~fem_grasp.errors.MissingExtraError` (an ImportError) that says how to
+    install it: the ``mesh`` extra, or Debian's python3-gmsh.  (The shipped paper scenes load their committed
+    meshes without gmsh.)"""
+    return require("gmsh", "mesh", "Making a tetrahedral mesh (gmsh)")
 
 
 @contextlib.contextmanager

@@ -26,7 +26,7 @@ mesh frame) into a size field: spacing ``size`` within ``radius`` of any
 patch point, growing at ``grading`` metres of spacing per metre of distance
 to the outer size.
 
-gmsh is needed to build meshes (Debian ``python3-gmsh``); it is imported
+gmsh is needed to build meshes (the ``mesh`` extra, or Debian's ``python3-gmsh``); it is imported
 only inside the functions that mesh.
 """
 
@@ -166,7 +166,7 @@ class Geometry:
 
 @dataclass(frozen=True)
 class PaperGeometry(Geometry):
-    """One of the paper's objects (:data:`fem_grasp.mesh.shapes.PAPER_SHAPES`), in the frame of ``meshes/*.vtu``."""
+    """One of the paper's objects (:data:`fem_grasp.mesh.shapes.PAPER_SHAPES`), in the frame of the committed paper meshes (``fem_grasp/scenes/meshes``)."""
 
     name: str
 

@@ -16,7 +16,7 @@ fills the volume with gmsh: keeping the scan's own triangles on the
 boundary, or — with a target vertex count or mesh size — remeshing the
 surface first (gmsh's ``classifySurfaces`` + ``createGeometry``, as in its
 tutorial t13), which is how a dense scan is simplified to a size the FEM
-needs.  gmsh is imported only here (Debian ``python3-gmsh``).
+needs.  gmsh is imported only here (the ``mesh`` extra, or Debian's ``python3-gmsh``).
 """
 
 from __future__ import annotations

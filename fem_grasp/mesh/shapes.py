@@ -22,7 +22,7 @@ height where fingertips pushing slightly downward clear the table, so that
 two fingers could not hold even a rigid bun there.)  Axes: x is the long axis, +z
 points up; ellipsoids are centred on the origin and the bun's base lies on z = 0.
 
-gmsh is an optional dependency (Debian package ``python3-gmsh``); it is imported
+gmsh is an optional dependency (the ``mesh`` extra, or Debian's ``python3-gmsh``); it is imported
 only inside the functions that need it, so ``import fem_grasp.mesh.shapes`` always works.
 Every gmsh call runs in its own quiet, single-threaded, deterministic session:
 the same arguments give bit-identical arrays.
@@ -83,8 +83,8 @@ def ellipsoid(
 
     Raises
     ------
-    ImportError
-        If gmsh is not installed (Debian package ``python3-gmsh``).
+    MissingExtraError
+        If gmsh is not installed (the ``mesh`` extra, or Debian's ``python3-gmsh``): an ImportError.
     ValueError
         If a length is not positive and finite.
     """
@@ -178,8 +178,8 @@ def dome(radius: float, height: float, mesh_size: float, *, algorithm: str = "au
 
     Raises
     ------
-    ImportError
-        If gmsh is not installed (Debian package ``python3-gmsh``).
+    MissingExtraError
+        If gmsh is not installed (the ``mesh`` extra, or Debian's ``python3-gmsh``): an ImportError.
     ValueError
         If a length is not positive and finite.
     """

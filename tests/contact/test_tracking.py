@@ -130,7 +130,9 @@ def test_slip_rates_of_event_d_match_finite_differences(free):
 @pytest.mark.parametrize("free", [False, True])
 def test_warm_started_slip_roots_are_the_homotopy_roots(free, monkeypatch):
     """Newton from the root at a nearby parameter (continuation in t) finds the root the paper's homotopy finds."""
-    rs, _, state, vel = box_squeezed_3mm()
+    rs, t0, state, vel = box_squeezed_3mm()
+    if not t0.compiled:  # the test steers the whole-trial kernel, which only the compiled path calls
+        pytest.skip("numba is not installed: trials run on the reference path only")
 
     def tracker():
         t = Tracker(rs.body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)

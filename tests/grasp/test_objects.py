@@ -50,6 +50,8 @@ def test_finger_contacts_face_each_other_across_the_object():
 
 
 def _load_example(path: Path):
+    if not path.exists():
+        pytest.skip(f"{path.parent.name}/{path.name} is in the source tree, not in the installed package")
     spec = importlib.util.spec_from_file_location(path.stem, path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

@@ -226,6 +226,7 @@ def test_the_squeeze_increment_comes_from_the_placement_not_from_what_the_first_
     assert lifted.step == pytest.approx(expected, rel=1e-12)
 
 
+@pytest.mark.slow  # a pickup test rerun under OpenBLAS's oldest kernels: over 10 minutes without numba
 def test_the_implicit_path_under_another_cpus_blas_kernels_picks_up_the_box(tmp_path):
     """Regression of the crash seen on an Intel Xeon: with OpenBLAS's SSE3 (Prescott) kernels, round-off
     releases finger 1's zero-force touch in the first settle of the implicit-only pickup; it used to die

@@ -80,7 +80,8 @@ def test_margin_outside_is_the_distance_to_the_triangle():
 def test_triangle_margins_at_once_agree_with_one_by_one():
     rng = np.random.default_rng(4)
     tri2 = rng.normal(size=(400, 3, 2))
-    area2 = np.cross(tri2[:, 1] - tri2[:, 0], tri2[:, 2] - tri2[:, 0])
+    a, b = tri2[:, 1] - tri2[:, 0], tri2[:, 2] - tri2[:, 0]
+    area2 = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
     tri2[area2 < 0] = tri2[area2 < 0, ::-1]  # counter-clockwise, as hull_facets orders them
     points = rng.normal(size=(400, 2))  # inside some, outside most (beyond an edge or a vertex)
     expected = [_polygon_margin(t, p)[0] for t, p in zip(tri2, points)]
@@ -352,6 +353,8 @@ def test_rest_table_script_reports_the_tomato():
     from pathlib import Path
 
     path = Path(__file__).resolve().parents[2] / "scripts" / "rest_table.py"
+    if not path.exists():
+        pytest.skip("scripts/ is in the source tree, not in the installed package")
     spec = importlib.util.spec_from_file_location("rest_table", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

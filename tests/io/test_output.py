@@ -286,6 +286,7 @@ def test_an_interrupted_json_write_keeps_the_previous_file(tmp_path, monkeypatch
     assert (tmp_path / "notes.txt").read_text() == "complete"
 
 
+@pytest.mark.requires("gmsh")  # the quick scene remeshes its object
 def test_an_interrupted_run_leaves_only_complete_files_and_the_folder_reusable(tmp_path, monkeypatch, capsys):
     """Ctrl-C while the CLI writes the third file of the time series: exit 130, every file left is complete
     (the previous run's result.json, listed in its manifest, was cleared when the run started), and the

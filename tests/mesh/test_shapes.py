@@ -1,18 +1,18 @@
-"""Tests of fem_grasp.mesh.shapes (gmsh generators) and of the committed meshes/*.vtu."""
+"""Tests of fem_grasp.mesh.shapes (gmsh generators) and of the committed paper meshes (fem_grasp/scenes/meshes)."""
 
 from __future__ import annotations
 
 import functools
 import math
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
+from fem_grasp.grasp import objects
 from fem_grasp.mesh import shapes
 
-MESH_DIR = Path(__file__).resolve().parents[2] / "meshes"
+MESH_DIR = objects.MESH_DIR
 TABLE_I_VERTICES = {"tomato": 490, "orange": 600, "steam_bun": 658, "football": 875}
 
 

@@ -276,7 +276,7 @@ def scene_digest(name: str) -> str:
     h = hashlib.sha256()
     problem = scene_problem(Path(resolve_scene(name)))
     h.update(json.dumps(problem, sort_keys=True, default=repr).encode())
-    mesh = ROOT / "meshes" / f"{name}.vtu"
+    mesh = ROOT / "fem_grasp" / "scenes" / "meshes" / f"{name}.vtu"
     if mesh.exists():
         h.update(mesh.read_bytes())
     return h.hexdigest()[:12]
