@@ -62,25 +62,26 @@ demo: setup
 	  echo "          out/$(DEMO_SCENE)/result.json   (summary, events, forces)"; \
 	  echo "Other scenes: $(PY) -m fem_grasp scenes;  quick variant: make demo DEMO_ARGS=--quick"
 
-# Cross-checks against dolfinx, convergence, Hertz, stability, round-off, random scenes, the frictional-contact
-# reference and the pickup convergence study (hours from an empty cache); writes verification/out/report.html.
-# verify-quick: about 15 minutes.
+# Every study of the verification (python -m verification --help lists them): cross-checks against dolfinx,
+# manufactured solutions, locking, stability, Hertz, round-off, random scenes, the pickup convergence study (hours
+# from an empty cache), the frictional-contact reference and the softness study; writes
+# verification/out/report.html and summary.json. verify-quick: about 10 minutes.
 verify: setup
-	$(PY) -m verification.run
+	$(PY) -m verification all
 
 verify-quick: setup
-	$(PY) -m verification.run --quick
+	$(PY) -m verification all --quick
 
 .PHONY: friction-reference softness
-# One scene against the independent frictional-contact reference (exit 1 when they disagree), and the
-# Table III study (softness against the rigid grasp); both are stages of `make verify` too.
+# One scene against the independent frictional-contact reference (exit 1 when they disagree), and the Table III
+# study (softness against the rigid grasp); both studies are part of `make verify` too.
 SCENE ?= tomato
 friction-reference: setup
-	$(PY) -m verification.friction_reference $(SCENE) $(FRICTION_ARGS)
+	$(PY) -m verification friction compare $(SCENE) $(FRICTION_ARGS)
 
 softness: setup
 	@mkdir -p verification/out
-	$(PY) -m verification.softness --fine --json verification/out/softness.json --plot verification/out/softness.png
+	$(PY) -m verification softness --fine --json verification/out/softness.json --plot verification/out/softness.png
 
 meshes: setup
 	$(PY) scripts/make_meshes.py
@@ -101,23 +102,22 @@ search: setup
 	  status=$$?; if [ $$status -gt 1 ]; then exit $$status; fi
 
 .PHONY: bench
-# Benchmarks: contact solve against dolfinx, cost against vertex count (1k-100k), per-object pickups,
-# sparse against spectral, compiled against plain kernels, column batches, the floor of the method (flops
-# against the dense peak; about 10 GiB at 100k), the placement search serially and on Dask (section search), and
-# the time to a 10/5/2 % answer (section converge, from the cached study of `make converge`), and the pickup
-# engine against a baseline commit side by side (section tracker; BENCH_ARGS="--only tracker --baseline REV");
-# tables on stdout and bench/out/bench.json
-# (long: shorter with BENCH_ARGS="--max-vertices 10000").
+# Benchmarks (bench/README.md): contact solve against dolfinx, cost against vertex count (1k-100k), per-object
+# pickups, sparse against spectral, compiled against plain kernels, column batches, the floor of the method (flops
+# against the dense peak; about 10 GiB at 100k), the placement search serially and on Dask (section search), the
+# time to a 10/5/2 % answer (section converge, from the cached study of `make converge`), and the pickup engine
+# against a baseline commit side by side (section tracker; BENCH_ARGS="--only tracker --baseline REV"); tables on
+# stdout and bench/out/bench.json (long: shorter with BENCH_ARGS="--max-vertices 10000").
 bench: setup
 	$(PY) -m bench.bench $(BENCH_ARGS)
 
 .PHONY: converge
-# The convergence study: the pickup answer (verdict, rho*, finger forces, patches, w(rho)) of the five shipped scenes under
+# The pickup answer (verdict, rho*, finger forces, patches, w(rho)) of the five shipped scenes under
 # uniform and graded refinement, halved increments and seeds, and the adaptive accuracy loop; one subprocess per
 # run, cached in verification/out/converge/cache (a re-run only reads). Tables on stdout, converge.json and plots
 # in verification/out/converge. From an empty cache: hours on 2 cores (CONVERGE_ARGS=--quick: minutes).
 converge: setup
-	$(PY) -m verification.converge $(CONVERGE_ARGS)
+	$(PY) -m verification converge $(CONVERGE_ARGS)
 
 .PHONY: paper
 # Our figures beside the paper's Tables II and III: one process per object (logs in out/paper/), then the tables.

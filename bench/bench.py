@@ -1,4 +1,4 @@
-"""Benchmarks of fem_grasp against the paper's targets (issue #7): ``make bench``.
+"""Benchmarks of fem_grasp: ``make bench`` (``python -m bench.bench``; sections and tools in bench/README.md).
 
 Sections (``--only NAME``, repeatable; default all):
 
@@ -43,7 +43,7 @@ Sections (``--only NAME``, repeatable; default all):
     column counts of L) and one compliance column (4 nnz(L): a forward and
     a back substitution), their measured rates, and, with the scaling
     section's count of the nodes that touched (three columns each), the
-    least time of factorisation and columns together (issue #7's 100k
+    least time of factorisation and columns together (the 100k-vertex
     target).  One subprocess per size (L is converted to a simplicial copy
     to count it; about 10 GiB at 100k).  Needs CHOLMOD.
 
@@ -53,24 +53,24 @@ Sections (``--only NAME``, repeatable; default all):
     overhead per candidate, and the time per candidate split into the shared set-up and the per-candidate
     work (:mod:`bench.search`).
 ``converge``
-    Issue #23: wall time to a 10 %, 5 % and 2 % answer (ρ* and the finger
+    Wall time to a 10 %, 5 % and 2 % answer (ρ* and the finger
     force both within the target of the converged reference) for each paper
     object and the foam block: uniform refinement, grading at the fingertips
     (the cheapest level from which every finer one is within the target) and
     the adaptive loop (``pickup(..., accuracy=target)``: its time, its error
     against the reference and whether its own estimate covered it).  The runs
-    are those of ``python -m verification.converge`` (``make converge``), one
+    are those of ``python -m verification converge`` (``make converge``), one
     subprocess each, read from its cache (and computed into it when missing:
     hours from an empty cache).
 ``tracker``
-    Issue #27: each shipped paper scene's pickup (and the foam block's) with
+    Each shipped paper scene's pickup (and the foam block's) with
     a baseline commit's fem_grasp and with this checkout's, in two worker
     processes taking turns: medians after the first call, their ratio, and
     whether the answers are the same (events, ρ* to 1e-9, forces to 1e-9 mg);
     then the uniform orange at 10k and 100k vertices (up to
     ``--max-vertices``), and the convergence study's cheapest converged
     routes (the tomato and the football graded to R/4 at fingertips and
-    table: #27's time to a converged answer) (:mod:`bench.tracker`;
+    table: the time to a converged answer) (:mod:`bench.tracker`;
     ``--baseline REV``).
 
 Medians over ``--reps`` repetitions.  Prints tables and writes
@@ -103,7 +103,7 @@ ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "bench" / "out" / "bench.json"
 SECTIONS = ("solve", "scaling", "objects", "spectral", "jit", "columns", "floor", "search", "converge", "tracker")
 SOLVE_SIZES = (10000, 50000)
-#: The uniform oranges of #27's targets (10k: ≥ 5× faster; 100k reported), in the tracker section.
+#: The uniform oranges of the tracker section (10k: the target is ≥ 5× faster than the baseline; 100k reported).
 TRACKER_LARGE = (10000, 100000)
 SCALING_SIZES = (1000, 3000, 10000, 30000, 50000, 100000)
 #: SuperLU above this many vertices takes minutes and gigabytes: not timed.
@@ -231,7 +231,7 @@ def section_solve(sizes: list[int], reps: int) -> dict[str, Any]:
             log.info("solve %d vertices, %s: %.3f s", mesh.n_points, solver, row["fem_grasp"][solver]["total_s"])
         os.environ.pop("FEM_GRASP_SOLVER", None)
         try:
-            from verification.dolfinx_ref import DolfinxModel
+            from verification.dolfinx.reference import DolfinxModel
         except ImportError as exc:  # pragma: no cover - dolfinx is in the venv
             row["dolfinx"] = f"unavailable: {exc}"
         else:
@@ -727,7 +727,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--converge-quick", action="store_true",
                     help="section converge: read (or compute) the quick study of verification.converge")
     ap.add_argument("--baseline", default=None,
-                    help="section tracker: the commit to compare this checkout against (default: main before #27)")
+                    help="section tracker: the commit to compare this checkout against (default: the engine before the "
+                         "event-tracking rewrite)")
     ap.add_argument("--worker-scaling", type=int, help=argparse.SUPPRESS)
     ap.add_argument("--worker-floor", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)

@@ -1,4 +1,4 @@
-"""Where a pickup spends its time: ``python -m bench.profile SCENE`` (issue #7).
+"""Where a pickup spends its time: ``python -m bench.profile SCENE``.
 
 Runs one shipped scene's pickup (``fem-grasp run SCENE``) under cProfile and
 counts, around the two solvers that dominate it:

@@ -1,4 +1,4 @@
-"""The ``tracker`` section of ``make bench`` (issue #27): the pickup engine against a baseline commit, side by side.
+"""The ``tracker`` section of ``make bench``: the pickup engine against a baseline commit, side by side.
 
 Two worker processes, one importing fem_grasp from this checkout and one from a baseline commit (exported with
 ``git archive`` into ``bench/out/baseline-<sha>``), take turns on the same scenes: for each scene a first call
@@ -44,13 +44,13 @@ __all__ = ["PHASES", "SCENES", "SAME_FORCE", "SAME_RHO_STEPS", "SEARCH_CANDIDATE
 ROOT = Path(__file__).resolve().parent.parent
 #: The shipped paper scenes and the foam block (the box the tests use most).
 SCENES = ("tomato", "orange", "steam_bun", "football", "foam_block")
-#: The baseline of #27: main before the new engine's work began (the convergence study's last change).
+#: The default baseline: the engine before the event-tracking rewrite (the convergence study's last change).
 DEFAULT_BASELINE = "8d4802882b8d0ef62be1f91ccaf5e132eca56f11"
 #: The orange scene's modulus, for the uniform oranges of ``--large`` (as in the scaling section).
 ORANGE_YOUNG = 2e4
 #: The convergence study's cheapest routes to a converged answer (docs/convergence.md, "time to target"): the
 #: tomato (2 %) and the football (10 %) meshed finer at the fingertips and the table, inner spacing R/4
-#: (``--routes``; #27's "time to a 5 % answer").
+#: (``--routes``; the "time to a 5 % answer").
 ROUTES = (("tomato", 0.25), ("football", 0.25))
 #: The phases of a pickup that ``PickupResult.timings`` reports, in Algorithm 1's order, and their sum.
 PHASES = ("rest", "closure", "squeeze", "lift_test", "lift", "total")
@@ -543,7 +543,7 @@ def print_tracker(sec: dict[str, Any]) -> None:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.tracker", description=__doc__.split("\n\n")[0])
     ap.add_argument("--baseline", default=DEFAULT_BASELINE,
-                    help=f"commit to compare against (default {DEFAULT_BASELINE[:12]}, main before #27's engine)")
+                    help="commit to compare against (default: the engine before the event-tracking rewrite)")
     ap.add_argument("--reps", type=int, default=3)
     ap.add_argument("--scenes", nargs="+", default=list(SCENES))
     ap.add_argument("--quick", action="store_true", help="the scenes' [quick] variants")

@@ -71,6 +71,10 @@ def search(scene: Any, out: Any = None, **kwargs: Any) -> Any:
 
     :func:`fem_grasp.batch.engine.search` (imported on first use; needs the ``search`` extra), which documents
     the arguments: ``fem_grasp.search("tomato", "out/search", candidates=64, workers=2)``.
+
+    Its worker processes (and the report's pictures) are spawned and import the calling script: in a script,
+    call it under ``if __name__ == "__main__":`` (else :class:`~fem_grasp.errors.MainGuardError`, before
+    anything starts).
     """
     from .batch.engine import search as run
 

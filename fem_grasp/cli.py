@@ -82,6 +82,11 @@ def _load_scene(args: argparse.Namespace) -> Any:
         check_quantity("--young", young, "Pa")
     scene = with_overrides(scene, backend=getattr(args, "backend", None), young=young,
                            lift=False if getattr(args, "no_lift", False) else None)
+    if getattr(args, "allow_implausible_units", False):
+        if scene.object.kind != "mesh":
+            raise _BadInput("--allow-implausible-units: only a mesh file's size and density are checked for their "
+                            f"unit; the scene's object is a {scene.object.kind}")
+        scene = scene.with_(allow_implausible_units=True)
     accuracy = getattr(args, "accuracy", None)
     if accuracy is not None:
         from dataclasses import replace
@@ -157,7 +162,8 @@ def _summary_lines(scene: Any, result: Any, rest_cached: bool) -> list[str]:
     acc = getattr(result, "accuracy", None)
     if acc:
         if not acc["converged"]:
-            lines[2] += "  [NOT CONVERGED: see accuracy]"
+            lines[2] += ("  (one run on this mesh: see accuracy)" if len(acc["levels"]) == 1 else
+                         "  (less accurate than requested: see accuracy)")
         lines[3:3] = _accuracy_lines(acc, scene.quick)
     return lines
 
@@ -177,19 +183,21 @@ def _accuracy_lines(acc: dict[str, Any], quick: bool) -> list[str]:
     elif len(acc["levels"]) == 1:
         stated = acc.get("expected_error_stated")
         bound = e["squeeze_depth"]
-        how = ("its verdict may differ from the converged one" if stated and not np.isfinite(bound) else
-               f"it may be off by about {pct(bound)} in rho* and the finger force (as measured by the convergence "
-               "study for this scene)" if stated else "how far it is off is not known")
-        head = (f"accuracy   NOT CONVERGED: {acc.get('note', '')}; {how}"
+        how = ("the convergence study found that such a run can even reach another verdict than a finer mesh"
+               if stated and not np.isfinite(bound) else
+               f"the convergence study for this scene puts such a run within about {pct(bound)} of the converged "
+               "rho* and finger force" if stated else "how far it is from the converged answer is not known")
+        head = (f"accuracy   {acc.get('note', '')}; {how}"
                 + (f"; run without --quick for the answer to {100 * acc['target']:g} %"
                    if quick and acc.get("target") is not None and np.isfinite(acc["target"]) else ""))
     elif not all(np.isfinite(v) for v in (e["squeeze_depth"], e["finger_force"])):
-        head = (f"accuracy   NOT CONVERGED to {100 * acc['target']:g} %: {acc.get('note', '')}, so not even the verdict "
-                "is settled at this resolution" + ("; run without --quick for the converged answer" if quick else ""))
+        head = (f"accuracy   the requested {100 * acc['target']:g} % was not reached ({acc.get('note', '')}): the "
+                "last two meshes give different verdicts, so the verdict itself is not settled at this resolution"
+                + ("; run without --quick for the refined answer" if quick else ""))
     else:
-        head = (f"accuracy   NOT CONVERGED to {100 * acc['target']:g} %: the answer may be off by about "
-                f"{pct(e['squeeze_depth'])} in rho* and {pct(e['finger_force'])} in the finger force "
-                f"({acc.get('note', '')})" + ("; run without --quick for the converged answer" if quick else ""))
+        head = (f"accuracy   the error estimate ({pct(e['squeeze_depth'])} in rho*, {pct(e['finger_force'])} in the "
+                f"finger force) is above the requested {100 * acc['target']:g} % ({acc.get('note', '')})"
+                + ("; run without --quick for the refined answer" if quick else ""))
     lines = [head]
     for lv in acc["levels"]:
         lines.append(f"  level {lv['level']}  {lv['vertices']:,} vertices, spacing {1e3 * lv['inner_size']:.3g} mm at "
@@ -321,8 +329,8 @@ def cmd_info(args: argparse.Namespace) -> int:
         from .io.scene import load_scene, resolve_scene
 
         scene = load_scene(resolve_scene(args.path), quick=args.quick)
-        for k, v in scene.to_dict().items():
-            _out(args, f"{k:15s}{v}")
+        for line in _scene_lines(scene):
+            _out(args, line)
         return EXIT_OK
     if not p.exists():
         raise _BadInput(f"{p} does not exist")
@@ -359,6 +367,73 @@ def cmd_info(args: argparse.Namespace) -> int:
     _out(args, f"quality (1 = regular tet): min {q.min():.3g}, median {np.median(q):.3g}; "
                f"{m.n_reoriented} tets reoriented on reading")
     return EXIT_OK
+
+
+def _pressure(x: float) -> str:
+    for unit, scale in (("GPa", 1e9), ("MPa", 1e6), ("kPa", 1e3)):
+        if abs(x) >= scale:
+            return f"{x / scale:.4g} {unit}"
+    return f"{x:.4g} Pa"
+
+
+def _scene_lines(scene: Any) -> list[str]:
+    """``fem-grasp info scene.toml``: the parsed scene, one labelled line per part, with units; settings left
+    to the pickup say what it chooses."""
+    o = scene.object
+    if o.kind == "paper":
+        obj = f"paper object {o.paper!r} (Table I)" + (f", remeshed at about {o.vertices} vertices" if o.vertices
+                                                      else ", its committed mesh")
+    elif o.kind == "mesh":
+        obj = (f"mesh file {o.mesh} (coordinates in {o.units})"
+               + (f", remeshed at about {o.vertices} vertices" if o.vertices else "")
+               + (f", remeshed at spacing {_mm(o.size)}" if o.size else "")
+               + ("; implausible units allowed" if o.allow_implausible_units else ""))
+    else:
+        obj = (f"box {' x '.join(_fmt(x, '', 1e3) for x in o.box)} mm, {' x '.join(str(d) for d in o.divisions)} "
+               "cells")
+    if o.down is not None:
+        obj += f"; down is ({', '.join(f'{x:g}' for x in o.down)}) in the mesh's frame"
+    load = (f"weight {scene.weight:.4g} N (mass {1e3 * scene.weight / scene.gravity:.4g} g)" if scene.weight is not None
+            else f"density {scene.density:.4g} kg/m^3 (the weight from the mesh's volume)")
+    d1, d2 = (np.asarray(d, float) for d in scene.directions)
+    tilt = np.degrees(np.arcsin(np.clip(-d1[2], -1.0, 1.0)))
+    contacts = (f"nodes {scene.contacts[0]} and {scene.contacts[1]}" if scene.contacts is not None
+                else f"chosen by the rule {scene.placement_rule!r}")
+
+    def opt(x: float | None, unit: str, default: str) -> str:
+        return default if x is None else (_mm(x) if unit == "mm" else _fmt(x, unit))
+
+    if scene.quick:
+        acc = "one run on the quick variant's coarse mesh (--quick does not refine)"
+    elif scene.accuracy is not None:
+        acc = f"refine at the contact patches until rho* and the finger force agree to {100 * scene.accuracy:g} %"
+    else:
+        acc = "one run on the scene's mesh"
+    if scene.expected_error is not None:
+        acc += ("; such a run may even reach another verdict than a finer mesh (solver.expected_error = inf)"
+                if not np.isfinite(scene.expected_error) else
+                f"; such a run is within about {100 * scene.expected_error:g} % of the converged answer "
+                "(solver.expected_error)")
+    lines = [
+        f"scene      {scene.name}{' (quick)' if scene.quick else ''}: {scene.description or '(no description)'}",
+        f"file       {scene.path}" if scene.path is not None else "file       (not from a file)",
+        f"object     {obj}",
+        f"material   Young's modulus E {_pressure(scene.young)}, Poisson's ratio {scene.poisson:g}, {load}, "
+        f"gravity {scene.gravity:g} m/s^2",
+        f"friction   fingers mu_F {scene.mu_finger:g}, table mu_P {scene.mu_table:g}",
+        f"fingers    radius {_mm(scene.finger_radius)}; initial contacts {contacts}; squeeze directions "
+        f"({', '.join(f'{x:.3g}' for x in d1)}) and ({', '.join(f'{x:.3g}' for x in d2)}), {tilt:.3g} deg below "
+        f"the horizontal; ratio s {scene.ratio:g}",
+        f"solver     {scene.backend}; max squeeze {opt(scene.max_squeeze, 'mm', '40 % of the width (default)')}, "
+        f"increment {opt(scene.step, 'mm', 'adapted to E (default)')}, lift-test step "
+        f"{opt(scene.lift_test_step, 'N', 'mg/20 (default)')}, max lift "
+        f"{opt(scene.max_lift, 'mm', 'the object height (default)')}; "
+        + ("lift simulated" if scene.lift else "stops when the lift test passes (lift = false)"),
+        f"accuracy   {acc}",
+    ]
+    if scene.expect is not None:
+        lines.append(f"expect     {scene.expect}")
+    return lines
 
 
 def _info_result(args: argparse.Namespace, path: Path) -> int:
@@ -450,6 +525,46 @@ def _grid_option(text: str | None, option: str) -> Any:
         raise _BadInput(f"{option} {text!r}: write a count N, a range LO:HI:N, or values A,B,C") from None
 
 
+#: What each ranking of the search ranks by, in words.
+_RANKED_BY = {"force": "the least finger normal force Σ f·n̂", "squeeze": "the least squeeze depth rho*",
+              "margin": "the largest w/mg"}
+
+
+def _best_table(best: Any, rank: str, error: float | None) -> list[str]:
+    """The best grasps of a search as a table whose headers are the result files' column names (with units);
+    ``≈`` marks those within the stated error of the best one (``within_error``, :func:`fem_grasp.batch.rank_table`)."""
+    if not len(best):
+        return []
+    cols = (("rank", None, ""), ("nodes", None, ""), ("azimuth_deg", "azimuth_deg", ".0f"),
+            ("tilt_deg", "tilt_deg", ".1f"), ("s", "ratio", "g"), ("height_mm", "height", ".3g"),
+            ("rho_star_mm", "rho_star", ".4g"), ("grip1_N", "grip1", ".3g"), ("grip2_N", "grip2", ".3g"),
+            ("finger_normal_force_N", "finger_normal_force", ".3g"))
+    rows = []
+    for _, r in best.iterrows():
+        cells = []
+        for head, col, fmt in cols:
+            if head == "rank":
+                cells.append(f"{int(r['rank'])}{' ≈' if r.get('within_error', False) else ''}")
+            elif head == "nodes":
+                cells.append(f"{int(r['node_i'])}, {int(r['node_j'])}")
+            else:
+                scale = 1e3 if head.endswith("_mm") else 1.0
+                v = float(r[col]) * scale
+                cells.append(format(v, fmt) if np.isfinite(v) else "—")
+        rows.append(cells)
+    widths = [max(len(h), *(len(c[k]) for c in rows)) for k, (h, _, _) in enumerate(cols)]
+    line = lambda cells: "  " + "  ".join(c.ljust(w) for c, w in zip(cells, widths)).rstrip()  # noqa: E731
+    if error is None or rank not in ("force", "squeeze"):
+        note = ("; no error stated for this scene, so which of them are equally good is not known" if error is None
+                else "")
+    elif not np.isfinite(error):
+        note = "; ≈: the scene states that one run may even give the wrong verdict, so any of them may be the best"
+    else:
+        note = (f"; ≈: within the stated error (±{100 * error:.3g} % each) of the best, so as good as it as far as "
+                "this mesh can tell")
+    return [f"best       ranked by {_RANKED_BY[rank]}{note}", line([h for h, _, _ in cols]), *map(line, rows)]
+
+
 def cmd_search(args: argparse.Namespace) -> int:
     from .batch.engine import search
 
@@ -474,12 +589,8 @@ def cmd_search(args: argparse.Namespace) -> int:
     _out(args, f"result     {n_ok} {verdict}, {len(t) - n_ok - n_err} not, {n_err} errors"
                + (f" ({result.resumed} from an earlier run)" if result.resumed else ""))
     best = result.ranked[result.ranked["rank"] > 0].head(max(args.best, 5))
-    for k, (_, r) in enumerate(best.iterrows()):
-        _out(args, f"{'best' if k == 0 else '':11s}{int(r['rank'])}. nodes {int(r['node_i'])}, {int(r['node_j'])}; "
-                   f"azimuth {r['azimuth_deg']:.0f} deg, tilt {r['tilt_deg']:.1f} deg, s {r['ratio']:g}, height "
-                   f"{_fmt(r['height'], 'mm', 1e3, 3)}: rho* {_fmt(r['rho_star'], 'mm', 1e3)}, grip "
-                   f"{r['grip1']:.3g} / {r['grip2']:.3g} N, sum f.n {r['finger_normal_force']:.3g} N "
-                   f"(ranked by {args.rank})")
+    for line in _best_table(best, args.rank, result.expected_error):
+        _out(args, line)
     per = t["time"].median() if len(t) else float("nan")
     _out(args, "time       " + ", ".join(f"{k} {v:.1f} s" for k, v in result.timings.items())
                + f"; median {per:.2f} s per candidate")
@@ -510,8 +621,15 @@ def build_parser() -> argparse.ArgumentParser:
     scene_opts.add_argument("--cache", metavar="DIR", help="cache folder for meshes and resting states "
                                                            "(default: $XDG_CACHE_HOME/fem_grasp or ~/.cache/fem_grasp)")
     scene_opts.add_argument("--no-cache", action="store_true", help="neither read nor write the cache")
+    scene_opts.add_argument("--allow-implausible-units", action="store_true",
+                            help="compute even when the object's size (over 1 m) or density (outside 10–20,000 "
+                                 "kg/m^3) says its mesh is in another unit; without it such a scene is refused "
+                                 "(exit 2): set units = \"mm\" in the scene's [object] table instead")
 
-    ap = argparse.ArgumentParser(prog="fem-grasp", description=__doc__.split("\n\n")[0],
+    ap = argparse.ArgumentParser(prog="fem-grasp",
+                                 description="fem-grasp (also python -m fem_grasp): will two fingers pick up a soft "
+                                             "object by squeezing and lifting it? Every command takes -v, --log-file "
+                                             "and -q; `fem-grasp COMMAND --help` for its options.",
                                  epilog="Exit status: 0 success, 1 the grasp failed, 2 bad input, 3 internal error. "
                                         "Units are SI (m, N, Pa) unless a scene string says otherwise.")
     sub = ap.add_subparsers(dest="command", metavar="COMMAND", required=True)

@@ -13,25 +13,27 @@ Bad input (``ValueError`` subclasses):
 * :class:`MaterialError` — :class:`~fem_grasp.elastic.Body` (E, ν, weight, density, g);
 * :class:`SceneError` — scene files and pickup settings, with ``file`` and ``key``; its subclasses
   :class:`DirectionError` (squeeze directions), :class:`ContactNodeError` (contact node indices) and
-  :class:`PlacementError` (fingertips that miss the object or start inside it);
+  :class:`PlacementError` (fingertips that miss the object or start inside it) and :class:`UnitsError` (a mesh
+  whose size or density says it is in another length unit);
 * :class:`CollinearContactError` — contact sets that leave a rotation free (Theorem 3).
 
 Computations that cannot go on (``RuntimeError`` subclasses): :class:`FrictionError` (the resting
 iteration's table slip, eq. 6), :class:`RelaxationFailure` (no static stick/slip state: gross slip),
 :class:`TrackingError` (the event tracking), :class:`RestConvergenceError` (the object does not come to
-rest on the table).
+rest on the table), :class:`MainGuardError` (a script that starts worker processes outside
+``if __name__ == "__main__":``).
 
 Results that break a contact law (``AssertionError`` subclasses): :class:`RestCheckError`,
 :class:`PickupCheckError`.  Output folders that are not ours or not writable: :class:`OutputError`
 (an ``OSError``).  ν close to ½: :class:`LockingWarning` (P1 tetrahedra lock); a size or density that
-says the mesh is in another unit: :class:`UnitsWarning`.
+says the mesh is in another unit, run anyway because the scene allows it: :class:`UnitsWarning`.
 """
 
 from __future__ import annotations
 
 __all__ = ["CollinearContactError", "ContactNodeError", "DirectionError", "FrictionError", "LockingWarning",
-           "MaterialError", "MeshError", "OutputError", "PickupCheckError", "PlacementError", "RelaxationFailure",
-           "RestCheckError", "RestConvergenceError", "SceneError", "SurfaceError", "TrackingError", "UnitsWarning"]
+           "MainGuardError", "MaterialError", "MeshError", "OutputError", "PickupCheckError", "PlacementError", "RelaxationFailure",
+           "RestCheckError", "RestConvergenceError", "SceneError", "SurfaceError", "TrackingError", "UnitsError", "UnitsWarning"]
 
 
 # ------------------------------------------------------------------ bad input
@@ -58,6 +60,11 @@ class SceneError(ValueError):
         super().__init__(message)
         self.file = file
         self.key = key
+
+
+class UnitsError(SceneError):
+    """An object whose size or density says its mesh is in another length unit (millimetres read as metres):
+    refused before any computation unless the scene allows it (``allow_implausible_units``)."""
 
 
 class DirectionError(SceneError):
@@ -114,6 +121,11 @@ class RelaxationFailure(RuntimeError):
 
 class TrackingError(RuntimeError):
     """The quasi-static tracking cannot go on (no slip solution, lost support, pinched node, …)."""
+
+
+class MainGuardError(RuntimeError):
+    """A call that starts spawned processes (a search's local Dask cluster, the reports' pictures) from a script's
+    top level outside ``if __name__ == "__main__":``, where every spawned process would run it again."""
 
 
 class RestConvergenceError(RuntimeError):

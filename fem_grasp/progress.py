@@ -1,6 +1,6 @@
 """Progress bars for long runs: tqdm on a terminal, nothing in CI, in a pipe or when asked to be quiet.
 
-``fem-grasp``, the verification (``python -m verification.run``: convergence, cross-checks) and other
+``fem-grasp``, the verification (``python -m verification STUDY``: convergence, cross-checks) and other
 long loops share these, so that all behave alike:
 
 * :func:`progress_enabled` — a bar is drawn only when stderr is a terminal, ``$CI`` is unset (GitHub

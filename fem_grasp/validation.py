@@ -8,7 +8,9 @@ return the cleaned values.
 Where they are called
 ---------------------
 * :func:`check_material`, :func:`check_positive` — by :class:`fem_grasp.elastic.Body` (and the assembly);
-* :func:`check_friction` — at the top of :func:`fem_grasp.grasp.pickup.pickup` and :func:`~fem_grasp.grasp.rest.rest`.
+* :func:`check_friction` — at the top of :func:`fem_grasp.grasp.pickup.pickup` and :func:`~fem_grasp.grasp.rest.rest`;
+* :func:`check_finger_friction` — μ_F > 0, by :func:`~fem_grasp.grasp.pickup.pickup`, the scene files and
+  :meth:`fem_grasp.io.scene.Scene.with_`, and the placement search.
 
 The checks of a finger placement (directions, contact nodes, fingertip spheres) are in
 :mod:`fem_grasp.grasp.placement`; mesh validity (shapes, NaN, zero volume, folds, pieces, non-manifold
@@ -24,7 +26,7 @@ import numpy as np
 
 from .errors import LockingWarning, MaterialError, SceneError
 
-__all__ = ["LOCKING_POISSON", "check_friction", "check_material", "check_positive", "check_real", "check_vector"]
+__all__ = ["LOCKING_POISSON", "check_finger_friction", "check_friction", "check_material", "check_positive", "check_real", "check_vector"]
 
 #: ν above which :class:`fem_grasp.elastic.body.Body` warns that P1 tetrahedra lock (docs/verification.md: a coarse
 #: cantilever's P1 deflection is 0.32 of P2's at ν = 0.45, 0.14 at 0.49, 0.053 at 0.4999).
@@ -78,6 +80,23 @@ def check_friction(mu: Any, name: str = "mu") -> float:
     m = check_real(mu, name, SceneError)
     if not np.isfinite(m) or m < 0:
         raise SceneError(f"{name} must be a finite friction coefficient >= 0, got {mu!r}")
+    return m
+
+
+#: Why μ_F must be positive, in the words of the error.
+FRICTIONLESS_FINGERS = (
+    "two fingertips without friction push only along the two contact normals, so they cannot carry the object's "
+    "weight nor resist a twist about the line between them: no two-finger grasp is force closure (the first step "
+    "of the pickup) and the object cannot be lifted. Give a positive coefficient (typical values 0.2–1)")
+
+
+def check_finger_friction(mu: Any, name: str = "mu_finger") -> float:
+    """The fingers' friction coefficient μ_F as a float if it is finite and > 0, else :class:`SceneError`
+    saying why a two-finger grasp needs friction (:data:`FRICTIONLESS_FINGERS`)."""
+    m = check_friction(mu, name)
+    if m == 0:
+        raise SceneError(f"{name} (μ_F, the friction between the object and the fingertips) must be > 0, got {mu!r}: "
+                         f"{FRICTIONLESS_FINGERS}")
     return m
 
 

@@ -66,6 +66,27 @@ def test_help_of_every_command_explains_units(capsys):
     assert main([]) == 2  # no command: usage error
 
 
+def test_top_level_help_lists_every_command(capsys):
+    from fem_grasp.cli import build_parser
+
+    assert main(["--help"]) == 0
+    text = capsys.readouterr().out
+    commands = next(a for a in build_parser()._actions if a.dest == "command").choices
+    assert "search" in commands
+    for cmd in commands:
+        assert f"    {cmd} " in text, cmd
+
+
+def test_info_of_a_scene_prints_labelled_lines_with_units_not_dicts(capsys):
+    assert main(["info", "tomato"]) == 0
+    text = capsys.readouterr().out
+    assert "{" not in text and "None" not in text, text
+    for label in ("scene", "object", "material", "friction", "fingers", "solver", "accuracy"):
+        assert any(line.startswith(f"{label} ") for line in text.splitlines()), label
+    assert "E 20 kPa" in text and "radius 10 mm" in text and "weight 1.246 N" in text, text
+    assert "mu_F 0.32" in text and "13.1 deg below the horizontal" in text, text
+
+
 def test_mesh_and_info_on_a_generated_scan(capsys, tmp_path):
     p, f = icosphere(0.03, 2)
     stl = write_stl(tmp_path / "ball.stl", p, f)

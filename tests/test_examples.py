@@ -30,3 +30,18 @@ def test_the_example_runs_as_a_script(example, tmp_path):
                          timeout=600)
     assert out.returncode == 0, out.stderr[-3000:]
     assert any((tmp_path / "out").iterdir())  # it wrote its files
+
+
+@pytest.mark.gmsh
+def test_the_own_object_example_scene_loads_and_its_quick_variant_runs(tmp_path):
+    """examples/own_object.toml, the template for a mesh of one's own: its millimetre scan is read as a
+    7 cm object (units = "mm") and its quick variant lifts it at a squeeze of millimetres."""
+    pytest.importorskip("gmsh")
+    from fem_grasp.io.scene import load_scene
+
+    scene = load_scene(ROOT / "examples" / "own_object.toml", quick=True)
+    assert scene.object.kind == "mesh" and scene.object.units == "mm" and scene.object.mesh.exists()
+    result = scene.with_(lift=False).run(cache_dir=tmp_path / "cache")
+    assert 0.05 < result.body.mesh.diameter < 0.15  # metres: the scan's millimetres were converted
+    assert result.outcome == "lift not run", result.reason  # the lift test passes
+    assert 1e-3 < result.squeeze_depth < 0.03

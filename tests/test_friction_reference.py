@@ -1,4 +1,4 @@
-"""The independent frictional-contact reference (verification/ref_*.py) and its comparison with fem_grasp.
+"""The independent frictional-contact reference (verification/friction/) and its comparison with fem_grasp.
 
 * the Alart–Curnier equations' Jacobian against central differences, compiled and numpy versions alike;
 * the surface condensation against a dolfinx Dirichlet solve;
@@ -26,13 +26,20 @@ if str(ROOT) not in sys.path:
 import dolfinx  # noqa: E402,F401  - a hard requirement, as for tests/test_verification.py
 
 from tests.helpers import box_scene_toml  # noqa: E402
-from verification import friction_reference as fr  # noqa: E402
-from verification.ref_contact import FREE, SLIP, STICK, ac_equations, ac_equations_numpy, incremental_residual  # noqa: E402
+from verification.friction import compare as fr  # noqa: E402
+from verification.friction.reference.contact import (  # noqa: E402
+    FREE,
+    SLIP,
+    STICK,
+    ac_equations,
+    ac_equations_numpy,
+    incremental_residual,
+)
 
 pytestmark = pytest.mark.dolfinx
 
 #: Max |Δf| / F_s between fem_grasp and the reference at M = 1 on the box: measured 3.2e-3 (fem_grasp's own
-#: first-order error at its default step, verification/README.md); a wrong cone, gap or slip direction gives O(1).
+#: first-order error at its default step, verification/friction/README.md); a wrong cone, gap or slip direction gives O(1).
 FORCE_AGREEMENT = 1e-2
 #: The reference's own contact-law residuals: its Newton stops at 1e-12 (× diameter, × mg), so these are
 #: round-off of that tolerance; the slip direction is a cosine, 1e-8 is its round-off for slips ~1e-7 L.
@@ -81,8 +88,8 @@ def test_alart_curnier_jacobian_matches_central_differences(which):
 
 def test_condensed_surface_compliance_reproduces_a_dolfinx_dirichlet_solve():
     from fem_grasp import Body, box_mesh
-    from verification.dolfinx_ref import DolfinxModel
-    from verification.ref_body import condense
+    from verification.dolfinx.reference import DolfinxModel
+    from verification.friction.reference.body import condense
 
     mesh = box_mesh((0, 0, 0), (0.04, 0.03, 0.02), (4, 3, 3))
     body = Body(mesh, 5e4, 0.3, weight=1.0)
@@ -188,7 +195,7 @@ def test_the_slip_direction_is_checked_only_where_the_solve_resolves_it(tmp_path
     """Random scene 3 of ``make verify`` (seed 24): the lift test's small load steps slide nodes by 1e-14 to 1e-13
     diameters, below the reference Newton's tolerance (1e-12 diameters), so their directions are noise (1 + cos up
     to 3e-6). The self-check leaves those out; every slip it does check opposes friction to 1e-7."""
-    from verification.friction_random import DEFAULT_SEED, draw, write_draw
+    from verification.friction.random_scenes import DEFAULT_SEED, draw, write_draw
 
     rng = np.random.default_rng(DEFAULT_SEED)
     for k in range(4):  # the draws share one generator: scene 3 is the fourth draw

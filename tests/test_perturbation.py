@@ -1,4 +1,4 @@
-"""Same answer on every machine (verification.perturbation): the quick part of the harness.
+"""Same answer on every machine (verification.roundoff): the quick part of the harness.
 
 The shipped scenes' quick variants, the test box and a small gmsh ellipsoid are picked up in fresh
 processes under round-off perturbations — 1e-12 coordinate jitter, the plain-Python kernels, one and
@@ -9,7 +9,7 @@ tolerance, and pass check() on every snapshot.  ``make verify`` runs the wider s
 
 import pytest
 
-from verification import perturbation as pt
+from verification import roundoff as pt
 
 pytest.importorskip("gmsh")
 

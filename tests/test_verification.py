@@ -1,4 +1,4 @@
-"""fem_grasp against FEniCSx/dolfinx on small meshes (issue #3).
+"""fem_grasp against FEniCSx/dolfinx on small meshes (verification/dolfinx/).
 
 These tests need dolfinx: they fail, rather than skip, when it is missing —
 the cross-check is part of what the project promises.  Only the gmsh-made
@@ -20,11 +20,12 @@ if str(ROOT) not in sys.path:  # `pytest` run without `python -m` does not put t
 import dolfinx  # noqa: E402,F401  - a hard requirement: ImportError must fail the run
 
 from fem_grasp import Body, CollinearContactError, TetMesh, box_mesh, solve_contact  # noqa: E402
-from verification import crosscheck, render  # noqa: E402
-from verification.crosscheck import rel_max_diff, rigid_fields  # noqa: E402
-from verification.dolfinx_ref import DolfinxModel, solve_manufactured  # noqa: E402
-from verification.manufactured import GENERAL_FIELD, solve_fem_grasp_p1  # noqa: E402
-from verification.quadrature import tetrahedron_rule  # noqa: E402
+from verification._common import render  # noqa: E402
+from verification.dolfinx import crosscheck  # noqa: E402
+from verification.dolfinx.crosscheck import rel_max_diff, rigid_fields  # noqa: E402
+from verification.dolfinx.manufactured import GENERAL_FIELD, solve_fem_grasp_p1  # noqa: E402
+from verification.dolfinx.quadrature import tetrahedron_rule  # noqa: E402
+from verification.dolfinx.reference import DolfinxModel, solve_manufactured  # noqa: E402
 
 pytestmark = pytest.mark.dolfinx
 

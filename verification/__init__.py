@@ -1,20 +1,17 @@
-"""Independent verification of :mod:`fem_grasp` (issue #3).
+"""Independent verification of :mod:`fem_grasp`: ``python -m verification STUDY [options]``.
 
-Everything here sits beside the package and imports it, never the other way
-round.  The reference solver is FEniCSx/dolfinx (0.5.x) with PETSc; the
-modules are:
+Everything here sits beside the package and imports it, never the other way round.  One subpackage per
+study, each with a README.md (what it checks, against what, the command):
 
-``dolfinx_ref``   dolfinx mesh, stiffness, gravity and Dirichlet contact solves in
-                  fem_grasp's node-major numbering
-``linalg``        sparse SPD solves through PETSc/MUMPS (scipy fallback)
-``quadrature``    tetrahedron quadrature, P1 load vectors and error norms
-``manufactured``  manufactured-solution convergence (fem_grasp P1, dolfinx P1/P2)
-``crosscheck``    entry-by-entry comparison of fem_grasp with dolfinx on one mesh
-``hertz``         sphere indentation against Hertz theory
-``stability``     Poisson locking, Young's-modulus scaling, near-collinear contacts,
-                  sliver meshes
-``render``        pyvista off-screen pictures
-``plots``         matplotlib figures
-``report``        HTML report
-``run``           ``python -m verification.run [--quick]``
+``dolfinx``        fem_grasp's K, G, strain energies and contact solves against FEniCSx/dolfinx, entry by entry;
+                   manufactured solutions, locking and stability
+``hertz``          a sphere squeezed between rigid planes against Hertz theory
+``roundoff``       the same answer under round-off perturbations
+``random_scenes``  random valid scenes never crash
+``converge``       convergence of the pickup answer under refinement
+``friction``       frictional contact against an independent reference solver
+``softness``       finger forces at lift-off against the rigid grasp (Table III of the paper)
+
+``all`` (:mod:`verification.report`) runs every study into one report; :mod:`verification._common` holds what
+they share (HTML, pictures, running stages).
 """

@@ -49,7 +49,8 @@ from ..grasp.evaluation import SearchSetup, error_row, evaluate, evaluator_for
 from ..grasp.pickup import DEFAULT_FRICTION
 from ..io.cache import cached_rest, rest_code_digest
 from ..io.output import MARKER, add_to_marker, atomic_write_text, json_safe, package_version, prepare_out_dir
-from .store import CSV_FILE, PARQUET_FILE, ResultStore, read_results
+from ..validation import check_finger_friction
+from .store import CSV_FILE, FILE_COLUMNS, PARQUET_FILE, ResultStore, read_results
 
 __all__ = ["MANIFEST", "RANKINGS", "SCHEMA", "SchedulerError", "SearchError", "SearchResult", "rank_table",
            "search"]
@@ -95,6 +96,9 @@ class SearchResult:
     best : folders of the best grasps' full results (``best/01``, …)
     rank_by : the ranking (:data:`RANKINGS`)
     rest_positions : (n, 3) the resting shape the candidates were made on
+    expected_error : the relative error each answer carries (the scene's ``solver.expected_error``: of ρ* and the
+        finger force, one run on its mesh), or None when not stated; ``ranked["within_error"]`` flags the grasps
+        within the combined error of the best (:func:`rank_table`)
     """
 
     table: Any
@@ -109,6 +113,7 @@ class SearchResult:
     best: list[Path] = field(default_factory=list)
     rank_by: str = "force"
     rest_positions: Any = None
+    expected_error: float | None = None
 
     @property
     def n_grasped(self) -> int:
@@ -125,10 +130,18 @@ class SearchResult:
         return int((self.table["status"] == "error").sum())
 
 
-def rank_table(table: Any, by: str = "force") -> Any:
+#: The rankings whose quantity a scene's stated error (``solver.expected_error``: of ρ* and the finger force) covers.
+_STATED = {"force", "squeeze"}
+
+
+def rank_table(table: Any, by: str = "force", error: float | None = None) -> Any:
     """``table`` ranked: the grasps (``grasped``: picked up, or the lift test passed when the lift is not
     simulated) first, best first by :data:`RANKINGS` ``[by]``; then the others by how close they came (margin,
-    largest first); errors last.  Adds ``rank`` (1, 2, … for the grasps, 0 for the rest)."""
+    largest first); errors last.  Adds ``rank`` (1, 2, … for the grasps, 0 for the rest) and
+    ``within_error``: the grasps whose ranking quantity q lies within the combined error of the best one's q₁,
+    |q − q₁| ≤ e (|q| + |q₁|) for the relative error ``e`` each answer carries (the scene's stated
+    ``expected_error`` of ρ* and the finger force), so that the best one itself and every grasp flagged could be
+    the best; all False when the error is not known or does not cover the ranking (``margin``)."""
     if by not in RANKINGS:
         raise SearchError(f"unknown ranking {by!r}; choose one of {sorted(RANKINGS)}")
     col, ascending = RANKINGS[by]
@@ -140,6 +153,13 @@ def rank_table(table: Any, by: str = "force") -> Any:
 
     ranked = pd.concat([ok, rest, err]).reset_index(drop=True)
     ranked.insert(0, "rank", [k + 1 if k < len(ok) else 0 for k in range(len(ranked))])
+    within = [False] * len(ranked)
+    if error is not None and error >= 0 and by in _STATED and len(ok):
+        q = ranked[col].to_numpy(float)
+        q1 = q[0]
+        for k in range(len(ok)):
+            within[k] = bool(abs(q[k] - q1) <= error * (abs(q[k]) + abs(q1))) if error != float("inf") else True
+    ranked["within_error"] = within
     return ranked
 
 
@@ -154,6 +174,7 @@ class _Object:
     finger_radius: float
     down: Any
     settings: dict[str, Any]
+    expected_error: float | None = None
 
 
 _SETTINGS = ("step", "lift_test_step", "max_lift", "lift", "max_lift_attempts", "backend")
@@ -163,13 +184,16 @@ def _object(scene: Any, quick: bool, cache_dir: Path | None, kwargs: dict[str, A
     from ..io.scene import Scene, load_scene, resolve_scene
 
     if isinstance(scene, Body):
-        unknown = set(kwargs) - {"mu_finger", "mu_table", "finger_radius", "max_squeeze", "down", "name", *_SETTINGS}
+        unknown = set(kwargs) - {"mu_finger", "mu_table", "finger_radius", "max_squeeze", "down", "name",
+                                 "expected_error", *_SETTINGS}
         if unknown:
             raise TypeError(f"search() got unexpected keyword arguments {sorted(unknown)}")
-        mu_f = float(kwargs.get("mu_finger", DEFAULT_FRICTION))
+        mu_f = check_finger_friction(kwargs.get("mu_finger", DEFAULT_FRICTION))
         settings = {k: kwargs[k] for k in (*_SETTINGS, "max_squeeze") if k in kwargs}
+        error = kwargs.get("expected_error")
         return _Object(str(kwargs.get("name", "object")), scene, None, mu_f, float(kwargs.get("mu_table", mu_f)),
-                       float(kwargs.get("finger_radius", DEFAULT_RADIUS)), kwargs.get("down"), settings)
+                       float(kwargs.get("finger_radius", DEFAULT_RADIUS)), kwargs.get("down"), settings,
+                       None if error is None else float(error))
     if kwargs:
         raise TypeError(f"search() of a scene takes its settings from the scene; got {sorted(kwargs)}")
     if not isinstance(scene, Scene):
@@ -177,7 +201,7 @@ def _object(scene: Any, quick: bool, cache_dir: Path | None, kwargs: dict[str, A
     settings = {"step": scene.step, "lift_test_step": scene.lift_test_step, "max_lift": scene.max_lift,
                 "lift": scene.lift, "backend": scene.backend, "max_squeeze": scene.max_squeeze}
     return _Object(scene.name + (" (quick)" if scene.quick else ""), scene.body(cache_dir), scene, scene.mu_finger,
-                   scene.mu_table, scene.finger_radius, scene.object.down, settings)
+                   scene.mu_table, scene.finger_radius, scene.object.down, settings, scene.expected_error)
 
 
 # ------------------------------------------------------------------ the engine
@@ -307,11 +331,15 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
     scene : a :class:`~fem_grasp.io.scene.Scene`, a scene file or shipped scene name, or a
         :class:`~fem_grasp.elastic.body.Body` (then ``settings`` give ``mu_finger``, ``mu_table``,
         ``finger_radius``, ``max_squeeze``, ``step``, ``lift_test_step``, ``max_lift``, ``lift``,
-        ``max_lift_attempts``, ``backend``, ``down`` and ``name``, as :func:`~fem_grasp.grasp.pickup` takes them)
+        ``max_lift_attempts``, ``backend``, ``down`` and ``name``, as :func:`~fem_grasp.grasp.pickup` takes them,
+        and ``expected_error``, the relative error of one answer, as a scene's ``solver.expected_error``)
     out : the search folder (results.parquet, results.csv, search.json, report.html, best/), or None
     candidates, heights, azimuths, tilts, ratios, seed, cone : the candidates
         (:func:`~fem_grasp.grasp.candidates.placement_candidates`; angles in degrees)
-    workers : 0 for a plain loop in this process; else the LocalCluster's processes (default: the cores)
+    workers : 0 for a plain loop in this process; else the LocalCluster's processes (default: the cores).  They
+        are spawned, and each imports the calling script: call ``search`` under ``if __name__ == "__main__":``
+        in a script (a call outside it raises :class:`~fem_grasp.errors.MainGuardError` before anything starts;
+        :mod:`fem_grasp.spawn`); the report's pictures are drawn in a spawned process too
     scheduler : the address of a running Dask scheduler ("tcp://HOST:8786") instead of a LocalCluster
     client : a ``dask.distributed.Client`` to use instead (not closed here)
     resume : skip the candidates whose rows ``out`` already holds (the same search: same object, settings
@@ -335,9 +363,18 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
     ------
     SearchError, SchedulerError
         A search that cannot run as asked; a scheduler that cannot be reached.
+    MainGuardError
+        Called from a script's top level outside ``if __name__ == "__main__":`` with worker processes or a
+        report to start (``workers`` ≠ 0, or ``out`` and ``report``).
     """
     t_start = time.perf_counter()
     timings: dict[str, float] = {}
+    local_cluster = workers != 0 and client is None and not scheduler
+    if local_cluster or (out is not None and report):
+        from ..spawn import check_main_guard
+
+        check_main_guard("fem_grasp.search(...)" + (f" with workers={workers}" if local_cluster else " with a report"),
+                         "or run the search in this process with workers=0" + (", report=False" if out else ""))
     cache = None if cache_dir is None else Path(cache_dir)
     if rank not in RANKINGS:
         raise SearchError(f"unknown ranking {rank!r}; choose one of {sorted(RANKINGS)}")
@@ -405,7 +442,9 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
            "created": datetime.datetime.now().isoformat(timespec="seconds"), "identity": identity,
            "object": obj.name, "scene": None if obj.scene is None else obj.scene.to_dict(),
            "request": request, "grid": cset.grid, "valid": cset.valid, "rejected": cset.rejected, "seed": int(seed),
-           "candidates": [c.to_dict() for c in cset], "rank": rank,
+           "candidates": [c.to_dict() for c in cset], "rank": rank, "expected_error": obj.expected_error,
+           "column_units": {f: f.rsplit("_", 1)[1] if f != n or n.endswith("_deg") else ""
+                            for n, (f, _) in FILE_COLUMNS.items()},
            "setup": {"mu_finger": setup.mu_finger, "mu_table": setup.mu_table, "finger_radius": setup.finger_radius,
                      "weight": obj.body.weight, "young": setup.young, "poisson": setup.poisson,
                      "n_nodes": int(len(setup.points)), "rest_contacts": int(len(setup.rest_nodes))}}
@@ -444,17 +483,20 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
         if bar is not None:
             bar.close()
     table = store.table()
-    ranked = rank_table(table, rank)
+    error = obj.expected_error
+    ranked = rank_table(table, rank, error)
     result = SearchResult(table, ranked, cset, setup, engine, outp, timings=timings,
-                          resumed=len(cset) - len(todo), rank_by=rank, rest_positions=rest_state.positions)
+                          resumed=len(cset) - len(todo), rank_by=rank, rest_positions=rest_state.positions,
+                          expected_error=error)
     if outp is not None:
         t0 = time.perf_counter()
-        if best > 0:
-            result.best = _write_best(outp, setup, cset, ranked, int(best), obj.scene)
-        if report:
-            from .report import write_search_report
+        with _render_process(best > 0 or report) as pool:  # one process draws every picture of the search
+            if best > 0:
+                result.best = _write_best(outp, setup, cset, ranked, int(best), obj.scene, pool)
+            if report:
+                from .report import write_search_report
 
-            result.report = write_search_report(outp, result)
+                result.report = write_search_report(outp, result, pool)
         timings["report"] = time.perf_counter() - t0
     timings["total"] = time.perf_counter() - t_start
     if outp is not None:
@@ -464,7 +506,24 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
     return result
 
 
-def _write_best(out: Path, setup: SearchSetup, cset: CandidateSet, ranked: Any, count: int, scene: Any) -> list[Path]:
+@contextlib.contextmanager
+def _render_process(wanted: bool) -> Iterator[Any]:
+    """A :func:`fem_grasp.io.report.render_process` when pictures are wanted and pyvista is there, else None."""
+    try:
+        if not wanted:
+            raise ImportError
+        import pyvista  # noqa: F401
+    except ImportError:
+        yield None
+        return
+    from ..io.report import render_process
+
+    with render_process() as pool:
+        yield pool
+
+
+def _write_best(out: Path, setup: SearchSetup, cset: CandidateSet, ranked: Any, count: int, scene: Any,
+                pool: Any = None) -> list[Path]:
     """The best grasps' full results (result.json, the ParaView series) in ``out/best/01`` …, rerun in this
     process on the shared setup (the same answer as their rows); each with its pickup report when pyvista is there."""
     from ..io.output import write_run
@@ -489,7 +548,7 @@ def _write_best(out: Path, setup: SearchSetup, cset: CandidateSet, ranked: Any, 
 
             from ..io.report import write_report
 
-            write_report(folder)
+            write_report(folder, pool=pool)
         except ImportError:
             log.warning("pyvista is not installed: no pictures for %s", folder)
         folders.append(folder)

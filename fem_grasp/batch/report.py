@@ -16,7 +16,6 @@ from __future__ import annotations
 import html
 import logging
 import math
-import multiprocessing
 import os
 from pathlib import Path
 from typing import Any
@@ -63,8 +62,9 @@ def _point_colours(table: Any) -> list[str]:
 
 
 # ------------------------------------------------------------------ pictures of the object
-def render_candidates(out: Path, result: Any, size: tuple[int, int] = (900, 700)) -> list[Path]:
-    """candidates.png and candidates_top.png (pyvista in a spawned process)."""
+def render_candidates(out: Path, result: Any, size: tuple[int, int] = (900, 700), pool: Any = None) -> list[Path]:
+    """candidates.png and candidates_top.png (pyvista in a spawned process: ``pool``, a
+    :func:`fem_grasp.io.report.render_process`, or a new one)."""
     table = result.table
     pts = np.asarray(result.rest_positions if result.rest_positions is not None else result.setup.points, float)
     lo, hi = _rho_range(table)
@@ -75,9 +75,12 @@ def render_candidates(out: Path, result: Any, size: tuple[int, int] = (900, 700)
            f"{int(table['grasped'].sum())} {_word(result.setup.lift)} (coloured by rho* in mm), grey: not"}
     jobs = [{**job, "path": str(out / "candidates.png"), "view": "oblique"},
             {**job, "path": str(out / "candidates_top.png"), "view": "top"}]
-    ctx = multiprocessing.get_context("spawn")
-    with ctx.Pool(1) as pool:
+    if pool is not None:
         return [Path(p) for p in pool.map(_draw_candidates, jobs)]
+    from ..io.report import render_process
+
+    with render_process() as own:
+        return [Path(p) for p in own.map(_draw_candidates, jobs)]
 
 
 def _draw_candidates(job: dict[str, Any]) -> str:
@@ -116,6 +119,9 @@ def _draw_candidates(job: dict[str, Any]) -> str:
         p.add_mesh(bar, scalars="rho* (mm)", cmap="viridis", point_size=0.0, opacity=0.0,
                    scalar_bar_args={"color": "black", "title": "rho* (mm)", "vertical": False, "position_x": 0.3,
                                     "position_y": 0.03, "height": 0.07, "width": 0.4})
+        from ..io.report import bar_title_above
+
+        bar_title_above(p, "rho* (mm)", 0.3, 0.03 + 0.07, job["size"])
     p.add_text(job["title"], font_size=10, color="black", position="upper_left")
     focal = c.copy()
     if job["view"] == "top":
@@ -230,7 +236,9 @@ def _g(x: Any, scale: float = 1.0, fmt: str = ".3g") -> str:
     return "—" if not math.isfinite(v) else format(v * scale, fmt)
 
 
-_TABLE = (("rank", "rank", None), ("candidate", "#", None), ("node_i", "p_i", None), ("node_j", "p_j", None),
+#: The ranked table: (column, header with its unit and the result files' column name, factor from SI or None).
+_TABLE = (("rank", "rank", None), ("within_error", "≈ best", None), ("candidate", "#", None),
+          ("node_i", "p_i", None), ("node_j", "p_j", None),
           ("azimuth_deg", "azimuth (°)", 1.0), ("tilt_deg", "tilt (°)", 1.0), ("ratio", "s", 1.0),
           ("height", "height (mm)", 1e3), ("outcome", "verdict", None), ("rho_star", "ρ* (mm)", 1e3),
           ("margin", "w/mg", 1.0), ("liftable_max", "w max (N)", 1.0), ("grip1", "grip 1 (N)", 1.0),
@@ -239,16 +247,39 @@ _TABLE = (("rank", "rank", None), ("candidate", "#", None), ("node_i", "p_i", No
 
 
 def _table_html(ranked: Any) -> str:
-    head = "".join(f"<th>{html.escape(t)}</th>" for _, t, _ in _TABLE)
+    from .store import FILE_COLUMNS
+
+    head = "".join(f'<th title="{html.escape(FILE_COLUMNS[c][0]) if c in FILE_COLUMNS else ""}">{html.escape(t)}</th>'
+                   for c, t, _ in _TABLE)
     rows = []
     for _, r in ranked.iterrows():
         cells = []
         for col, _, scale in _TABLE:
-            v = r[col]
+            v = r.get(col, "")
+            if col == "within_error":
+                cells.append("<td>≈</td>" if v is True or v == 1 else "<td></td>")
+                continue
             cells.append(f"<td>{_g(v, scale) if scale is not None else html.escape(str(v))}</td>")
-        cls = "ok" if r["grasped"] else ("err" if r["status"] != "ok" else "no")
+        cls = ("ok near" if r.get("within_error", False) else "ok") if r["grasped"] else \
+            ("err" if r["status"] != "ok" else "no")
         rows.append(f'<tr class="{cls}">{"".join(cells)}</tr>')
     return f"<table class=\"ranked\"><tr>{head}</tr>{''.join(rows)}</table>"
+
+
+def _error_note(result: Any) -> str:
+    """What the ≈ marks mean for this search (the scene's stated error), in a sentence."""
+    e = getattr(result, "expected_error", None)
+    if e is None:
+        return ("No error is stated for this scene (<code>solver.expected_error</code>), so which grasps are as good "
+                "as the best one within the accuracy of this mesh is not known.")
+    if result.rank_by not in ("force", "squeeze"):
+        return "The stated error covers ρ* and the finger force, not w/mg: no grasp is marked ≈."
+    if not math.isfinite(e):
+        return ("≈ within error of the best: the scene states that one run on this mesh may even give the wrong "
+                "verdict, so every grasp is marked: any of them may be the best.")
+    return (f"≈ within error of the best: grasps whose ranking quantity lies within the combined error of the best "
+            f"one's (the scene states ±{100 * e:.3g} % for ρ* and the finger force of one run on this mesh): "
+            "as good as the best as far as this mesh can tell.")
 
 
 def _best_html(out: Path, result: Any) -> str:
@@ -263,8 +294,9 @@ def _best_html(out: Path, result: Any) -> str:
         pic = f'<img src="{rel}/lifted.png" alt="grasp {rank} lifted">' if (folder / "lifted.png").exists() else ""
         link = (f'<a href="{rel}/report.html">its pickup report</a>' if (folder / "report.html").exists()
                 else f'<a href="{rel}/result.json">result.json</a>')
+        near = " (≈ within error of the best)" if rank > 1 and r.get("within_error", False) else ""
         parts.append(
-            f"<figure>{pic}<figcaption><b>Grasp {rank}</b> (candidate {int(r['candidate'])}): nodes "
+            f"<figure>{pic}<figcaption><b>Grasp {rank}</b>{near} (candidate {int(r['candidate'])}): nodes "
             f"{int(r['node_i'])} and {int(r['node_j'])}, azimuth {r['azimuth_deg']:.1f}°, tilt {r['tilt_deg']:.1f}°, "
             f"s = {r['ratio']:g}, {1e3 * r['height']:.3g} mm above the table. {_word(result.setup.lift).capitalize()} at ρ* = "
             f"{1e3 * r['rho_star']:.3g} mm; grip {r['grip1']:.3g} and {r['grip2']:.3g} N, Σ f·n̂ "
@@ -307,7 +339,7 @@ def _html(out: Path, result: Any, pictures: list[str]) -> str:
 body {{ font-family: system-ui, sans-serif; max-width: 1200px; margin: 2em auto; color: #222; }}
 table {{ border-collapse: collapse; margin: 1em 0; font-size: 13px; }} th, td {{ border: 1px solid #ccc; padding: 2px 6px; text-align: left; }}
 th {{ background: #f4f4f4; }} figure {{ margin: 1.5em 0; }} img {{ max-width: 100%; border: 1px solid #ddd; }}
-tr.no td {{ color: #777; }} tr.err td {{ color: #a00; }} code {{ background: #f4f4f4; padding: 1px 4px; }}
+tr.no td {{ color: #777; }} tr.err td {{ color: #a00; }} tr.near td {{ background: #eef6ee; }} code {{ background: #f4f4f4; padding: 1px 4px; }}
 </style></head><body>
 <h1>Where to grasp the {html.escape(s.name)}</h1>
 <p>Algorithm 1 of <i>Picking up Soft 3D Objects with Two Fingers</i> for every candidate placement: two fingertips
@@ -322,23 +354,25 @@ squeeze along (d̂₁, s d̂₂) from the initial contacts p_i, p_j, with the li
 {_best_html(out, result)}
 <h2>Every candidate, ranked</h2>
 <p>Grasps ({html.escape(_word(s.lift))}) first, ranked by {html.escape(result.rank_by)}; then the others by how close the
-lift test came (w/mg), with their reason; errors last.</p>
+lift test came (w/mg), with their reason; errors last. {_error_note(result)} Lengths in mm, forces in N (the result
+files name each column with its unit: <code>height_mm</code>, <code>rho_star_mm</code>, <code>grip1_N</code>, …).</p>
 {_table_html(result.ranked)}
 </body></html>
 """
 
 
-def write_search_report(out: str | Path, result: Any) -> Path:
+def write_search_report(out: str | Path, result: Any, pool: Any = None) -> Path:
     """Render the pictures and ``report.html`` of a search (a :class:`~fem_grasp.batch.engine.SearchResult`) into
     its folder ``out``; return the HTML path.  Without pyvista the pictures of the object are left out, without
-    matplotlib the report has no plots and no colours."""
+    matplotlib the report has no plots and no colours.  ``pool``: a :func:`fem_grasp.io.report.render_process`
+    to draw in (default: a new one)."""
     out = Path(out)
     pictures: list[str] = []
     if len(result.table):
         try:
             import pyvista  # noqa: F401
 
-            render_candidates(out, result)
+            render_candidates(out, result, pool=pool)
             pictures += ["candidates.png", "candidates_top.png"]
         except ImportError:
             log.warning("pyvista is not installed: the search report has no pictures of the object")

@@ -298,7 +298,7 @@ class Compliance:
         self._free_position = np.where(free, np.cumsum(free) - 1, -1)  # each DOF's row in K_g (−1: grounded)
         self.solver = choose_solver(solver)
         kff = _remove_dofs(stiffness, self.ground)
-        # verification.linalg swaps `factorize` for a one-argument MUMPS variant: call it that way by default.
+        # verification.dolfinx.linalg swaps `factorize` for a one-argument MUMPS variant: call it that way by default.
         self._solve = factorize(kff) if solver is None else factorize(kff, self.solver)
         if rows is None:
             self.kept_nodes: np.ndarray | None = None

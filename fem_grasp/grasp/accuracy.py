@@ -302,7 +302,7 @@ class AccuracyReport:
         e = self.estimated_error
         return (f"target {100 * self.target:g} %: estimated error rho* {_pct(e.get('squeeze_depth'))}, finger force "
                 f"{_pct(e.get('finger_force'))} ({len(self.levels)} levels, "
-                f"{'converged' if self.converged else 'NOT converged'})")
+                f"{'converged' if self.converged else 'error estimate above the target'})")
 
 
 def _pct(x: float | None) -> str:

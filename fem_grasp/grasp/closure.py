@@ -164,8 +164,14 @@ def force_closure(points: np.ndarray, normals: np.ndarray, mu: np.ndarray, cente
         return ClosureResult(closed, margin, quality, rank, reason, points, normals, mu_arr)
 
     if rank < 6:
-        reason = (f"the {k} primitive contact wrenches span only {rank} of the 6 wrench dimensions "
-                  f"(frictionless contacts, or too few of them)")
+        frictionless = np.flatnonzero(mu_arr == 0)
+        why = (f"contact{'s' if len(frictionless) > 1 else ''} {', '.join(str(int(i) + 1) for i in frictionless)} of "
+               f"{len(points)} {'are' if len(frictionless) > 1 else 'is'} frictionless (μ = 0) and push"
+               f"{'' if len(frictionless) > 1 else 'es'} only along {'their' if len(frictionless) > 1 else 'its'} "
+               "normal" if len(frictionless) else "too few contacts, or contacts in line")
+        reason = (f"the contacts can resist only {rank} of the 6 independent directions of force and torque "
+                  f"(the {k} edges of their friction cones span {rank} of the 6 wrench dimensions), so some push or "
+                  f"twist of the object goes unresisted: {why}")
         return result(False, 0.0, 0.0, reason)
     # Variables (λ_1 … λ_k, t): maximise t.
     c = np.zeros(k + 1)
@@ -179,8 +185,9 @@ def force_closure(points: np.ndarray, normals: np.ndarray, mu: np.ndarray, cente
     b_ub = np.zeros(k)
     bounds = [(0.0, None)] * k + [(None, 1.0)]
     lp = linprog(c, A_ub=a_ub, b_ub=b_ub, A_eq=a_eq, b_eq=b_eq, bounds=bounds, method="highs")
-    no_combination = ("no strictly positive combination of the contact wrenches vanishes: some external wrench "
-                      "cannot be resisted (the friction cones are too narrow or badly placed)")
+    no_combination = ("the contact forces the friction cones allow cannot balance every push and twist: some force "
+                      "or torque on the object would go unresisted (no strictly positive combination of the contact "
+                      "wrenches vanishes; the friction cones are too narrow or badly placed)")
     if lp.status == 2:  # infeasible: not even a non-negative combination vanishes
         return result(False, 0.0, 0.0, no_combination)
     if lp.status != 0:
@@ -223,4 +230,12 @@ def placement_closure(body, positions: np.ndarray, finger_nodes: tuple[int, int]
     points = np.stack([p[i], p[j], centre])
     normals = np.stack([-out[i], -out[j], up / np.linalg.norm(up)])
     com = (body.mesh.volumes @ p[body.mesh.tets].mean(axis=1)) / body.mesh.volume
-    return force_closure(points, normals, [mu_finger, mu_finger, mu_table], com, edges=edges)
+    res = force_closure(points, normals, [mu_finger, mu_finger, mu_table], com, edges=edges)
+    if not res.closed and mu_table == 0 and mu_finger > 0:
+        from dataclasses import replace
+
+        # two point contacts resist no torque about the line between them; only table friction could
+        res = replace(res, reason=res.reason + "; the table is frictionless (μ_P = 0), and two fingertips touching "
+                                               "at points cannot stop the object turning about the line between "
+                                               "them without the table's friction")
+    return res

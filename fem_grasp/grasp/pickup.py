@@ -82,7 +82,7 @@ from ..contact.obstacles import DEFAULT_RADIUS, FINGER1, FINGER2, OBSTACLES, TAB
 from ..contact.tracking import ContactEvent, ContactState, Tracker
 from ..elastic.body import Body
 from ..errors import ContactNodeError, PickupCheckError, PlacementError, SceneError, TrackingError
-from ..validation import check_friction, check_positive
+from ..validation import check_finger_friction, check_friction, check_positive
 from . import placement
 from .checks import contact_law_figures
 from .closure import ClosureResult, placement_closure
@@ -449,6 +449,8 @@ def default_finger_contacts(rest_state: RestState, direction: np.ndarray, mu_fin
     table_z = rest_state.table_z
     clearance = max(0.1 * radius, abs(float(direction[2])) * (max_squeeze or 0.0))
     tried: set[tuple[int, int]] = set()
+    # how many candidates pass each condition in turn (the message when none passes all of them)
+    n_clear = n_outside = n_closed = 0
     last: ClosureResult | None = None
     best: tuple[float, int, tuple[int, int], ClosureResult] | None = None
     first: tuple[tuple[int, int], ClosureResult] | None = None
@@ -466,15 +468,18 @@ def default_finger_contacts(rest_state: RestState, direction: np.ndarray, mu_fin
         centers = pos[list(ij)] + radius * out[list(ij)]
         if (centers[:, 2] - radius - table_z).min() < clearance:
             continue
+        n_clear += 1
         try:
             check_finger_placement(pos, mesh.surface_nodes, centers, radius, contact_nodes=ij, normals=out,
                                    directions=velocities)
         except PlacementError:
             continue
+        n_outside += 1
         closure = placement_closure(body, pos, ij, rest_state.support_triangle, mu_finger, mu_table)
         last = closure
         if not closure.closed:
             continue
+        n_closed += 1
         grasp = rigid_grasp(pos[list(ij)], -out[list(ij)], com_point, body.weight, mu_finger)
         if rule == "centre-of-mass-height":
             if grasp.feasible:
@@ -489,8 +494,38 @@ def default_finger_contacts(rest_state: RestState, direction: np.ndarray, mu_fin
         return first
     if best is not None:
         return best[2], best[3]
-    raise ValueError("no finger placement along the squeeze direction clears the table, starts outside the object "
-                     "and is force closure" + (f" (last tried: {last.reason})" if last is not None else ""))
+    raise ValueError(_no_placement_message(len(tried), n_clear, n_outside, n_closed, clearance, radius, height,
+                                           last))
+
+
+def _no_placement_message(n: int, n_clear: int, n_outside: int, n_closed: int, clearance: float, radius: float,
+                          height: float, last: ClosureResult | None) -> str:
+    """Why :func:`default_finger_contacts` found no placement: how many candidates passed each condition in turn
+    (clear of the table, outside the object, force closure), and what to change."""
+    if n == 0:
+        return ("no finger placement is valid: no two surface nodes lie at opposite extremes along the squeeze "
+                "direction at any height of the object; try another squeeze direction (fingers.directions)")
+    mm = 1e3
+    parts = [f"of {n} candidate placement{'s' if n != 1 else ''} (the surface nodes extreme along the squeeze "
+             f"direction, at heights stepped by 2.5 % of the object's {height * mm:.3g} mm height), {n_clear} "
+             f"clear{'s' if n_clear == 1 else ''} the table by {clearance * mm:.3g} mm with a {radius * mm:.3g} mm "
+             "fingertip radius"]
+    hints: list[str] = []
+    if n_clear < n:
+        hints += [f"a smaller fingertip (fingers.radius, now {radius * mm:.3g} mm)",
+                  "squeeze directions tilted less downward or a smaller solver.max_squeeze"]
+    if n_clear:
+        parts.append(f"of these, {n_outside} start{'s' if n_outside == 1 else ''} outside the object without "
+                     "touching the other fingertip")
+        if n_outside < n_clear:
+            hints += [f"a smaller fingertip (fingers.radius, now {radius * mm:.3g} mm)",
+                      "another squeeze direction (fingers.directions)"]
+    if n_outside:
+        parts.append(f"of these, {n_closed} {'is' if n_closed == 1 else 'are'} force closure" + (f" (the last: {last.reason})" if last is not None and not last.closed else ""))
+        if n_closed < n_outside:
+            hints += ["more friction at the fingers (friction.finger)", "another squeeze direction (fingers.directions)"]
+    hints = list(dict.fromkeys(hints))
+    return "no finger placement is valid: " + "; ".join(parts) + (". Try " + ", or ".join(hints) if hints else "")
 
 
 def _initial_stiffness(tracker: Tracker, placed: ContactState, velocities: np.ndarray) -> float:
@@ -568,7 +603,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
                                 lift_test_step=lift_test_step, max_lift=max_lift, lift=lift,
                                 max_lift_attempts=max_lift_attempts, placement_rule=placement_rule)
     t_start = time.perf_counter()
-    mu_f = check_friction(DEFAULT_FRICTION if mu_finger is None else mu_finger, "mu_finger")
+    mu_f = check_finger_friction(DEFAULT_FRICTION if mu_finger is None else mu_finger, "mu_finger")
     mu_t = mu_f if mu_table is None else check_friction(mu_table, "mu_table")
     finger_radius = check_positive(finger_radius, "the fingertip radius R", "metres", SceneError)
     if not ratio >= 0:
@@ -597,7 +632,8 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
             ij, closure = default_finger_contacts(rs, d1, mu_f, mu_t, finger_radius, np.stack([d1, ratio * d2]),
                                                   rule=placement_rule, max_squeeze=max_squeeze)
         except ValueError as exc:
-            result.reason = f"no initial finger placement: {exc}"
+            result.reason = str(exc) if str(exc).startswith("no finger placement") else \
+                f"no initial finger placement: {exc}"
             result.outcome = "no placement"
             timings["closure"] = time.perf_counter() - t0
             timings["total"] = time.perf_counter() - t_start

@@ -11,7 +11,10 @@ Pictures (PNG, beside report.html):
   object (one length scale; red on the fingers, blue on the table); every
   contact node is a dot, green when it sticks and orange when it slides, with
   a legend.  The fingertips are drawn translucent, so that the arrows and
-  dots on their patches show through them.  After a successful pickup
+  dots on their patches show through them.  The camera looks across the
+  squeeze axis from 30° above (:func:`view_direction`), the same for the
+  three pictures, so that neither fingertip is behind the object.  After a
+  successful pickup
   ``lifted.png`` shows the object and the fingers raised a further
   :data:`LIFTED_CLEARANCE` × the object's height above the lift-off state, off
   the table: once the table lets go, raising the fingers moves the hanging
@@ -29,26 +32,27 @@ Pictures (PNG, beside report.html):
 
 The 3D views are rendered off-screen with pyvista in a freshly *spawned*
 process (VTK aborts in a process that has loaded dolfinx; see
-``verification/render.py``), from plain arrays read back from the time series.
+``verification/_common/render.py``), from plain arrays read back from the time series.
 Nothing here runs unless a report is asked for (``fem-grasp run --report``
 or ``fem-grasp report DIR``).
 """
 
 from __future__ import annotations
 
+import contextlib
 import html
 import logging
 import multiprocessing
 import os
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 import numpy as np
 
 from .output import MARKER, add_to_marker, atomic_write_text, read_result
 
-__all__ = ["COLOURINGS", "LIFTED_CLEARANCE", "PICTURES", "plot_liftable", "plot_patches", "plot_timeline",
-           "render_frames", "render_views", "write_report"]
+__all__ = ["COLOURINGS", "LIFTED_CLEARANCE", "PICTURES", "VIEW_ELEVATION", "bar_title_above", "plot_liftable", "plot_patches",
+           "plot_timeline", "render_frames", "render_process", "render_views", "view_direction", "write_report"]
 
 log = logging.getLogger(__name__)
 
@@ -119,15 +123,71 @@ def _centres(doc: dict[str, Any], frame: dict[str, Any]) -> np.ndarray | None:
     return None
 
 
+@contextlib.contextmanager
+def render_process() -> Iterator[Any]:
+    """One spawned process for several reports' 3-D pictures (module notes): pass it as ``pool`` to
+    :func:`write_report` (a placement search draws its best grasps and its candidates in one), saving each
+    report the start of a process and of VTK's renderer (about 3 s)."""
+    from ..spawn import check_main_guard
+
+    check_main_guard("rendering a report's pictures (pyvista, in a spawned process)")
+    ctx = multiprocessing.get_context("spawn")
+    with ctx.Pool(1) as pool:
+        yield pool
+
+
+def _map(pool: Any, fn: Any, jobs: list[dict[str, Any]]) -> list[Any]:
+    """``fn`` over ``jobs`` in ``pool``, or in a freshly spawned process when ``pool`` is None."""
+    if pool is not None:
+        return pool.map(fn, jobs)
+    with render_process() as own:
+        return own.map(fn, jobs)
+
+
+#: How far (degrees) the 3D views look down from the horizontal.
+VIEW_ELEVATION = 30.0
+
+
+def view_direction(centres: Any, elevation: float = VIEW_ELEVATION) -> np.ndarray:
+    """The unit vector from the object towards the camera of the 3D views: perpendicular to the line between
+    the two fingertip centres (so that neither fingertip nor its contact patch is behind the object: they are
+    seen left and right of it), tilted ``elevation`` degrees up from the horizontal (the camera looks down on
+    the object).  Without centres (no fingers placed) an oblique view from +x, +y."""
+    up = np.array([0.0, 0.0, 1.0])
+    if centres is None:
+        v = np.array([1.0, 0.3, 0.4])
+        return v / np.linalg.norm(v)
+    c = np.asarray(centres, float)
+    axis = c[1] - c[0]
+    n = float(np.linalg.norm(axis))
+    if not n > 0:
+        axis, n = np.array([0.0, 1.0, 0.0]), 1.0
+    u = axis / n
+    vertical = up - (up @ u) * u  # "up" within the plane perpendicular to the axis
+    if np.linalg.norm(vertical) < 1e-6:  # fingers one above the other: any horizontal view will do
+        vertical = np.array([1.0, 0.0, 0.0]) - u[0] * u
+    vertical /= np.linalg.norm(vertical)
+    side = np.cross(u, vertical)  # horizontal-ish, perpendicular to the axis
+    if side @ np.array([1.0, 0.3, 0.0]) < 0:  # of the two sides, the one nearer the usual oblique view
+        side = -side
+    t = np.radians(elevation)
+    v = np.cos(t) * side + np.sin(t) * vertical
+    return v / np.linalg.norm(v)
+
+
 def render_views(out: Path, doc: dict[str, Any], size: tuple[int, int] = (1000, 760),
-                 colour: str = "von_mises") -> list[dict[str, Any]]:
+                 colour: str = "von_mises", pool: Any = None) -> list[dict[str, Any]]:
     """Render rest.png, lift_start.png and lifted.png into ``out`` (in a spawned process, module notes).
 
     ``colour`` is a key of :data:`COLOURINGS`.  Returns, per picture, what was drawn: ``path``, ``lift_offset``
     (m, how far ``lifted.png`` is drawn above the computed lift-off state), ``table_gap`` (m, the drawn object's
-    lowest point above the table), ``arrows`` (per finger-force arrow: its node, tip and tail in 3D and
-    ``head_px``, the middle of its head in pixels from the top left, and ``length`` in metres), ``fingertips`` (centre and radius), ``legend`` (its labels), ``n_stick`` and
-    ``n_slip`` (contact dots of each colour), ``colour`` (the scalar bar's title) and ``clim``.
+    lowest point above the table), ``arrows`` (per finger-force arrow: its node, tip and tail in 3D,
+    ``head_px`` and ``shaft_px``, the middle of its head and a point of its shaft in pixels from the top left, and
+    ``length`` in metres), ``fingertips`` (centre and radius), ``legend`` (its labels), ``n_stick`` and
+    ``n_slip`` (contact dots of each colour), ``colour`` (the scalar bar's title), ``clim``, ``camera`` and
+    ``focal`` (the camera's position and focal point, :func:`view_direction`), ``title`` and ``note`` (the
+    picture's heading and its small print).  ``pool``: a
+    :func:`render_process` to draw in (default: a new one).
     """
     if colour not in COLOURINGS:
         raise ValueError(f"colour must be one of {', '.join(COLOURINGS)}, got {colour!r}")
@@ -161,28 +221,38 @@ def render_views(out: Path, doc: dict[str, Any], size: tuple[int, int] = (1000, 
         offsets.append(LIFTED_CLEARANCE * height if lifted else 0.0)
     allp = np.vstack([d["points"] + [0.0, 0.0, o] for d, o in zip(data, offsets)])
     fmax = max(float(np.linalg.norm(d["force"], axis=1).max()) for d in data)
+    # One camera for the three pictures, perpendicular to the squeeze axis (the lift start's fingertips, or the
+    # first placed ones), so that the pictures compare and both fingertips are seen.
+    centres = [_centres(doc, f) for _, _, f in picks]
+    axis_centres = next((c for c in (centres[1], centres[0], centres[2]) if c is not None), None)
+    view = view_direction(axis_centres)
     jobs = []
-    for (name, title, frame), d, v, off in zip(picks, data, values, offsets):
-        note = (f"drawn {1e3 * off:.3g} mm above the lift-off state (raising the fingers further moves the "
-                "hanging object rigidly)" if off else "")
+    name_of = doc["scene"]["name"] if doc.get("scene") else "object"
+    for (name, title, frame), d, v, off, cen in zip(picks, data, values, offsets, centres):
+        rho, lift = 1e3 * frame["squeeze_depth"], 1e3 * frame["lift_height"]
+        if off:  # the lifted picture: the computed lift-off state, raised further (a rigid move) to be seen
+            head = f"{name_of}: {title}   rho = {rho:.3g} mm, fingers raised {lift + 1e3 * off:.3g} mm"
+            note = (f"the table let go at {lift:.3g} mm; drawn {1e3 * off:.3g} mm higher to show the gap (the "
+                    "hanging object moves rigidly)")
+        else:
+            head = (f"{name_of}: {title}   rho = {rho:.3g} mm" + (f", fingers raised {lift:.3g} mm" if lift > 0
+                                                                 else ""))
+            note = ""
         jobs.append({
             **d, "values": v, "label": label, "clim": (lo_v, max(top, 1e-12)), "log_scale": log_scale,
-            "offset": off, "note": note,
+            "offset": off, "note": note, "view": view,
             "path": str(out / name), "size": tuple(size),
-            "title": (f"{doc['scene']['name'] if doc.get('scene') else 'object'}: {title}   "
-                      f"rho = {1e3 * frame['squeeze_depth']:.3g} mm, lift = {1e3 * frame['lift_height']:.3g} mm"),
-            "centers": _centres(doc, frame), "radius": float(res["finger_radius"]),
+            "title": head,
+            "centers": cen, "radius": float(res["finger_radius"]),
             "directions": np.asarray(res["directions"], float), "table_z": table_z,
             "lo": allp.min(axis=0), "hi": allp.max(axis=0), "fmax": fmax})
-    ctx = multiprocessing.get_context("spawn")
-    with ctx.Pool(1) as pool:
-        return pool.map(_draw_frame, jobs)
+    return _map(pool, _draw_frame, jobs)
 
 
 def render_frames(out: Path, doc: dict[str, Any], size: tuple[int, int] = (1000, 760),
-                  colour: str = "von_mises") -> list[Path]:
+                  colour: str = "von_mises", pool: Any = None) -> list[Path]:
     """Render rest.png, lift_start.png, lifted.png into ``out``; their paths (:func:`render_views`)."""
-    return [Path(v["path"]) for v in render_views(out, doc, size, colour)]
+    return [Path(v["path"]) for v in render_views(out, doc, size, colour, pool)]
 
 
 # ------------------------------------------------------------------ child side
@@ -192,6 +262,15 @@ def _pyvista() -> Any:
 
     pv.OFF_SCREEN = True
     return pv
+
+
+def bar_title_above(p: Any, title: str, x: float, top: float, size: Any) -> None:
+    """Move a horizontal scalar bar's title above its tick labels (VTK centres it over the bar, where it overlaps
+    the middle label): the bar's own title is blanked and the same words written a line higher, left-aligned."""
+    bar = p.scalar_bars[title]
+    bar.SetTitle("")
+    width, height = (int(v) for v in size)
+    p.add_text(title, position=(int(x * width), int(top * height) + 6), font_size=10, color="black")
 
 
 def _draw_frame(job: dict[str, Any]) -> dict[str, Any]:
@@ -220,6 +299,7 @@ def _draw_frame(job: dict[str, Any]) -> dict[str, Any]:
                scalar_bar_args={"color": "black", "title": label, "vertical": False, "position_x": 0.06,
                                 "position_y": 0.03, "height": 0.07, "width": 0.5, "fmt": "%.3g",
                                 "title_font_size": 14, "label_font_size": 12})
+    bar_title_above(p, label, 0.06, 0.03 + 0.07, job["size"])
     # Table, and the object's shadow straight below it (so that a lifted object is seen off the table).
     c = 0.5 * (lo + hi)
     span = 1.4 * float(max(hi[0] - lo[0], hi[1] - lo[1]))
@@ -280,23 +360,24 @@ def _draw_frame(job: dict[str, Any]) -> dict[str, Any]:
     if job["note"]:
         lines.append(job["note"])
     p.add_text("\n".join(lines), font_size=8, color="#333333", position=(12, int(job["size"][1]) - 70))
-    # One camera for every picture: oblique, fingers left and right.
+    # One camera for every picture (view_direction): perpendicular to the squeeze axis, looking down.
     focal = c.copy()
-    view = np.array([1.0, 0.3, 0.4])
-    view /= np.linalg.norm(view)
-    p.camera_position = [tuple(focal + 2.6 * diam * view), tuple(focal), (0.0, 0.0, 1.0)]
+    view = np.asarray(job["view"], float)
+    camera = focal + 2.6 * diam * view
+    p.camera_position = [tuple(camera), tuple(focal), (0.0, 0.0, 1.0)]
     p.camera.view_angle = 30.0
     final = Path(job["path"])
     tmp = final.with_name(f".{final.stem}.{os.getpid()}.tmp.png")
     try:
         p.screenshot(str(tmp))
         ren = p.renderer
-        for a in arrows:  # where each arrowhead is on the picture (its middle, 20 % of the arrow behind the tip)
-            tip, tail = np.asarray(a["tip"]), np.asarray(a["tail"])
-            ren.SetWorldPoint(*(tip - 0.2 * (tip - tail)), 1.0)
-            ren.WorldToDisplay()
-            x, y, _ = ren.GetDisplayPoint()
-            a["head_px"] = [float(x), float(height_px - y)]
+        for a in arrows:  # where each arrowhead (its middle, 20 % of the arrow behind the tip) and shaft (40 % from
+            tip, tail = np.asarray(a["tip"]), np.asarray(a["tail"])  # the tail) are on the picture
+            for key, q in (("head_px", tip - 0.2 * (tip - tail)), ("shaft_px", tail + 0.4 * (tip - tail))):
+                ren.SetWorldPoint(*q, 1.0)
+                ren.WorldToDisplay()
+                x, y, _ = ren.GetDisplayPoint()
+                a[key] = [float(x), float(height_px - y)]
         os.replace(tmp, final)
     finally:
         p.close()
@@ -304,7 +385,8 @@ def _draw_frame(job: dict[str, Any]) -> dict[str, Any]:
     return {"path": str(final), "lift_offset": float(job["offset"]),
             "table_gap": float(pts[:, 2].min() - job["table_z"]), "arrows": arrows, "fingertips": fingertips,
             "legend": [n for n, _ in legend], "n_stick": counts[1], "n_slip": counts[2], "colour": label,
-            "clim": [float(x) for x in job["clim"]]}
+            "clim": [float(x) for x in job["clim"]], "camera": camera.tolist(), "focal": focal.tolist(),
+            "title": job["title"], "note": job["note"]}
 
 
 # ------------------------------------------------------------------ plots
@@ -475,6 +557,23 @@ def _row(k: str, v: Any) -> str:
     return f"<tr><th>{html.escape(k)}</th><td>{html.escape(str(v))}</td></tr>"
 
 
+def _accuracy_state(acc: dict[str, Any]) -> str:
+    """The accuracy of an answer in plain words: converged to its target, one run on its mesh, or an error
+    estimate above the target."""
+    target = acc.get("target")
+    goal = "" if target is None or not np.isfinite(target) else f"{100 * target:g} %"
+    if acc["converged"]:
+        return f"converged to {goal}" if goal else "converged"
+    if len(acc["levels"]) == 1:
+        e = (acc.get("estimated_error") or {}).get("squeeze_depth")
+        if not acc.get("expected_error_stated", True) or e is None:
+            return "one run on this mesh, its error not known"
+        if not np.isfinite(e):
+            return "one run on this mesh, whose verdict may differ from a finer mesh's"
+        return f"one run on this mesh, within about {100 * e:.2g} % (the scene's convergence study)"
+    return f"the error estimate is above the requested {goal}" if goal else "the error estimate is above the target"
+
+
 def _accuracy_html(acc: dict[str, Any] | None) -> str:
     """The levels of ``pickup(..., accuracy=...)`` (:func:`fem_grasp.grasp.accuracy.converged_pickup`), as a table."""
     if not acc:
@@ -491,9 +590,7 @@ def _accuracy_html(acc: dict[str, Any] | None) -> str:
         f"<td>{lv['finger_force']:.4g}</td>"
         f"<td>{lv['finger_nodes'][0]} / {lv['finger_nodes'][1]} / {lv['table_nodes']}</td>"
         f"<td>{change(lv)}</td><td>{lv['seconds'] + lv['mesh_seconds']:.1f}</td></tr>" for lv in acc["levels"])
-    target = acc.get("target")
-    head = "" if target is None else f" (target {100 * target:g} %)"
-    return (f"<h2>Accuracy: {'converged' if acc['converged'] else 'NOT converged'}{head}</h2>"
+    return (f"<h2>Accuracy: {html.escape(_accuracy_state(acc))}</h2>"
             f"<p>{html.escape(acc.get('note', ''))}. Each level remeshes "
             f"{html.escape(acc.get('geometry', '') or 'the object')} with half the spacing at the contact patches and "
             "halves the squeeze increment and the lift-test step h; the estimated error is the difference of the last "
@@ -535,11 +632,10 @@ def _html(doc: dict[str, Any]) -> str:
     if doc.get("accuracy"):
         acc = doc["accuracy"]
         e = acc["estimated_error"]
-        pct = lambda x: "unknown" if x is None else f"{100 * x:.2g} %"  # noqa: E731
-        target = "one run" if acc.get("target") is None else f"target {100 * acc['target']:g} %"
-        rows.insert(5, _row("accuracy", f"{target}: estimated error of ρ* {pct(e.get('squeeze_depth'))}, of the "
-                                        f"finger force {pct(e.get('finger_force'))}"
-                                        f" — {'converged' if acc['converged'] else 'NOT converged'}"))
+        pct = lambda x: "unknown" if x is None or not np.isfinite(x) else f"{100 * x:.2g} %"  # noqa: E731
+        rows.insert(5, _row("accuracy", f"{_accuracy_state(acc)}: estimated error of ρ* "
+                                        f"{pct(e.get('squeeze_depth'))}, of the finger force "
+                                        f"{pct(e.get('finger_force'))}"))
     lifted = ("At the end: lifted off the table, drawn a little above the lift-off state (raising the fingers "
               "further moves the hanging object rigidly)." if ok else "At the end: where the pickup stopped.")
     pics = {
@@ -600,10 +696,11 @@ the time value is the finger path (m: ρ, then ρ + lift height); colour by <cod
 """
 
 
-def write_report(out: str | Path, colour: str = "von_mises") -> Path:
+def write_report(out: str | Path, colour: str = "von_mises", pool: Any = None) -> Path:
     """Render the pictures and ``report.html`` into the output folder ``out``; return the HTML path.
 
-    ``colour``: what the 3D views are coloured by, a key of :data:`COLOURINGS`.
+    ``colour``: what the 3D views are coloured by, a key of :data:`COLOURINGS`; ``pool``: a
+    :func:`render_process` to draw the 3D views in (default: a new one).
 
     Raises
     ------
@@ -618,7 +715,7 @@ def write_report(out: str | Path, colour: str = "von_mises") -> Path:
         raise OutputError(f"{out}/result.json has no time series to draw")
     if colour not in COLOURINGS:
         raise ValueError(f"colour must be one of {', '.join(COLOURINGS)}, got {colour!r}")
-    render_frames(out, doc, colour=colour)
+    render_frames(out, doc, colour=colour, pool=pool)
     plot_patches(out, doc, out / "patches.png")
     plot_liftable(doc, out / "liftable.png")
     plot_timeline(doc, out / "timeline.png")

@@ -180,6 +180,9 @@ class ObjectSpec:
     size : mesh size (edge length, metres) for surfaces
     down : which way is down in the mesh's frame (default −z)
     units : the length unit of a mesh file's coordinates, "m" (default), "cm" or "mm" (scans are often in mm)
+    allow_implausible_units : compute even when the mesh's size or density says its unit is wrong (an object
+        over 1 m across, or with a density outside 10–20,000 kg/m³); by default such a scene is refused with
+        a :class:`~fem_grasp.errors.UnitsError` before anything is computed
     """
 
     paper: str | None = None
@@ -190,6 +193,7 @@ class ObjectSpec:
     size: float | None = None
     down: tuple[float, float, float] | None = None
     units: str = "m"
+    allow_implausible_units: bool = False
 
     @property
     def kind(self) -> str:
@@ -287,17 +291,41 @@ class Scene:
     def body(self, cache_dir: Path | None = None) -> "Body":
         """The :class:`~fem_grasp.elastic.body.Body` of this scene."""
         from ..elastic.body import Body
-        from ..mesh.units import density_warning, size_warning, warn_implausible
 
         mesh = self.load_mesh(cache_dir)
-        if self.object.kind == "mesh":  # a file's unit is not written in it: say when it looks wrong
-            src = f"{self.path or '<scene>'}: object.mesh ({self.object.mesh.name})"
-            warn_implausible(size_warning(mesh.diameter, self.object.units, src, hint="object.units"))
-            if self.weight is not None:
-                warn_implausible(density_warning(self.weight / self.gravity, mesh.volume, self.object.units, src,
-                                                 hint="object.units"))
+        if self.object.kind == "mesh":  # a file's unit is not written in it: refuse when it looks wrong
+            self._check_units(mesh)
         kw = {"weight": self.weight} if self.weight is not None else {"density": self.density}
         return Body(mesh, self.young, self.poisson, gravity=self.gravity, **kw)
+
+    def _check_units(self, mesh: "TetMesh") -> None:
+        """Refuse a mesh whose size or density says it is in another length unit (:class:`UnitsError`, before
+        anything is computed), or warn (:class:`~fem_grasp.errors.UnitsWarning`) when the scene allows it."""
+        from ..errors import UnitsError
+        from ..mesh.units import density_warning, implausible, size_warning, warn_implausible
+
+        spec = self.object
+        mass = None if self.weight is None else self.weight / self.gravity
+        problems, guess = implausible(mesh.diameter, mesh.volume, mass, spec.units)
+        if not problems:
+            return
+        src = f"{self.path or '<scene>'}: object.mesh ({spec.mesh.name})"
+        if spec.allow_implausible_units:
+            warn_implausible(size_warning(mesh.diameter, spec.units, src, hint="object.units"))
+            if mass is not None:
+                warn_implausible(density_warning(mass, mesh.volume, spec.units, src, hint="object.units"))
+            return
+        names = {"m": "metres", "cm": "centimetres", "mm": "millimetres"}
+        fix = (f"the file is probably in {names[guess]}: set units = \"{guess}\" in the scene's [object] table "
+               f"(Python: scene.with_(units=\"{guess}\"))" if guess is not None else
+               "check the unit of the mesh (object.units = \"mm\" or \"cm\") and the weight, mass or density")
+        read = f"read in {names[spec.units]}"
+        file = None if self.path is None else str(self.path)
+        raise UnitsError(
+            f"{src}: {read}, {' and '.join(problems)}; {fix}. Nothing was computed, as squeeze depths and forces of "
+            "an object in the wrong unit mean nothing. If the object really is so, run it anyway with "
+            "--allow-implausible-units (scene: allow_implausible_units = true in [object]; Python: "
+            "allow_implausible_units=True)", file=file, key="object.units")
 
     def geometry(self) -> "Any":
         """What ``accuracy`` remeshes (:mod:`fem_grasp.mesh.remesh`): the paper shape, the box, the scan's surface;
@@ -339,7 +367,9 @@ class Scene:
         coefficients), ``mu_finger``, ``mu_table``; ``finger_radius``; ``contacts`` ("auto", a placement rule
         or two node indices) or ``placement_rule``; ``directions``, ``ratio``; ``backend``, ``max_squeeze``,
         ``step``, ``lift_test_step``, ``max_lift``, ``lift``; ``vertices`` (remesh); ``accuracy`` (0.05, "5%" or
-        None: refine until ρ* and the finger force agree to it, :mod:`fem_grasp.grasp.accuracy`).  Example:
+        None: refine until ρ* and the finger force agree to it, :mod:`fem_grasp.grasp.accuracy`); for a mesh
+        file ``units`` ("m", "cm", "mm") and ``allow_implausible_units`` (True: compute even when the object's
+        size or density says its unit is wrong, with a warning, instead of refusing it).  Example:
         ``Scene.load("tomato").with_(young="15 kPa", mu=0.4)``.
 
         Raises
@@ -374,7 +404,7 @@ _SCHEMA: dict[str, dict[str, str]] = {
     "": {"name": "str", "description": "str", "expect": "str", "object": "table", "material": "table",
          "friction": "table", "fingers": "table", "solver": "table", "quick": "table"},
     "object": {"paper": "str", "mesh": "str", "box": "length3", "divisions": "int3", "vertices": "int",
-               "size": "length", "down": "vec3", "units": "str"},
+               "size": "length", "down": "vec3", "units": "str", "allow_implausible_units": "bool"},
     "material": {"young": "pressure", "poisson": "float", "weight": "force", "density": "density", "mass": "mass",
                  "gravity": "acceleration"},
     "friction": {"finger": "float", "table": "float"},
@@ -416,12 +446,21 @@ def _merge(base: dict[str, Any], over: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _close_keys(key: str, allowed: list[str]) -> list[str]:
+    """The keys a mistyped ``key`` probably meant: close spellings (difflib), then keys with its first letters."""
+    import difflib
+
+    close = difflib.get_close_matches(key, allowed, n=3, cutoff=0.6)
+    close += [a for a in allowed if a.lower().startswith(key.lower()[:3]) and a not in close]
+    return close
+
+
 def _check_keys(data: dict[str, Any], table: str, src: str) -> None:
     allowed = _SCHEMA[table]
     for key in data:
         if key not in allowed:
             full = f"{table}.{key}" if table else key
-            close = [a for a in allowed if a.lower().startswith(key.lower()[:3])]
+            close = _close_keys(key, list(allowed))
             hint = f" (did you mean {', '.join(repr(f'{table}.{c}' if table else c) for c in close)}?)" if close else ""
             where = f"[{table}]" if table else "the top level"
             raise SceneError(f"{src}: unknown key {full!r}{hint}; {where} takes: {', '.join(allowed)}")
@@ -588,7 +627,11 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
     if o.has("units") and mesh_path is None:
         raise SceneError(f"{o.where('units')}: units says what a mesh file's coordinates are in; a "
                          f"{'paper object' if paper else 'box'} is in metres already")
-    spec = ObjectSpec(paper, mesh_path, box, tuple(divisions), vertices, size, down, units)
+    allow_units = o.get("allow_implausible_units", False)
+    if o.has("allow_implausible_units") and mesh_path is None:
+        raise SceneError(f"{o.where('allow_implausible_units')}: only a mesh file's size and density are checked "
+                         f"for their unit; a {'paper object' if paper else 'box'} needs no permission")
+    spec = ObjectSpec(paper, mesh_path, box, tuple(divisions), vertices, size, down, units, allow_units)
 
     # [material]
     m = tables["material"]
@@ -633,6 +676,10 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
         raise SceneError(f"{src}: friction.finger (μ between object and fingertips) is required")
     mu_t = f.get("table", row.friction if row else mu_f)
     check_quantity(f.where("finger"), mu_f, "friction coefficient", allow_zero=True)
+    if mu_f == 0:
+        from ..validation import FRICTIONLESS_FINGERS
+
+        raise SceneError(f"{f.where('finger')} (μ_F) must be > 0, got 0: {FRICTIONLESS_FINGERS}")
     check_quantity(f.where("table"), mu_t, "friction coefficient", allow_zero=True)
 
     # [fingers]
@@ -766,6 +813,7 @@ _CHANGES: dict[str, tuple[str, str]] = {
     "ratio": ("ratio", "ratio"), "backend": ("backend", "backend"), "max_squeeze": ("max_squeeze", "length"),
     "step": ("step", "length"), "lift_test_step": ("lift_test_step", "force"), "max_lift": ("max_lift", "length"),
     "lift": ("lift", "bool"), "vertices": ("vertices", "int"), "accuracy": ("accuracy", "accuracy"),
+    "units": ("units", "units"), "allow_implausible_units": ("allow_implausible_units", "allow_units"),
 }
 
 
@@ -796,7 +844,9 @@ def _with_changes(scene: Scene, changes: dict[str, Any]) -> Scene:
     new: dict[str, Any] = {}
     for key, value in changes.items():
         if key not in _CHANGES:
-            raise SceneError(f"Scene.with_: unknown setting {key!r}; it takes {', '.join(_CHANGES)}")
+            close = _close_keys(key, list(_CHANGES))
+            hint = f" (did you mean {', '.join(repr(c) for c in close)}?)" if close else ""
+            raise SceneError(f"Scene.with_: unknown setting {key!r}{hint}; it takes {', '.join(_CHANGES)}")
         field_name, kind = _CHANGES[key]
         w = f"Scene.with_({key}=…)"
         if kind in _UNITS:
@@ -815,6 +865,10 @@ def _with_changes(scene: Scene, changes: dict[str, Any]) -> Scene:
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise SceneError(f"{w}: expected a number, got {value!r}")
             check_quantity(w, float(value), "dimensionless", allow_zero=True)
+            if key in ("mu", "mu_finger") and value == 0:
+                from ..validation import FRICTIONLESS_FINGERS
+
+                raise SceneError(f"{w}: μ_F must be > 0, got 0: {FRICTIONLESS_FINGERS}")
             if key == "mu":
                 new["mu_finger"] = new["mu_table"] = float(value)
             else:
@@ -852,12 +906,24 @@ def _with_changes(scene: Scene, changes: dict[str, Any]) -> Scene:
             new["lift"] = value
         elif kind == "accuracy":
             new["accuracy"] = parse_accuracy(value, w)
+        elif kind in ("units", "allow_units"):  # the mesh file's length unit, and whether to check it
+            from ..mesh.units import LENGTH_UNITS
+
+            if scene.object.kind != "mesh":
+                raise SceneError(f"{w}: only a mesh file has a length unit; a {scene.object.kind} object is in "
+                                 "metres already")
+            if kind == "units" and value not in LENGTH_UNITS:
+                raise SceneError(f"{w}: the unit of the mesh file's coordinates is one of "
+                                 f"{', '.join(repr(u) for u in LENGTH_UNITS)}, got {value!r}")
+            if kind == "allow_units" and not isinstance(value, bool):
+                raise SceneError(f"{w}: expected True or False, got {value!r}")
+            new["object"] = replace(new.get("object", scene.object), **{field_name: value})
         elif kind == "int":  # vertices: remesh
             if isinstance(value, bool) or not isinstance(value, int) or value < 20:
                 raise SceneError(f"{w}: expected an integer ≥ 20, got {value!r}")
             if scene.object.kind == "box":
                 raise SceneError(f"{w}: a box is meshed by its divisions, not a vertex count")
-            new["object"] = replace(scene.object, vertices=value)
+            new["object"] = replace(new.get("object", scene.object), vertices=value)
     return _without_borrowed_error(scene, replace(scene, **new), new)
 
 

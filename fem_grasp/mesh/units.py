@@ -16,7 +16,7 @@ import warnings
 from ..errors import UnitsWarning
 
 __all__ = ["LENGTH_UNITS", "MAX_PLAUSIBLE_SIZE", "MIN_PLAUSIBLE_SIZE", "PLAUSIBLE_DENSITY", "UnitsWarning",
-           "density_warning", "length_scale", "size_warning", "warn_implausible"]
+           "density_warning", "implausible", "length_scale", "size_warning", "warn_implausible"]
 
 #: Length units a mesh file may be in, and their size in metres.
 LENGTH_UNITS = {"m": 1.0, "cm": 1e-2, "mm": 1e-3}
@@ -82,6 +82,30 @@ def density_warning(mass: float, volume: float, unit: str = "m", source: str = "
     if guess is not None and guess != unit:
         return msg + f": the mesh is probably in {_NAMES[guess]}; {_advice(hint, guess)}"
     return msg + ": check the weight (N), mass (kg) or density and the unit of the mesh"
+
+
+def implausible(diameter: float, volume: float, mass: float | None, unit: str = "m") -> tuple[list[str], str | None]:
+    """What is implausible about an object read in ``unit``: its size (``diameter``, metres) and, when ``mass``
+    (kg) is known, its density from ``volume`` (m³); and the length unit that would make it plausible.
+
+    Returns (the problems as phrases such as "it is 102 m across (over 1 m)", empty when plausible; the likely
+    unit of the file, or None when no unit makes it plausible or it is ``unit`` itself).
+    """
+    problems: list[str] = []
+    guess = None
+    if math.isfinite(diameter) and diameter > 0 and not MIN_PLAUSIBLE_SIZE <= diameter <= MAX_PLAUSIBLE_SIZE:
+        size = f"{diameter:.3g} m across" if diameter >= 1e-2 else f"{diameter * 1e3:.3g} mm across"
+        problems.append(f"it is {size} ({'over 1 m' if diameter > MAX_PLAUSIBLE_SIZE else 'under 1 mm'})")
+        raw = diameter / LENGTH_UNITS[unit]
+        guess = _likely({u: raw * s for u, s in LENGTH_UNITS.items()}, 0.1, MIN_PLAUSIBLE_SIZE, MAX_PLAUSIBLE_SIZE)
+    lo, hi = PLAUSIBLE_DENSITY
+    if mass is not None and mass > 0 and volume > 0 and not lo <= mass / volume <= hi:
+        problems.append(f"its density from the weight and the volume is {mass / volume:.3g} kg/m^3 (solid objects: "
+                        f"{lo:g}–{hi:,.0f} kg/m^3)")
+        if guess is None:
+            raw = volume / LENGTH_UNITS[unit] ** 3
+            guess = _likely({u: mass / (raw * s ** 3) for u, s in LENGTH_UNITS.items()}, 1000.0, lo, hi)
+    return problems, (None if guess == unit else guess)
 
 
 def warn_implausible(message: str | None) -> None:

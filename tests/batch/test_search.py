@@ -151,9 +151,10 @@ def test_fem_grasp_search_on_a_running_scheduler_prints_the_best_grasps_and_writ
     out = tmp_path / "out"
     code = main(["search", str(scene), "--out", str(out), "--scheduler", client.scheduler.address,
                  "--azimuths", "0,60,160", "--best", "1", "--no-cache"])
-    text = capsys.readouterr().out
-    assert code == 0, text
-    assert "3 candidates" in text and "pass the lift test" in text and "best       1. nodes" in text
+    text, err = capsys.readouterr()
+    assert code == 0, (text, err)
+    assert "3 candidates" in text and "pass the lift test" in text and "best       ranked by" in text
+    assert "rho_star_mm" in text and "height_mm" in text and "no error stated" in text, text
     assert f"{out}/results.parquet" in text and f"{out}/report.html" in text
     for name in ("results.parquet", "results.csv", MANIFEST, "report.html", "candidates.png", "search_plots.png",
                  "best/01/result.json", "best/01/report.html", "best/01/lifted.png"):
@@ -165,6 +166,23 @@ def test_fem_grasp_search_on_a_running_scheduler_prints_the_best_grasps_and_writ
     assert main(["search", str(scene), "--out", str(out), "--workers", "0", "--azimuths", "0,", "--no-report",
                  "--best", "0", "--no-cache", "--quiet"]) == 1  # this one candidate does not pass
     assert len(read_results(out)) == 1
+
+
+def test_the_result_files_name_each_column_with_its_unit_and_read_back_in_si(serial, tmp_path):
+    import pandas as pd
+
+    from fem_grasp.batch.store import ResultStore
+
+    store = ResultStore(tmp_path, serial.to_dict("records"))
+    store.flush()
+    csv = pd.read_csv(tmp_path / "results.csv")
+    for name in ("height_mm", "rho_star_mm", "grip1_N", "finger_normal_force_N", "time_s", "azimuth_deg"):
+        assert name in csv.columns, name
+    assert "rho_star" not in csv.columns and "height" not in csv.columns
+    # the same numbers, in the unit the name says: heights of a few centimetres are tens of millimetres
+    assert np.allclose(csv["height_mm"], 1e3 * serial["height"]) and (csv["height_mm"] > 5).all()
+    assert np.allclose(csv["grip1_N"], serial["grip1"], equal_nan=True)
+    same_rows(read_results(tmp_path), serial)  # and read back in SI
 
 
 def test_an_unreachable_scheduler_is_a_clear_error_within_the_timeout(capsys, tmp_path):

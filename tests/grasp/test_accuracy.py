@@ -201,7 +201,8 @@ def test_quick_says_its_answer_is_not_converged_and_by_how_much(capsys, tmp_path
     out = tmp_path / "o"
     main(["run", str(scene), "--quick", "--no-cache", "--out", str(out)])
     text = capsys.readouterr().out
-    assert "NOT CONVERGED" in text and "40 %" in text and "run without --quick" in text
+    assert "one run on the coarse mesh" in text and "within about 40 %" in text and "run without --quick" in text
+    assert "NOT CONVERGED" not in text  # plain words, not a shout that reads like a solver failure
     acc = json.loads((out / "result.json").read_text())["accuracy"]
     assert acc["converged"] is False and len(acc["levels"]) == 1 and acc["target"] == 0.05
     assert acc["estimated_error"] == {"squeeze_depth": 0.4, "finger_force": 0.4}

@@ -49,6 +49,7 @@ from __future__ import annotations
 
 import collections
 import json
+import re
 from functools import lru_cache
 
 import numpy as np
@@ -224,35 +225,73 @@ def test_nearly_incompressible_box_is_picked_up_with_a_locking_warning():
 
 
 # ============================================================== 1d: μ = 0, μ = 10
-@pytest.mark.parametrize("mu, mu_table", [(0.0, 0.5), (0.5, 0.0), (0.0, 0.0)])
-def test_frictionless_fingers_or_table_are_a_named_failure_not_a_traceback(mu, mu_table):
-    """μ = 0 has no force closure (two frictionless points, or a frictionless support, cannot resist every
-    wrench): a failed result at step 1, before the tracking (whose Tracker refuses μ = 0) is built."""
+def test_frictionless_fingers_are_refused_before_any_solve_saying_why():
+    """μ_F = 0 has no two-finger grasp (two frictionless point contacts push along their normals only: they can
+    neither carry the weight nor resist a twist about the line between them): refused as bad input, saying so,
+    by pickup(), the scene files and Scene.with_."""
+    from fem_grasp.errors import SceneError
+    from fem_grasp.io.scene import parse_scene
+
+    body = pickup_box()
+    for call in (lambda: pick_up_box(body, mu=0.0, mu_table=0.5),
+                 lambda: pickup(body, mu_finger=0.0, mu_table=0.5, finger_radius=RADIUS)):
+        with pytest.raises(SceneError, match="must be > 0") as info:
+            call()
+        assert "force closure" in str(info.value) and "twist" in str(info.value)
+    scene = {"object": {"box": [0.03, 0.04, 0.03]}, "material": {"young": 2e4, "poisson": 0.3, "weight": 0.3},
+             "friction": {"finger": 0.0, "table": 0.5}}
+    with pytest.raises(SceneError, match="friction.finger") as info:
+        parse_scene(scene, "wet.toml")
+    assert "force closure" in str(info.value)
+    scene["friction"]["finger"] = 0.5
+    ok = parse_scene(scene, "dry.toml")
+    for key in ("mu", "mu_finger"):
+        with pytest.raises(SceneError, match="> 0"):
+            ok.with_(**{key: 0})
+    assert ok.with_(mu_table=0).mu_table == 0.0  # a frictionless table is a valid scene (a failed grasp, below)
+
+
+def test_a_frictionless_table_is_a_named_failure_not_a_traceback():
+    """μ_P = 0: a frictionless support cannot resist every wrench with the two fingers: a failed result at step 1,
+    before the tracking (whose Tracker refuses μ = 0) is built."""
+    mu, mu_table = 0.5, 0.0
     res = pick_up_box(pickup_box(), mu=mu, mu_table=mu_table)
     assert not res.success and "not force closure" in res.reason
     assert res.closure is not None and not res.closure.closed and res.snapshots == [] and res.events == []
     res.check()
     json.loads(res.to_json())  # and it serialises
-    # Without given contacts the placement search finds no force-closure pair either, and says so.
+    # Without given contacts the placement search finds no force-closure pair either, and says so: how many
+    # candidates passed each condition
     body = pickup_box()
     auto = pickup(body, mu_finger=mu, mu_table=mu_table, rest_state=rest(body, mu_table), finger_radius=RADIUS)
-    assert not auto.success and auto.reason.startswith("no initial finger placement") and "force closure" in auto.reason
+    assert not auto.success and auto.outcome == "no placement", auto.reason
+    assert "candidate placement" in auto.reason and "0 are force closure" in auto.reason, auto.reason
     with pytest.raises(ValueError, match="positive friction"):
         Tracker(res.body, radius=RADIUS, mu_finger=mu, mu_table=mu_table, table=res.table)
 
 
-def test_frictionless_scene_file_exits_1_with_the_reason(tmp_path, capsys):
+def test_a_fingertip_too_large_for_the_object_says_which_condition_failed_and_what_to_change():
+    """A fingertip of 5 times the box's height cannot clear the table anywhere: the reason counts the candidates,
+    names the radius and suggests a smaller fingertip."""
+    body = pickup_box()
+    res = pickup(body, mu_finger=0.5, rest_state=rest(body, 0.5), finger_radius=0.15, lift=False)
+    assert not res.success and res.outcome == "no placement"
+    assert re.search(r"of \d+ candidate placements.*, 0 clear the table by [\d.]+ mm with a 150 mm fingertip radius",
+                     res.reason), res.reason
+    assert "smaller fingertip" in res.reason and "fingers.radius" in res.reason
+
+
+def test_frictionless_scene_file_exits_2_saying_why(tmp_path, capsys):
     from fem_grasp.cli import main
 
     scene = tmp_path / "wet.toml"
     scene.write_text('[object]\nbox = ["3 cm", "4 cm", "3 cm"]\ndivisions = [3, 3, 3]\n'
                      '[material]\nyoung = "20 kPa"\npoisson = 0.3\nweight = "0.3 N"\n'
                      '[friction]\nfinger = 0.0\ntable = 0.5\n[fingers]\nradius = "2 cm"\ncontacts = [18, 30]\n')
-    assert main(["run", str(scene), "--no-cache", "--out", str(tmp_path / "o")]) == 1
+    assert main(["run", str(scene), "--no-cache", "--out", str(tmp_path / "o")]) == 2
     out, err = capsys.readouterr()
-    assert "Traceback" not in err and "force closure" in out
-    doc = json.loads((tmp_path / "o" / "result.json").read_text())
-    assert doc["summary"]["success"] is False and "not force closure" in doc["summary"]["reason"]
+    assert "Traceback" not in err and "friction.finger" in err and "force closure" in err, err
+    assert not (tmp_path / "o" / "result.json").exists()
 
 
 def test_friction_ten_completes_and_a_failed_hanging_relaxation_counts_as_not_held(monkeypatch):

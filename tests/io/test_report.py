@@ -53,32 +53,32 @@ def test_pictures_are_rendered_and_not_blank(report):
         assert (centre.min(axis=2) < 0.9).mean() > 0.2, name  # at least a fifth of the centre is not white
 
 
-def test_force_arrows_point_at_their_nodes_from_outside_the_object_and_show_through_the_fingertips(views):
+def test_force_arrows_point_at_their_nodes_from_outside_the_object_and_both_fingers_are_seen(views):
     """Each finger-force arrow ends at its contact node and starts outside the object; the fingertips are
-    translucent, so the arrowheads on the finger facing the camera are seen (red) in the picture."""
+    translucent and the camera looks across the squeeze axis, so the arrows of both fingers are seen (red) in the
+    picture."""
     drawn, doc, out = views
     v = drawn["lift_start.png"]
     assert v["arrows"] and len(v["fingertips"]) == 2
     img = _image(out / "lift_start.png")
     h, w = img.shape[:2]
-    near = int(np.argmax([f["center"][1] for f in v["fingertips"]]))  # the camera looks from +x, +y
-    c = np.asarray(v["fingertips"][near]["center"])
-    seen = []
+    r = [np.asarray(f["center"]) for f in v["fingertips"]]
+    longest = max(b["length"] for b in v["arrows"])
+    seen: dict[int, list[bool]] = {0: [], 1: []}
     for a in v["arrows"]:
         tip, tail = np.asarray(a["tip"]), np.asarray(a["tail"])
-        r = np.asarray(v["fingertips"][0]["center"]), np.asarray(v["fingertips"][1]["center"])
         on = min(abs(np.linalg.norm(tip - q) - v["fingertips"][0]["radius"]) for q in r)
         assert on < 1e-6, "the arrow's tip is its contact node, on a fingertip"
         # the tail is on the fingertip's side of the node: the arrow comes from outside the object
-        q = r[int(np.argmin([np.linalg.norm(tip - x) for x in r]))]
-        assert (tail - tip) @ (q - tip) > 0
-        longest = max(b["length"] for b in v["arrows"])
-        if np.linalg.norm(tip - c) < 2 * v["fingertips"][near]["radius"] and a["length"] > 0.3 * longest:
-            x, y = (int(round(t)) for t in a["head_px"])
+        finger = int(np.argmin([np.linalg.norm(tip - x) for x in r]))
+        assert (tail - tip) @ (r[finger] - tip) > 0
+        if a["length"] > 0.3 * longest:
+            x, y = (int(round(t)) for t in a["shaft_px"])
             assert 0 <= x < w and 0 <= y < h
             patch = img[max(y - 1, 0): y + 2, max(x - 1, 0): x + 2].reshape(-1, 3)
-            seen.append(bool(((patch[:, 0] - patch[:, 1] > 0.25) & (patch[:, 0] - patch[:, 2] > 0.25)).any()))
-    assert seen and np.mean(seen) >= 0.75, seen  # red arrowheads, not hidden by an opaque fingertip
+            seen[finger].append(bool(((patch[:, 0] - patch[:, 1] > 0.25) & (patch[:, 0] - patch[:, 2] > 0.25)).any()))
+    for finger, s in seen.items():  # red shafts on both sides, neither finger hidden by the object
+        assert s and np.mean(s) >= 0.75, (finger, seen)
 
 
 def test_stick_and_slip_are_shown_node_by_node_with_a_legend(views):
@@ -125,3 +125,53 @@ def test_html_references_every_picture_the_data_and_the_finger_forces(report):
     assert 'href="result.json"' in text and "object.pvd" in text and "foam_block" in text
     assert "Finger forces at lift-off (N)" in text and "grip (along its squeeze direction)" in text
     assert "Table III of the paper compares the normal sum" in text and "finger path" in text
+
+
+def test_the_camera_looks_across_the_squeeze_axis_from_above_so_both_fingertips_are_seen(views):
+    """The 3D views' camera is perpendicular to the line between the fingertips, above the object: both
+    fingertips lie at the same distance from it, and the line of sight to each fingertip centre misses the object
+    (neither is behind it), where a camera along the squeeze axis has one fingertip hidden."""
+    from fem_grasp.io.report import view_direction
+
+    drawn, doc, out = views
+    for name, v in drawn.items():
+        if len(v["fingertips"]) != 2:
+            continue
+        c1, c2 = (np.asarray(f["center"]) for f in v["fingertips"])
+        cam, focal = np.asarray(v["camera"]), np.asarray(v["focal"])
+        look = (cam - focal) / np.linalg.norm(cam - focal)
+        axis = (c2 - c1) / np.linalg.norm(c2 - c1)
+        assert abs(look @ axis) < 0.05, name  # across the squeeze axis (the pictures share the lift start's)
+        assert look[2] > 0.3, name  # from above
+        assert np.linalg.norm(cam - c1) == pytest.approx(np.linalg.norm(cam - c2), rel=0.05), name
+
+    # on a ball of radius 1 squeezed along an arbitrary horizontal axis, with fingertips of radius 0.5
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        a = rng.normal(size=3)
+        a[2] = 0.3 * a[2]  # squeeze directions tilt a little, as the paper's do
+        a /= np.linalg.norm(a)
+        centres = np.array([-1.5 * a, 1.5 * a])
+        v = view_direction(centres)
+        assert abs(v @ a) < 1e-9 and v[2] > 0
+        cam = 8.0 * v
+        for c in centres:  # the sight line from the camera to each fingertip centre stays outside the ball
+            d = c - cam
+            t = np.clip(-(cam @ d) / (d @ d), 0.0, 1.0)
+            assert np.linalg.norm(cam + t * d) > 1.0
+        # the old fixed oblique camera, looking along the squeeze axis, hides the far fingertip
+        cam_along = 8.0 * a
+        d = centres[0] - cam_along
+        t = np.clip(-(cam_along @ d) / (d @ d), 0.0, 1.0)
+        assert np.linalg.norm(cam_along + t * d) < 1.0
+
+
+def test_the_lifted_picture_says_one_lift_height_and_how_it_was_drawn(views):
+    drawn, doc, out = views
+    lifted = drawn["lifted.png"]
+    frame = doc["series"]["frames"][-1]
+    shown = 1e3 * (frame["lift_height"] + lifted["lift_offset"])
+    assert f"fingers raised {shown:.3g} mm" in lifted["title"], lifted["title"]  # where the picture shows them
+    assert f"the table let go at {1e3 * frame['lift_height']:.3g} mm" in lifted["note"], lifted["note"]
+    assert f"drawn {1e3 * lifted['lift_offset']:.3g} mm higher" in lifted["note"]
+    assert "lift =" not in lifted["title"]

@@ -9,7 +9,7 @@ from fem_grasp import Body, box_mesh
 from fem_grasp.errors import SceneError
 from fem_grasp.grasp import objects
 from fem_grasp.io.cache import cached_rest, rest_key
-from fem_grasp.io.scene import load_scene, parse_quantity, resolve_scene, shipped_scenes
+from fem_grasp.io.scene import load_scene, parse_quantity, resolve_scene, run_scene, shipped_scenes
 
 PAPER = ("tomato", "orange", "steam_bun", "football")
 
@@ -232,7 +232,9 @@ def test_scene_with_takes_units_and_checks_them():
     assert base.young == 2e4 and base.contacts == (52, 72)  # a copy: the loaded scene is unchanged
     for bad, words in (({"young": "15 mPa"}, "did you mean 'MPa'"), ({"young": "3 mm"}, "is a length"),
                        ({"poisson": 0.5}, "(-1, 0.5)"), ({"mu": -1}, "≥ 0"), ({"colour": 3}, "unknown setting"),
-                       ({"contacts": "highest"}, "placement rule")):
+                       ({"contacts": "highest"}, "placement rule"), ({"yong": 1e4}, "did you mean 'young'"),
+                       ({"finger_radus": "1 cm"}, "did you mean 'finger_radius'"),
+                       ({"mu_fingers": 0.3}, "did you mean 'mu_finger'")):
         with pytest.raises(SceneError, match=None) as exc:
             base.with_(**bad)
         assert words in str(exc.value) and "Scene.with_" in str(exc.value), str(exc.value)
@@ -293,29 +295,62 @@ finger = 0.5
 
 
 @pytest.mark.gmsh
-def test_a_scan_in_millimetres_warns_naming_the_unit_and_object_units_fixes_it(tmp_path):
+def test_a_scan_in_millimetres_is_refused_naming_the_unit_and_object_units_fixes_it(tmp_path):
     pytest.importorskip("gmsh")
-    from fem_grasp.errors import UnitsWarning
+    import warnings
+
+    from fem_grasp.errors import UnitsError, UnitsWarning
     from tests.helpers import icosphere, write_stl
 
     p, f = icosphere(30.0, 2)  # a 6 cm ball written in millimetres
     write_stl(tmp_path / "ball_mm.stl", p, f)
     scene = load_scene(_ball_scene(tmp_path, "ball_mm.stl"))
-    with pytest.warns(UnitsWarning) as record:
-        body = scene.body(tmp_path / "cache")
-    text = " ".join(str(w.message) for w in record)
-    assert "larger than 1 m" in text and 'object.units = "mm"' in text and "millimetres" in text, text
-    assert "density" in text and "kg/m^3" in text, text
-    assert body.mesh.diameter > 50
-    fixed = load_scene(_ball_scene(tmp_path, "ball_mm.stl", 'units = "mm"'))
-    import warnings
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("error", UnitsWarning)
-        good = fixed.body(tmp_path / "cache")
-    assert good.mesh.diameter == pytest.approx(body.mesh.diameter * 1e-3, rel=0.05)
+    with pytest.raises(UnitsError) as info:
+        scene.body(tmp_path / "cache")
+    text = str(info.value)
+    assert "over 1 m" in text and 'units = "mm"' in text and "millimetres" in text, text
+    assert "density" in text and "kg/m^3" in text and "--allow-implausible-units" in text, text
+    assert info.value.key == "object.units" and isinstance(info.value, SceneError)
+    # the Python front doors refuse it too, before any pickup
+    with pytest.raises(UnitsError):
+        run_scene(scene, cache_dir=tmp_path / "cache")
+    # insisting: the scene key or the Python keyword run it, with the warnings
+    for insisted in (load_scene(_ball_scene(tmp_path, "ball_mm.stl", "allow_implausible_units = true")),
+                     scene.with_(allow_implausible_units=True)):
+        with pytest.warns(UnitsWarning) as record:
+            body = insisted.body(tmp_path / "cache")
+        warned = " ".join(str(w.message) for w in record)
+        assert "larger than 1 m" in warned and 'object.units = "mm"' in warned, warned
+        assert body.mesh.diameter > 50
+    for fixed in (load_scene(_ball_scene(tmp_path, "ball_mm.stl", 'units = "mm"')), scene.with_(units="mm")):
+        with warnings.catch_warnings():
+            warnings.simplefilter("error", UnitsWarning)
+            good = fixed.body(tmp_path / "cache")
+        assert good.mesh.diameter == pytest.approx(body.mesh.diameter * 1e-3, rel=0.05)
     with pytest.raises(SceneError, match="object.units"):
         load_scene(_ball_scene(tmp_path, "ball_mm.stl", 'units = "inch"'))
+    with pytest.raises(SceneError, match="allow_implausible_units"):
+        load_scene(_write(tmp_path, '[object]\nbox = [0.04, 0.03, 0.02]\nallow_implausible_units = true\n'
+                          '[material]\nyoung = 2e4\npoisson = 0.3\ndensity = 500\n[friction]\nfinger = 0.5\n',
+                          "box.toml"))
+
+
+@pytest.mark.gmsh
+def test_the_cli_refuses_a_millimetre_scan_with_exit_2_unless_told_to_allow_it(tmp_path, capsys):
+    pytest.importorskip("gmsh")
+    from fem_grasp.cli import main
+    from tests.helpers import icosphere, write_stl
+
+    p, f = icosphere(30.0, 2)
+    write_stl(tmp_path / "ball_mm.stl", p, f)
+    path = _ball_scene(tmp_path, "ball_mm.stl")
+    assert main(["run", str(path), "--cache", str(tmp_path / "cache"), "-q"]) == 2
+    err = capsys.readouterr().err
+    assert "over 1 m" in err and 'units = "mm"' in err and "Nothing was computed" in err, err
+    # the resting state alone is quick: with the flag it is computed, and the units are still warned about
+    assert main(["rest", str(path), "--cache", str(tmp_path / "cache"), "--allow-implausible-units"]) == 0
+    captured = capsys.readouterr()
+    assert "millimetres" in captured.err and "rest " in captured.out, captured
 
 
 @pytest.mark.gmsh

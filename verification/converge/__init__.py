@@ -1,4 +1,4 @@
-"""Convergence of the pickup answer: ``python -m verification.converge [--quick]`` (``make converge``).
+"""Convergence of the pickup answer: ``python -m verification converge [--quick]`` (``make converge``).
 
 For the four paper scenes (tomato, orange, steam bun, football) and the foam
 block, each with its shipped scene's settings, the answer of Algorithm 1 of
@@ -50,7 +50,9 @@ steps of h/8 from zero at every squeeze increment, to show whether a state
 the lift test missed exists).  Plots: error against run time (log–log) for ρ*
 and the finger force, and w(ρ) of the uniform levels overlaid.
 
-The full study takes hours on two cores (``--quick``: minutes).
+The full study takes hours on two cores (``--quick``: minutes).  As a stage of the full report
+(:func:`run`) it reads the cached runs (after ``make converge`` it only reads); its section and headline check
+are in :mod:`.report`.
 """
 
 from __future__ import annotations
@@ -61,11 +63,12 @@ from pathlib import Path
 from typing import Any
 
 from .analysis import analyse, attach_diagnoses, diagnosis_cases
-from .report import plots
+from .report import checks, plots, section
 from .runner import load_records, run_case, run_rounds, run_series
 from .specs import CONFIGS, DEFAULT_OUT, OBJECTS, adaptive_cases, case_key, cases, code_digest, dependent_cases
 
-__all__ = ["CONFIGS", "DEFAULT_OUT", "OBJECTS", "case_key", "code_digest", "run_case", "study"]
+__all__ = ["CONFIGS", "DEFAULT_OUT", "OBJECTS", "STAGES", "case_key", "checks", "code_digest", "run", "run_case",
+           "section", "study"]
 
 
 
@@ -111,3 +114,24 @@ def study(quick: bool = False, out: Path = DEFAULT_OUT, objects: tuple[str, ...]
     (out / "converge.json").write_text(json.dumps(json_safe(analysis), indent=1))
     return analysis
 
+
+#: Stages of :func:`run`.
+STAGES = 1
+
+
+def run(quick: bool, out_dir: Path, stages: Any) -> tuple[dict[str, Any], dict[str, str]]:
+    """The study as a stage of the full report, in ``out_dir/converge``.  Cached runs are reused, so after ``make
+    converge`` this only reads; from an empty cache it computes the whole study (hours).  ``quick`` runs the quick
+    study of the foam block alone (a few minutes; the paper objects' quick study is half an hour:
+    ``python -m verification converge --quick``)."""
+    part: dict[str, Any] = {}
+    images: dict[str, str] = {}
+
+    def one() -> None:
+        res = study(quick=quick, out=out_dir / "converge", objects=("foam_block",) if quick else OBJECTS)
+        for key, name in res.pop("images", {}).items():
+            images[key] = f"converge/{name}"
+        part["grasp_convergence"] = res
+
+    stages.run("grasp convergence", one)
+    return part, images

@@ -1,4 +1,4 @@
-"""``python -m verification.converge``: run or read the study, print its tables, write converge.json and the plots."""
+"""``python -m verification converge``: run or read the study, print its tables, write converge.json and the plots."""
 
 from __future__ import annotations
 
@@ -15,7 +15,7 @@ from .specs import DEFAULT_OUT, OBJECTS
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m verification.converge", description=DOC.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python -m verification converge", description=DOC.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="a few levels per series (minutes)")
     ap.add_argument("--out", type=Path, default=DEFAULT_OUT)
     ap.add_argument("--objects", nargs="+", choices=OBJECTS, default=list(OBJECTS))

@@ -1,12 +1,16 @@
-"""The study's plots (error against run time, w(ρ) overlaid) and tables (stdout, the README's markdown)."""
+"""The study's plots (error against run time, w(ρ) overlaid), tables (stdout, the README's markdown), and its
+section and headline check in the full verification report."""
 
 from __future__ import annotations
 
+import html
 import math
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from .._common.html import Markup, fmt, img, table
 
 
 def plots(analysis: dict[str, Any], out: Path) -> dict[str, str]:
@@ -251,3 +255,139 @@ def _pct(x: Any) -> str:
     if x is None or (isinstance(x, float) and math.isnan(x)):
         return "–"
     return "wrong verdict" if math.isinf(x) else f"{100 * x:.1f} %"
+
+
+# ----------------------------------------------------------------- the pickup answer under refinement
+SERIES_NOTES = {
+    "uniform": "uniform meshes, ×2 vertices per level (shapes.paper_mesh; the box: grid × k)",
+    "graded": "spacing R/2 … R/16 within 1.25 R of the finger contact points, paper-resolution spacing elsewhere",
+    "graded_table": "the same spacing at the fingertips and around the resting table patch",
+    "step": "the squeeze increment halved (one mesh)",
+    "h": "the lift-test step h halved (one mesh)",
+    "seed": "meshes of the same spacing (gmsh seeds; the box: jittered grid)",
+    "reference": "the finest uniform level with the increment and h halved twice",
+    "adaptive": "pickup(..., accuracy=target): the adaptive loop",
+    "quick": "the scene's [quick] variant (fem-grasp run NAME --quick), one run",
+    "shipped": "the scene as shipped (fem-grasp run NAME), one run on its committed mesh: its error is what the scene "
+               "states as [solver] expected_error",
+}
+
+
+def _level_label(sp: dict) -> str:
+    for k, fmt_ in (("target", "{:,} v target"), ("factor", "grid ×{}"), ("inner", "R/{:g}"), ("divisor", "÷{}"),
+                    ("seed", "seed {}")):
+        if k in sp:
+            v = sp[k]
+            if k == "inner":
+                v = round(1 / v, 3)
+            label = fmt_.format(v)
+            if k == "divisor" and "target" in sp:
+                label += f" at {sp['target']:,} v"
+            if k == "seed":
+                label += f" ({sp.get('target', sp.get('factor'))})"
+            if k == "target" and sp.get("series") == "adaptive":
+                label = f"accuracy {100 * v:g} %"
+            return label
+    return ""
+
+
+def _pct_html(x: Any) -> Any:
+    if x is None or (isinstance(x, float) and (math.isnan(x))):
+        return None
+    if isinstance(x, float) and math.isinf(x):
+        return "verdict wrong"
+    return f"{100 * x:.3g} %"
+
+
+def section(part: dict[str, Any], images: dict[str, str]) -> str:
+    """The report's section: the pickup answer (verdict, ρ*, forces, patches, w(ρ)) under refinement, per object."""
+    gc = part.get("grasp_convergence")
+    if not gc:
+        return ""
+    out = ["<h2>Convergence of the pickup answer</h2>",
+           "<p class='note'>The answer of Algorithm 1 on each shipped scene (tomato, orange, steam bun, football, foam "
+           "block) under the refinements below (<code>make converge</code>, <code>python -m verification converge"
+           "</code>; cached runs in <code>verification/out/converge/cache</code>). ρ* is the squeeze depth at which the "
+           "lift starts; the finger force is Σ f·n̂ over both patches at lift-off; per finger: the resultant's norm, its "
+           "component along the finger's squeeze direction and its vertical component (N); patches: contact nodes of "
+           "finger 1 / finger 2 / table. Errors are against each object's reference (finest uniform mesh, increments "
+           "halved twice; its own uncertainty is stated). Times: meshing + pickup (assembly, rest, squeeze, lift), "
+           "one process, on a machine shared with other jobs (timings vary by up to 2×).</p>"]
+    out.append(img(images.get("converge_error_time"), "error against run time, log–log: ρ* (left), finger force "
+                                                       "(right); dotted lines 10 %, 5 %, 2 %"))
+    out.append(img(images.get("converge_liftable"), "liftable weight w(ρ) of the uniform levels"))
+    for name, obj in gc.get("objects", {}).items():
+        out.append(f"<h3>{html.escape(name)}</h3>")
+        ref = obj.get("reference")
+        if ref:
+            out.append(f"<p>Reference: {html.escape(reference_line(ref))}.</p>")
+        res = obj.get("resolution", {})
+        if res:
+            rows = []
+            for s_, per in res.items():
+                rows.append([s_] + [None if per.get(t) is None else
+                                    Markup(f"{per[t]['vertices']:,} v, {fmt(1e3 * per[t]['patch_spacing'])} mm, "
+                                           f"{fmt(per[t]['seconds'])} s") for t in ("0.1", "0.05", "0.02")])
+            out.append("<p class='note'>Cheapest level from which every finer level of the series is within the "
+                       "target (the reference's verdict, and both ρ* and the finger force; where the reference is not "
+                       "picked up, the largest weight held; vertices, spacing at the patches, time); – : not "
+                       "reached:</p>")
+            out.append(table(["series", "10 %", "5 %", "2 %"], rows))
+        for s_, rows in obj.get("series", {}).items():
+            body = []
+            for r in rows:
+                if "rho" not in r:
+                    body.append([_level_label(r["spec"]), r.get("vertices"), "timeout" if r["timeout"] else "error",
+                                 None, None, None, None, None, None, None, None, None, r.get("seconds")])
+                    continue
+                fg = r["fingers"]
+                body.append([_level_label(r["spec"]), r["vertices"], "picked up" if r["success"] else "NOT",
+                             1e3 * r["rho"], _pct_html(r.get("rho_error")), r["force"], _pct_html(r.get("force_error")),
+                             r["max_liftable"] / r["weight"], _pct_html(r.get("w_error")),
+                             Markup(" / ".join(f"{f['resultant']:.3g}, {f['along_squeeze']:.3g}, {f['vertical']:.3g}"
+                                               for f in fg)),
+                             Markup(f"{fg[0]['nodes']} / {fg[1]['nodes']} / {r['table_nodes']}"),
+                             None if r.get("patch_spacing") is None else 1e3 * r["patch_spacing"], r.get("seconds")])
+            out.append(f"<p class='note'><b>{html.escape(s_)}</b>: {html.escape(SERIES_NOTES.get(s_, ''))}</p>")
+            out.append(table(["level", "vertices", "verdict", "ρ* (mm)", "error", "finger force (N)", "error",
+                              "max w / mg", "w(ρ) error / mg", "per finger |F|, F·d̂, F_z (N)", "patches",
+                              "spacing at patch (mm)", "s"], body))
+        for key, sc in obj.get("scatter", {}).items():
+            out.append(f"<p class='note'>Seeds at {html.escape(key)}: {sc['picked_up']} of {sc['runs']} picked up; ρ* "
+                       f"{fmt(1e3 * (sc['rho_mean'] or math.nan))} mm ± {fmt(1e3 * (sc['rho_std'] or math.nan))} "
+                       f"(range {fmt(1e3 * (sc['rho_min'] or math.nan))}–{fmt(1e3 * (sc['rho_max'] or math.nan))}), "
+                       f"finger force {fmt(sc['force_mean'])} ± {fmt(sc['force_std'])} N.</p>")
+        if obj.get("flips"):
+            out.append("<p class='note'>Verdict flips and non-monotone jumps, with the slow lift test's verdict "
+                       "(weights raised in steps of h/8 from zero at every increment):</p>")
+            out.append(table(["series", "kind", "vertices", "ρ* (mm)", "diagnosis"],
+                             [[f["series"], f["kind"], f["row"]["vertices"], 1e3 * f["row"]["rho"],
+                               (f.get("diagnosis") or {}).get("verdict", "not diagnosed (too slow to re-run)")]
+                              for f in obj["flips"]]))
+    return "\n".join(out)
+
+
+def checks(part: dict[str, Any]) -> list[dict[str, Any]]:
+    """The adaptive loop's estimated error against its actual error (against the study's reference), wherever a
+    target was reached; the reference's own uncertainty is added to the estimate."""
+    from .._common.run import check
+
+    gc = part.get("grasp_convergence")
+    if not gc:
+        return []
+    worst, n = 0.0, 0
+    for obj in gc.get("objects", {}).values():
+        ref = obj.get("reference") or {}
+        band = {q: (ref.get(q) or {}).get("error", np.inf) for q in ("rho", "force")}
+        for r in obj.get("series", {}).get("adaptive", []):
+            for v in (r.get("targets") or {}).values():
+                if not v or not ref:
+                    continue
+                for q, key in (("rho", "squeeze_depth"), ("force", "finger_force")):
+                    allowed = v["estimated_error"][key] + (band[q] if np.isfinite(band[q]) else 0.0)
+                    worst = max(worst, v[f"{q}_error"] / allowed if allowed > 0 else np.inf)
+                    n += 1
+    if not n:
+        return []
+    return [check(f"grasp convergence: adaptive error / (its estimate + the reference's band), {n} answers", worst,
+                  "≤ 1", worst <= 1.0)]

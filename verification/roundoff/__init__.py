@@ -38,14 +38,14 @@ A case that sits exactly on a branch point, where round-off legitimately
 decides between two physical outcomes, is listed in :data:`BRANCH_POINTS`
 with the reason; its verdict may then differ and is reported, not failed.
 
-``python -m verification.perturbation [--quick] [--json PATH]`` runs the
-sweep and prints the spread table (docs/limits.md quotes it);
+``python -m verification roundoff [--quick] [--json PATH]`` runs the
+sweep and prints the spread table (docs/limits.md quotes it); it is a stage
+of the full report too (headline check and section: :mod:`.report`).
 ``tests/test_perturbation.py`` runs the quick part inside ``make test``.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import logging
 import os
@@ -58,9 +58,11 @@ from typing import Any, Callable
 
 import numpy as np
 
+from .report import checks, section
+
 log = logging.getLogger(__name__)
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 #: Relative size of the coordinate jitter (× mesh diameter): far below any geometric tolerance of the
 #: tracking (1e-10 × diameter), far above the last bit (1e-16).
@@ -266,7 +268,7 @@ def run_variant(variant: Variant, quick: bool, names: list[str], work: Path) -> 
                 "NPY_DISABLE_CPU_FEATURES"):
         env.pop(key, None)
     env.update(dict(variant.env))
-    cmd = [sys.executable, "-m", "verification.perturbation", "--worker", variant.name,
+    cmd = [sys.executable, "-m", "verification.roundoff", "--worker", variant.name,
            "--out", str(out), "--cases", json.dumps(names)]
     if quick:
         cmd.append("--quick")
@@ -371,28 +373,18 @@ def spread_table(result: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m verification.perturbation", description=__doc__.splitlines()[0])
-    ap.add_argument("--quick", action="store_true", help="the shipped scenes' quick variants, fewer variants")
-    ap.add_argument("--json", type=Path, help="write the whole result here")
-    ap.add_argument("--worker", help=argparse.SUPPRESS)
-    ap.add_argument("--out", type=Path, help=argparse.SUPPRESS)
-    ap.add_argument("--cases", help=argparse.SUPPRESS)
-    ap.add_argument("--seed", type=int, help=argparse.SUPPRESS)
-    args = ap.parse_args(argv)
-    if args.worker:
-        _worker(args.worker, args.quick, args.seed, json.loads(args.cases), args.out)
-        return 0
-    logging.basicConfig(level=logging.WARNING)
-    result = sweep(args.quick, progress=lambda s: print("  " + s, flush=True))
-    print(spread_table(result))
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(result, indent=1), encoding="utf-8")
-    for v in result["violations"]:
-        print("VIOLATION:", v)
-    return 1 if result["violations"] else 0
+#: Stages of :func:`run`.
+STAGES = 1
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+def run(quick: bool, out_dir: Path, stages: Any) -> tuple[dict[str, Any], dict[str, str]]:
+    """The sweep as a stage of the report: its part of the summary (the spread table, not every run's record)."""
+    part: dict[str, Any] = {}
+    stages.run("round-off perturbations", lambda: sweep(quick=quick),
+               lambda v: part.__setitem__("perturbation", {k: v[k] for k in v if k != "runs"}
+                                          | {"table": spread_table(v)}))
+    return part, {}
+
+
+__all__ = ["BRANCH_POINTS", "DEPTH_TOLERANCE_STEPS", "FORCE_TOLERANCE", "JITTER", "STAGES", "cases", "checks",
+           "compare", "run", "run_case", "section", "spread_table", "sweep", "variants"]

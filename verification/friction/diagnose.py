@@ -13,7 +13,7 @@ Unlike the reference itself, this module imports fem_grasp's internals
 (``fem_grasp.tracking``, ``fem_grasp.lift_test``): it is a cross-examination
 tool, and its import paths follow the package's layout.
 
-    python -m verification.friction_diagnose SCENE [--increments M] [--step-divisor D] [--rho RHO_MM]
+    python -m verification friction diagnose SCENE [--increments M] [--step-divisor D] [--rho RHO_MM]
 """
 
 from __future__ import annotations
@@ -23,8 +23,8 @@ import logging
 import sys
 from typing import Any
 
-from .friction_reference import Case, load_case, start_from_fem_rest
-from .ref_contact import FINGER1, FINGER2, SLIP, STICK, StaticState
+from .compare import Case, load_case, start_from_fem_rest
+from .reference.contact import FINGER1, FINGER2, SLIP, STICK, StaticState
 
 log = logging.getLogger(__name__)
 
@@ -110,7 +110,7 @@ def cross_examine(case: Case, increments: int, rhos: list[float] | None = None) 
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m verification.friction_diagnose", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="python -m verification friction diagnose", description=__doc__.splitlines()[0])
     p.add_argument("scene")
     p.add_argument("--increments", type=int, default=4)
     p.add_argument("--quick", action="store_true")

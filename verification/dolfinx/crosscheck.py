@@ -26,7 +26,7 @@ import scipy.sparse.linalg as spla
 
 from fem_grasp import Body, solve_contact
 
-from .dolfinx_ref import DolfinxModel
+from .reference import DolfinxModel
 
 log = logging.getLogger(__name__)
 

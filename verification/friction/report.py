@@ -1,10 +1,8 @@
-"""Figures and report sections of the frictional-contact comparison (issue 24).
+"""Figure, headline checks and report section of the frictional-contact comparison.
 
-Everything is drawn from the dictionaries of
-:func:`verification.friction_reference.run_case`,
-:func:`~verification.friction_reference.step_study`,
-:func:`verification.friction_random.compare_random` and
-:func:`verification.softness.study`, as stored in ``summary.json``.
+Everything is drawn from the dictionaries of :func:`verification.friction.compare.run_case`,
+:func:`~verification.friction.compare.step_study` and :func:`verification.friction.random_scenes.compare_random`,
+as stored in ``summary.json``.
 """
 
 from __future__ import annotations
@@ -16,7 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from .report import Markup, fmt, img, table, verdict
+from .._common.html import fmt, img, table, verdict
+from .._common.run import check, finite_max
+from .compare import FORCE_TOL
 
 
 def convergence_plot(scenes: list[dict], studies: list[dict], path: str | Path) -> Path:
@@ -100,10 +100,11 @@ AGREEMENT_HEADERS = ["scene", "vertices", "fem_grasp", "reference", "verdicts", 
 
 
 def section(fr: dict[str, Any], images: dict[str, str]) -> str:
-    """The report's section on the frictional-contact reference (agreement, convergence, rest, Table III)."""
-    parts = ["<h2>7. Frictional contact: fem_grasp against an independent reference</h2>"]
-    parts.append("<p class='note'>The reference (verification/ref_*.py, formulation in verification/README.md) "
-                 "solves each increment of squeeze depth, lift height or hanging weight as one static contact "
+    """The report's section on the frictional-contact reference (agreement, convergence, rest, random scenes)."""
+    parts = ["<h2>Frictional contact: fem_grasp against an independent reference</h2>"]
+    parts.append("<p class='note'>The reference (verification/friction/reference/, formulation in "
+                 "verification/friction/README.md) solves each increment of squeeze depth, lift height or "
+                 "hanging weight as one static contact "
                  "problem with Coulomb friction — a semismooth Newton method on the Alart–Curnier equations, exact "
                  "sphere and plane gaps, slip measured from the previous increment — on K and G assembled by "
                  "dolfinx; it shares no code with fem_grasp's contact modules and takes only the placement from "
@@ -156,39 +157,44 @@ def section(fr: dict[str, Any], images: dict[str, str]) -> str:
         parts.append(f"<h3>Random valid small scenes ({len(rnd)}, seeded)</h3><p class='note'>Verdicts agree on "
                      f"{agree} of {len(rnd)}.</p>")
         parts.append(table(AGREEMENT_HEADERS, agreement_rows(rnd)))
-    soft = fr.get("softness")
-    if soft:
-        parts.append(softness_section(soft, images))
     return "\n".join(parts)
 
 
-def softness_section(soft: dict[str, Any], images: dict[str, str]) -> str:
-    parts = ["<h3>Softness against the rigid grasp (paper Table III)</h3>",
-             "<p class='note'>fem_grasp's pickup of each paper scene with E over three decades (everything else as "
-             "shipped), forces at lift-off against the least-normal-force rigid two-point grasp at the same "
-             "contacts. Ratios deformable / rigid for each measure; wrap = Σ f·n̂ over the normal part of each "
-             "patch's resultant (1 for a flat patch); tilt = angle of the patch's mean normal from the rigid "
-             "contact normal; utilisation = Σ|f_t| / μ Σ f·n̂ (1 for the rigid least-force grasp); w/mg = the "
-             "liftable weight at the passing test. The paper's ratios: "
-             + ", ".join(f"{k} {v[0] / v[1]:.2f}" for k, v in soft["table_iii"].items()) + ".</p>"]
-    rows = []
-    for r in soft["rows"]:
-        q = r.get("ratio") or {}
-        rows.append([r["object"], r["mesh"], r["vertices"], r["young"], "yes" if r["success"] else "no",
-                     _mm(r["squeeze_depth"]), r.get("normal"), (r.get("rigid") or {}).get("normal"), q.get("normal"),
-                     q.get("grip"), q.get("resultant"), r.get("wrap"),
-                     None if "tilt" not in r else max(r["tilt"]), r.get("utilisation"), r.get("liftable_excess")])
-    parts.append(table(["object", "mesh", "vertices", "E (Pa)", "picked up", "ρ* (mm)", "Σf·n̂ (N)", "rigid (N)",
-                        "ratio Σf·n̂", "ratio grip", "ratio resultant", "wrap", "tilt (°)", "utilisation", "w/mg"],
-                       rows))
-    con = soft.get("conclusions", {})
-    if con:
-        rows = [[k, v["below_rigid"], v["paper_like"], v["runs"], v["min"], v["max"]] for k, v in con.items()
-                if isinstance(v, dict) and "runs" in v]
-        parts.append(table(["mesh / measure", "runs below rigid", "in the paper's 0.80–0.95", "runs", "min ratio",
-                            "max ratio"], rows))
-    parts.append(img(images.get("softness"), "deformable / rigid finger force at lift-off against E"))
-    return "\n".join(parts)
+def checks(fric: dict[str, Any]) -> list[dict[str, Any]]:
+    """Headline checks: verdicts agree, forces within tolerance at the finest increment, the reference's own
+    contact-law residuals at round-off, no unexplained set or state mismatch on the shipped scenes."""
+    out = []
+
+    def add(name: str, value: float, threshold: str, ok: bool) -> None:
+        out.append(check(name, value, threshold, ok))
+
+    scenes = fric.get("scenes", [])
+    rnd = fric.get("random", [])
+    if scenes:
+        n_bad = sum(not s["verdicts_agree"] for s in scenes)
+        add(f"frictional contact: verdicts differ on shipped scenes (of {len(scenes)})", n_bad, "= 0", n_bad == 0)
+        v = finite_max(s["force_max_finest"] for s in scenes)
+        add("frictional contact: max |Δf|/F_s at the finest increment, shipped scenes", v, f"≤ {FORCE_TOL:g}",
+            v <= FORCE_TOL)
+        v = sum(s["levels"][-1]["set_mismatches_unexplained"] + s["levels"][-1]["state_mismatches_unexplained"]
+                for s in scenes)
+        add("frictional contact: unexplained set/state mismatches, shipped scenes", v, "= 0", v == 0)
+    states = scenes + rnd
+    if states:
+        worst = {k: finite_max(s["levels"][-1]["self_check"][k] for s in states) for k in states[0]["levels"][-1]["self_check"]}
+        add("reference self-check: |gap| and penetration / diameter", max(worst["gap"], worst["penetration"]),
+            "≤ 1e-10", max(worst["gap"], worst["penetration"]) <= 1e-10)
+        cone = max(worst["tensile"], worst["stick_excess"], worst["slip_cone"])
+        add("reference self-check: cone and complementarity / F_s", cone, "≤ 1e-10", cone <= 1e-10)
+        add("reference self-check: friction opposite the slip (1 + cos)", worst["slip_direction"], "≤ 1e-7",
+            worst["slip_direction"] <= 1e-7)
+        add("reference self-check: equilibrium / mg", worst["equilibrium"], "≤ 1e-12", worst["equilibrium"] <= 1e-12)
+    if rnd:
+        n_bad = sum(not r["verdicts_agree"] for r in rnd)
+        # Reported, not failed: random scenes include ill-posed lift tests (verification/friction/README.md).
+        add(f"frictional contact: verdicts differ on random scenes (of {len(rnd)}; reported)", n_bad,
+            "reported", True)
+    return out
 
 
-__all__ = ["Markup", "agreement_rows", "convergence_plot", "section", "softness_section"]
+__all__ = ["AGREEMENT_HEADERS", "agreement_rows", "checks", "convergence_plot", "section"]

@@ -1,6 +1,6 @@
 """Manufactured-solution convergence: fem_grasp P1 against dolfinx P1 and P2.
 
-A point-held body has no continuum limit (DESIGN.md), so convergence is
+A point-held body has no continuum limit (a point force has infinite energy), so convergence is
 measured on a smooth displacement field prescribed on the whole boundary of
 the unit box, with the body force that makes it an exact solution of
 −div σ(u) = f.
@@ -25,9 +25,9 @@ import numpy as np
 
 from fem_grasp import Body, TetMesh, box_mesh
 
-from .dolfinx_ref import ManufacturedResult, lame, max_edge_length, solve_clamped_gravity, solve_manufactured
 from .linalg import dirichlet_solve
 from .quadrature import p1_errors, p1_load_vector
+from .reference import ManufacturedResult, lame, max_edge_length, solve_clamped_gravity, solve_manufactured
 
 log = logging.getLogger(__name__)
 

@@ -12,7 +12,7 @@
   is full of near-flat tetrahedra; K and contact solves are compared with
   dolfinx there.
 * **Poisson's ratio.** K against dolfinx for ν up to 0.4999; locking itself
-  is measured by :func:`verification.manufactured.locking_study`.
+  is measured by :func:`verification.dolfinx.manufactured.locking_study`.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from fem_grasp import Body, CollinearContactError, TetMesh, box_mesh
 from fem_grasp.elastic.response import ContactResponse
 
 from .crosscheck import contact_cases, crosscheck_mesh, rel_max_diff
-from .dolfinx_ref import DolfinxModel
+from .reference import DolfinxModel
 
 log = logging.getLogger(__name__)
 

@@ -9,7 +9,7 @@ by a random angle and a squeeze ratio.  A draw is *valid* when fem_grasp
 accepts the scene and reaches the squeeze (a placement exists); invalid draws
 are skipped, so the list depends only on the seed.
 
-    python -m verification.friction_random OUT_DIR [--count 20] [--seed 24]
+    python -m verification friction random OUT_DIR [--count 20] [--seed 24]
 """
 
 from __future__ import annotations
@@ -25,9 +25,9 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
-#: Seed of the scenes of ``make verify`` (issue 24).
+#: Seed of the scenes of the full report (``make verify``).
 DEFAULT_SEED = 24
-#: Largest vertex count of an ellipsoid draw (the brief: a few hundred nodes at most).
+#: Largest vertex count of an ellipsoid draw (a few hundred nodes at most: each comparison stays quick).
 MAX_ELLIPSOID_VERTICES = 320
 
 
@@ -103,7 +103,7 @@ def draw(rng: np.random.Generator, k: int) -> Draw:
         obj = f"mesh = \"random_{k:02d}.vtu\""
     density = rng.uniform(400.0, 1100.0)
     weight = density * 9.8 * volume
-    text = f"""# Random scene {k} of verification.friction_random (seeded)
+    text = f"""# Random scene {k} of verification.friction.random_scenes (seeded)
 name = "random_{k:02d}"
 description = "random {'box' if box else 'ellipsoid'}"
 
@@ -143,7 +143,7 @@ def write_draw(out_dir: Path, dr: Draw) -> Path:
 
 def is_valid(path: Path) -> tuple[bool, str]:
     """fem_grasp accepts the scene and its pickup reaches the squeeze."""
-    from .friction_reference import load_case
+    from .compare import load_case
 
     try:
         case = load_case(path)
@@ -177,10 +177,10 @@ def compare_random(out_dir: str | Path, count: int = 20, seed: int = DEFAULT_SEE
                    levels: tuple[int, ...] = (1, 4), max_draws: int = 200) -> list[dict]:
     """Draw scenes until ``count`` are valid and run the comparison on each (fem_grasp runs once per draw).
 
-    Returns the summaries of :func:`verification.friction_reference.run_case` (own chain skipped, rest at
+    Returns the summaries of :func:`verification.friction.compare.run_case` (own chain skipped, rest at
     16 increments: the random scenes test the squeeze, lift test and lift).
     """
-    from .friction_reference import load_case, run_case
+    from .compare import load_case, run_case
 
     out = Path(out_dir)
     rng = np.random.default_rng(seed)
@@ -205,7 +205,7 @@ def compare_random(out_dir: str | Path, count: int = 20, seed: int = DEFAULT_SEE
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m verification.friction_random", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="python -m verification friction random", description=__doc__.splitlines()[0])
     p.add_argument("out", type=Path)
     p.add_argument("--count", type=int, default=20)
     p.add_argument("--seed", type=int, default=DEFAULT_SEED)
@@ -220,7 +220,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     import json
 
-    from .friction_reference import json_safe
+    from .._common.run import json_safe
 
     rows = compare_random(args.out, args.count, args.seed, levels=tuple(args.increments))
     for r in rows:

@@ -11,18 +11,16 @@ with :meth:`~fem_grasp.grasp.pickup.PickupResult.check` passing on every snapsho
 (:data:`NO_REST`).  Any other exception is a bug.
 
 ``tests/test_random_scenes.py`` draws about 50 scenes with hypothesis inside
-``make test``; ``python -m verification.random_scenes --scenes 500`` (a stage of
-``make verify``) draws more with numpy, two processes at a time.
+``make test``; ``python -m verification random_scenes --scenes 500`` (a stage of
+the full report, 40 scenes with ``--quick``) draws more with numpy, two processes
+at a time.  Headline check and report section: :mod:`.report`.
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import logging
 import math
 import multiprocessing
-import sys
 import time
 import traceback
 from concurrent.futures import ProcessPoolExecutor
@@ -31,6 +29,8 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
+
+from .report import checks, section
 
 log = logging.getLogger(__name__)
 
@@ -177,27 +177,20 @@ def sweep(n: int, seed: int = 0, workers: int = 2, progress: Callable[[int, dict
             "max_seconds": float(max(times)), "rows": rows}
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m verification.random_scenes", description=__doc__.splitlines()[0])
-    ap.add_argument("--scenes", type=int, default=500)
-    ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--workers", type=int, default=2)
-    ap.add_argument("--json", type=Path)
-    args = ap.parse_args(argv)
-    def progress(done: int, row: dict) -> None:
-        flag = "" if not problems(row) else "  <-- " + "; ".join(problems(row))
-        print(f"  {done}/{args.scenes} {row['outcome']} ({row['seconds']:.1f} s){flag}", flush=True)
-
-    result = sweep(args.scenes, args.seed, args.workers, progress)
-    print(f"{args.scenes} random scenes: " + ", ".join(f"{k} {v}" for k, v in sorted(result["outcomes"].items()))
-          + f"; median {result['median_seconds']:.1f} s, longest {result['max_seconds']:.1f} s")
-    for p in result["problems"]:
-        print(f"  seed {p['seed']}: {'; '.join(p['problems'])}")
-    if args.json:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(result, indent=1, default=float), encoding="utf-8")
-    return 1 if result["problems"] else 0
+#: Scenes drawn by the full report (and with ``--quick``).
+CONFIGS: dict[str, dict[str, Any]] = {"full": {"scenes": 500}, "quick": {"scenes": 40}}
+#: Stages of :func:`run`.
+STAGES = 1
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+def run(quick: bool, out_dir: Path, stages: Any) -> tuple[dict[str, Any], dict[str, str]]:
+    """The sweep as a stage of the report: its part of the summary (counts and problems, not every row)."""
+    cfg = CONFIGS["quick" if quick else "full"]
+    part: dict[str, Any] = {"config": cfg}
+    stages.run("random scenes", lambda: sweep(cfg["scenes"]),
+               lambda v: part.__setitem__("random_scenes", {k: v[k] for k in v if k != "rows"}))
+    return part, {}
+
+
+__all__ = ["CONFIGS", "NO_REST", "RANGES", "STAGES", "RandomScene", "checks", "problems", "run", "run_scene", "section",
+           "sweep"]

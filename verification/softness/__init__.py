@@ -34,23 +34,24 @@ by E_scene / E above it (displacements scale with 1/E; fem_grasp's default
 increment has a floor of 0.1 % of the maximum squeeze, which at 1–3 MPa would
 put the first lift test far beyond the squeeze the weight needs).
 
-``python -m verification.softness [--objects …] [--youngs …] [--fine] [--json PATH] [--plot PATH]``
+``python -m verification softness [--objects …] [--youngs …] [--fine] [--json PATH] [--plot PATH]``
 (``--fine``: also a mesh graded to R/4 under the fingertips, about 2,500 vertices; the shipped meshes are
-graded to R/2, and the answer depends on that resolution).
+graded to R/2, and the answer depends on that resolution).  A stage of the full report too; its section:
+:mod:`.report`.
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import logging
 import math
-import sys
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from .._common.run import Stages
+from .report import checks, section
 
 log = logging.getLogger(__name__)
 
@@ -240,40 +241,30 @@ def plot(s: dict[str, Any], path: str | Path) -> Path:
     return out
 
 
-def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m verification.softness", description=__doc__.splitlines()[0])
-    p.add_argument("--objects", nargs="+", default=list(PAPER_OBJECTS))
-    p.add_argument("--youngs", nargs="+", type=float, default=list(YOUNGS))
-    p.add_argument("--fine", action="store_true", help="also a mesh graded to R/4 under the fingertips")
-    p.add_argument("--fine-youngs", nargs="+", type=float, help="moduli for the finer mesh (default: --youngs)")
-    p.add_argument("--no-shipped", action="store_true", help="only the finer mesh")
-    p.add_argument("--json", type=Path)
-    p.add_argument("--plot", type=Path)
-    args = p.parse_args(argv)
-    logging.basicConfig(level=logging.INFO, format="%(message)s")
-    s = study(tuple(args.objects), tuple(args.youngs), args.fine,
-              tuple(args.fine_youngs) if args.fine_youngs else None, shipped=not args.no_shipped)
-    s["conclusions"] = conclusions(s)
-    for r in s["rows"]:
-        if "ratio" in r:
-            q = r["ratio"]
-            print(f"{r['object']:10s} {r['mesh']:10s} E = {r['young']:8.3g} Pa: ρ* = {r['squeeze_depth'] * 1e3:7.3f} mm "
-                  f"(step {r['step'] * 1e3:.3g}), "
-                  f"Σf·n̂ {r['normal']:.3f} N (rigid {r['rigid']['normal']:.3f}, ×{q['normal']:.3f}), grip ×{q['grip']:.3f}, "
-                  f"resultant ×{q['resultant']:.3f}, wrap {r['wrap']:.3f}, utilisation {r['utilisation']:.2f}, "
-                  f"w/mg {r['liftable_excess']:.3f}")
-        else:
-            print(f"{r['object']:10s} {r['mesh']:10s} E = {r['young']:8.3g} Pa: not picked up ({r['reason'][:80]})")
-    for k, v in s["conclusions"].items():
-        print(k, v)
-    if args.json:
-        from .friction_reference import json_safe
-
-        args.json.write_text(json.dumps(json_safe(s), indent=1), encoding="utf-8")
-    if args.plot:
-        plot(s, args.plot)
-    return 0
+#: The moduli and meshes of the full report's study and of its quick run.
+CONFIGS: dict[str, dict[str, Any]] = {
+    "full": {"objects": PAPER_OBJECTS, "youngs": YOUNGS, "fine": True, "fine_youngs": (1e4, 1e5, 1e6)},
+    "quick": {"objects": ("football",), "youngs": (1e4, 1e6), "fine": False},
+}
+#: Stages of :func:`run`.
+STAGES = 1
 
 
-if __name__ == "__main__":
-    sys.exit(main())
+def run(quick: bool, out_dir: Path, stages: Stages) -> tuple[dict[str, Any], dict[str, str]]:
+    """The study as a stage of the report, with its figure; returns its part of the summary and its picture."""
+    cfg = CONFIGS["quick" if quick else "full"]
+    part: dict[str, Any] = {"config": cfg}
+    images: dict[str, str] = {}
+
+    def one() -> None:
+        soft = study(tuple(cfg["objects"]), tuple(cfg["youngs"]), cfg.get("fine", False), cfg.get("fine_youngs"))
+        soft["conclusions"] = conclusions(soft)
+        part["softness"] = soft
+        images["softness"] = plot(soft, out_dir / "softness.png").name
+
+    stages.run("softness against the rigid grasp", one)
+    return part, images
+
+
+__all__ = ["CONFIGS", "PAPER_OBJECTS", "STAGES", "TABLE_III", "YOUNGS", "checks", "conclusions", "lift_off_measures",
+           "plot", "run", "run_one", "section", "study"]

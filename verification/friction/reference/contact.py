@@ -1,6 +1,6 @@
 """One static frictional contact problem: a semismooth Newton method on the Alart–Curnier equations.
 
-The reference's unit of work.  A :class:`~verification.ref_body.CondensedBody`
+The reference's unit of work.  A :class:`~verification.friction.reference.body.CondensedBody`
 at gravity load factor λ touches up to three rigid obstacles — two spheres of
 radius R (the fingertips ℱ₁, ℱ₂, centres O_f) and the table plane z = h
 (normal +ẑ) — with Coulomb friction μ_ℱ or μ_𝒫.  The obstacles have moved
@@ -10,7 +10,7 @@ Unknowns and equations
 ----------------------
 For a set of candidate pairs k = (node i, obstacle o) the unknowns are the
 pair forces f_k ∈ ℝ³ (on the object) and the rigid part a ∈ ℝ⁶ of the
-surface displacement (:mod:`verification.ref_body`)::
+surface displacement (:mod:`verification.friction.reference.body`)::
 
     u_s = H (Σ_k B_kᵀ f_k + λ g) + Q a,      x_i = X_i + u_i,
     Qᵀ (Σ_k B_kᵀ f_k + λ g) = 0                          (equilibrium, 6 rows)
@@ -69,7 +69,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg as la
 
-from .ref_body import CondensedBody
+from .body import CondensedBody
 
 log = logging.getLogger(__name__)
 

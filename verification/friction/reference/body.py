@@ -1,9 +1,9 @@
 """The elastic body of the frictional-contact reference, condensed onto its surface.
 
-The reference (:mod:`verification.friction_reference`) solves the same
+The reference (:mod:`verification.friction.compare`) solves the same
 linear-elastic problem as fem_grasp — P1 tetrahedra, small strain, gravity
 (paper §II-A/B, ``K Δ = F + G``) — but builds it from dolfinx's assembly
-(:class:`verification.dolfinx_ref.DolfinxModel`: K from ∫σ(u):ε(v), G the
+(:class:`verification.dolfinx.reference.DolfinxModel`: K from ∫σ(u):ε(v), G the
 consistent P1 load, both in fem_grasp's node-major numbering) and reduces it
 with its own linear algebra:
 
@@ -163,7 +163,7 @@ def condense(points: np.ndarray, tets: np.ndarray, young: float, poisson: float,
     """
     from fem_grasp import TetMesh
 
-    from .dolfinx_ref import DolfinxModel
+    from ...dolfinx.reference import DolfinxModel
 
     t0 = time.perf_counter()
     points = np.asarray(points, float)

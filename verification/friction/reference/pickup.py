@@ -4,7 +4,7 @@ Every phase of Algorithm 1 of *Picking up Soft 3D Objects with Two Fingers*
 is a quasi-static, path-dependent frictional contact problem; here each
 increment of its parameter — the gravity load factor λ (rest), the squeeze
 depth ρ, the hanging weight w (lift test) or the lift height — is **one**
-static problem solved by :func:`verification.ref_contact.solve_static`, with
+static problem solved by :func:`verification.friction.reference.contact.solve_static`, with
 the slip measured from the previous increment's contact points.  No event is
 located: contact sets and stick/slip states are whatever each static problem
 finds.
@@ -53,8 +53,8 @@ from typing import Callable
 
 import numpy as np
 
-from .ref_body import CondensedBody
-from .ref_contact import (
+from .body import CondensedBody
+from .contact import (
     FINGER1,
     FINGER2,
     SLIP,
@@ -194,7 +194,7 @@ class ReferencePickup:
     """
 
     def __init__(self, scenario: Scenario, body: CondensedBody | None = None) -> None:
-        from .ref_body import condense
+        from .body import condense
 
         self.sc = scenario
         self.body = body if body is not None else condense(scenario.points, scenario.tets, scenario.young,
@@ -216,7 +216,7 @@ class ReferencePickup:
         """One static problem from ``prev`` (its positions are the slip references).
 
         Newton from ``prev``; if that finds no static state, the same problem by continuation in its data
-        (:func:`~verification.ref_contact.solve_continued`, the load and the ``fade`` forces of contacts the
+        (:func:`~verification.friction.reference.contact.solve_continued`, the load and the ``fade`` forces of contacts the
         problem drops), which finds the branch connected to ``prev`` when a direct Newton misses it.
         """
         self.solves += 1

@@ -22,19 +22,29 @@ on a rigid plane, contact radius ``a = (R δ)^½``.  Hertz's half-space
 idealisation neglects the compliance of the rest of the sphere; that
 correction is of relative order (δ/R)^½ and lowers the force.  The report
 therefore also extrapolates F/F_Hertz to δ → 0 with a fit in (δ/R)^½.
+
+``python -m verification hertz [--quick]`` runs it alone (``hertz.html``, ``hertz.json``); it is a stage of the
+full report too.  Figure, headline checks and the report's section: :mod:`.report`.
 """
 
 from __future__ import annotations
 
 import logging
 import time
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 
 from fem_grasp import Body, TetMesh
 
-from .linalg import factorized
+from .._common.run import Stages
+from ..dolfinx.linalg import factorized
+from .report import checks, hertz_plot, section
+
+__all__ = ["CONFIGS", "STAGES", "OctantIndentation", "checks", "hertz_force", "hertz_study", "octant_sphere", "run",
+           "section"]
 
 log = logging.getLogger(__name__)
 
@@ -220,3 +230,24 @@ def hertz_study(pole_sizes: list[float], deltas: list[float], radius: float = 0.
     return {"radius": radius, "young": young, "poisson": poisson, "deltas_rel": list(map(float, deltas)),
             "model": "frictionless, sphere between two rigid planes (octant with symmetry rollers)",
             "levels": levels}
+
+
+#: Edge lengths at the pole (fractions of R) and indentations (fractions of R) of the full and the quick study.
+CONFIGS: dict[str, dict[str, Any]] = {
+    "full": {"pole_sizes": [0.04, 0.02, 0.01, 0.007, 0.005], "deltas": [0.0025, 0.005, 0.01, 0.02]},
+    "quick": {"pole_sizes": [0.04, 0.02], "deltas": [0.0025, 0.005, 0.01, 0.02]},
+}
+#: Stages of :func:`run`.
+STAGES = 2
+
+
+def run(quick: bool, out_dir: Path, stages: Stages) -> tuple[dict[str, Any], dict[str, str]]:
+    """The study and its figure; returns its part of the summary and its pictures."""
+    cfg = CONFIGS["quick" if quick else "full"]
+    part: dict[str, Any] = {"config": cfg}
+    images: dict[str, str] = {}
+    stages.run("Hertz", lambda: hertz_study(cfg["pole_sizes"], cfg["deltas"]), lambda v: part.__setitem__("hertz", v))
+    if "hertz" in part:
+        stages.run("Hertz plot", lambda: images.__setitem__(
+            "hertz", hertz_plot(part["hertz"], out_dir / "hertz.png").name))
+    return part, images

@@ -1,11 +1,11 @@
 """fem_grasp's contact evolution against an independent frictional-contact reference.
 
-``python -m verification.friction_reference SCENE [--increments N] [--json PATH]``
+``python -m verification friction compare SCENE [--increments N] [--json PATH]``
 
 fem_grasp tracks the squeeze, the lift test and the lift of *Picking up Soft
 3D Objects with Two Fingers* event by event (events A–D, §III-C).  The
-reference (:mod:`verification.ref_pickup`, :mod:`verification.ref_contact`,
-:mod:`verification.ref_body`; formulation in ``verification/README.md``)
+reference (:mod:`verification.friction.reference.pickup`, :mod:`verification.friction.reference.contact`,
+:mod:`verification.friction.reference.body`; formulation in ``verification/friction/README.md``)
 solves the same model — P1 linear elasticity assembled by dolfinx, exact
 sphere and plane gaps, Coulomb cones μ_ℱ and μ_𝒫, gravity with a load factor —
 as a sequence of static contact problems, one per increment, by a semismooth
@@ -60,8 +60,9 @@ from typing import Any
 
 import numpy as np
 
-from .ref_contact import FINGER1, FINGER2, NAMES, SLIP, STICK, TABLE, TOL_NEWTON, StaticState
-from .ref_pickup import ReferencePickup, Scenario
+from .._common.run import json_safe
+from .reference.contact import FINGER1, FINGER2, NAMES, SLIP, STICK, TABLE, TOL_NEWTON, StaticState
+from .reference.pickup import ReferencePickup, Scenario
 
 log = logging.getLogger(__name__)
 
@@ -71,7 +72,7 @@ DEFAULT_LEVELS = (1, 2, 4, 8)
 REST_LEVELS = (4, 16, 64)
 #: Exit 1 when the finest level's max |Δf| / F_s exceeds this: the reference's own O(Δρ) error at M = 8
 #: plus fem_grasp's implicit increments (where it takes them) stay well below it on every listed scene, while a
-#: wrong friction direction, cone or gap shows up as an O(1) difference (README, "Agreement").
+#: wrong friction direction, cone or gap shows up as an O(1) difference (verification/friction/README.md, "Tolerances").
 FORCE_TOL = 0.05
 #: A set or state mismatch within this many reference increments of a fem_grasp event of the same node is
 #: "near an event": an incremental solution crosses a threshold O(Δρ) away from the exact crossing.
@@ -515,23 +516,6 @@ def self_check(ref: ReferencePickup, states: list[StaticState]) -> dict[str, flo
 
 
 # ===================================================================== driver
-def json_safe(x: Any) -> Any:
-    """Plain JSON types: numpy scalars and arrays converted, tuples as lists, non-finite floats as None."""
-    if isinstance(x, dict):
-        return {str(k): json_safe(v) for k, v in x.items() if not str(k).startswith("_")}
-    if isinstance(x, (list, tuple)):
-        return [json_safe(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return json_safe(x.tolist())
-    if isinstance(x, (np.bool_, bool)):
-        return bool(x)
-    if isinstance(x, (np.integer, int)):
-        return int(x)
-    if isinstance(x, (np.floating, float)):
-        return float(x) if math.isfinite(x) else None
-    return x
-
-
 def fit_order(h: list[float], e: list[float]) -> float:
     """Least-squares slope of log e against log h (nan with fewer than two positive points)."""
     pts = [(math.log(a), math.log(b)) for a, b in zip(h, e) if a > 0 and b > 0]
@@ -680,7 +664,7 @@ def print_summary(s: dict[str, Any]) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m verification.friction_reference",
+    parser = argparse.ArgumentParser(prog="python -m verification friction compare",
                                      description="fem_grasp's squeeze, lift test and lift against an independent "
                                                  "frictional-contact reference")
     parser.add_argument("scene", help="a shipped scene name (tomato, foam_block, …) or a path to a scene .toml")
