@@ -70,6 +70,9 @@ log = logging.getLogger(__name__)
 DRIFT_SWEEPS = 300
 #: ... once some contact has slid this fraction of ``max_slip``.
 DRIFT_SLIP = 0.01
+#: ... where the motion per sweep has not fallen below this fraction of its value DRIFT_SWEEPS sweeps before, and
+#: the motion still to come at that rate of decay would carry a contact past ``max_slip``.
+DRIFT_DECAY = 0.5
 #: Consecutive sweeps in which some contact has no local solution before the relaxation gives up.
 STUCK_SWEEPS = 50
 #: Sweeps without halving the largest force change (statuses that keep cycling) before it gives up.
@@ -98,6 +101,9 @@ class Relaxation:
     status : (m,) STICK, SLIDE or RELEASE
     slips : (m,) length of each contact's tangential motion, metres
     sweeps : Gauss–Seidel sweeps used
+    motions : (m, 2) each sliding contact's tangential motion (u₁, u₂) in its start frame (zero where it does
+        not slide): with ``status`` and ``displacements``, a start for another relaxation from the same start
+        positions (``relax_contacts(..., start=...)``)
     """
 
     displacements: np.ndarray
@@ -106,6 +112,7 @@ class Relaxation:
     status: np.ndarray
     slips: np.ndarray
     sweeps: int
+    motions: np.ndarray | None = None
 
 
 _EYE3 = np.eye(3)
@@ -275,7 +282,8 @@ def _compiled_polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndar
 
 def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndarray, centers: list,
                    up: np.ndarray, mu: np.ndarray, force_scale: float, *, tol: float = 1e-11,
-                   max_sweeps: int = 5000, max_slip: float = np.inf) -> Relaxation:
+                   max_sweeps: int = 5000, max_slip: float = np.inf,
+                   start: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> Relaxation:
     """Static stick/slide/release state of every contact at fixed obstacles (module notes).
 
     Parameters
@@ -288,6 +296,9 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
     mu : (m,) friction coefficients
     force_scale : F_s, newtons; sweeps stop when no force changes by more than ``tol`` F_s
     max_slip : a contact sliding further than this, metres, is taken as gross slip (failure)
+    start : (status, displacements, motions) to start the sweeps from instead of every contact held at its start
+        position: a nearby state (a relaxation of the same start positions with fewer contacts, say). Only where
+        the sweeps begin: the static state they find is a property of the problem, wherever they begin.
 
     Raises
     ------
@@ -312,8 +323,17 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
     mu = np.asarray(mu, float)
     # The sweep's working state, as arrays (compiled) or lists (plain Python): see fem_grasp.contact.kernels.jit.
     k_rec, k_ct, k_mu = as_kernel_data(rec), as_kernel_data(c.T), as_kernel_data(mu)  # the sweep reads C's columns
-    f, d, u = as_kernel_data(f0), as_kernel_data(np.zeros((m, 3))), as_kernel_data(np.zeros((m, 2)))
-    has_u, status = as_kernel_data(np.zeros(m), np.int64), as_kernel_data(np.full(m, STICK), np.int64)
+    if start is None:
+        f, d, u = as_kernel_data(f0), as_kernel_data(np.zeros((m, 3))), as_kernel_data(np.zeros((m, 2)))
+        has_u, status = as_kernel_data(np.zeros(m), np.int64), as_kernel_data(np.full(m, STICK), np.int64)
+    else:
+        s0 = np.asarray(start[0], dtype=np.int64).reshape(m)
+        d0 = np.where((s0 == SLIDE)[:, None], np.asarray(start[1], float).reshape(m, 3), 0.0)
+        u0 = np.where((s0 == SLIDE)[:, None], np.asarray(start[2], float).reshape(m, 2), 0.0)
+        s0 = np.where(s0 == SLIDE, SLIDE, STICK)  # a released start is swept afresh from held
+        f = as_kernel_data(f0 + (c @ d0.reshape(-1)).reshape(m, 3))
+        d, u = as_kernel_data(d0), as_kernel_data(u0)
+        has_u, status = as_kernel_data((s0 == SLIDE).astype(float), np.int64), as_kernel_data(s0, np.int64)
     memo, unsolved_force = as_kernel_data(np.zeros((m, 10))), as_kernel_data(np.zeros(3))
     last_status = status.tobytes() if isinstance(status, np.ndarray) else list(status)
     next_polish, polish_fails = 2, 0
@@ -363,12 +383,16 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
         if not same:
             moves = []
         moves.append(move)
-        # Same statuses, no root for them, and the contacts move as much per sweep as 100 sweeps ago: they
-        # drift together at a steady rate, which is sliding that nothing stops (gross slip).
-        if len(moves) > DRIFT_SWEEPS and moves[-1] > 0.5 * moves[-1 - DRIFT_SWEEPS]:
+        # Same statuses, no root for them, and the motion per sweep decays too slowly for the contacts to stop
+        # within the slip bound: sliding that nothing stops (gross slip).  An ill-conditioned static problem
+        # (ν → ½) also converges slowly, but geometrically: its remaining motion, extrapolated at the observed
+        # rate, stays small, and the sweeps go on.
+        if len(moves) > DRIFT_SWEEPS and moves[-1] > DRIFT_DECAY * moves[-1 - DRIFT_SWEEPS]:
             uu = np.asarray(u, float)[np.asarray(has_u) != 0]  # (only here: a sweep costs less than this)
             slid = float(np.sqrt((uu ** 2).sum(axis=1)).max()) if len(uu) else 0.0
-            if slid > DRIFT_SLIP * max_slip:
+            rate = (moves[-1] / max(moves[-1 - DRIFT_SWEEPS], 1e-300)) ** (1.0 / DRIFT_SWEEPS)
+            ahead = np.inf if rate >= 1.0 else moves[-1] * rate / (1.0 - rate)
+            if slid > DRIFT_SLIP * max_slip and slid + ahead > max_slip:
                 raise RelaxationFailure(f"the contacts keep sliding at a steady rate after {sweep} Gauss–Seidel "
                                         "sweeps: friction cannot hold the object (gross slip)")
         last_status = now_status
@@ -390,7 +414,7 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
     slips = np.where(sliding, np.linalg.norm(u, axis=1), 0.0)
     log.debug("relaxation: %d sweeps, %d stick, %d slide, %d release", sweep, int((status == STICK).sum()),
               int((status == SLIDE).sum()), int((status == RELEASE).sum()))
-    return Relaxation(d, f, normals, status, slips, sweep)
+    return Relaxation(d, f, normals, status, slips, sweep, u)
 
 
 @warm_up_sample

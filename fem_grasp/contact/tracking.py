@@ -141,7 +141,7 @@ from ..threads import one_blas_thread
 from .kernels import events, jit, slip_trial
 from .kernels.jit import sample_contacts, warm_up_sample
 from .obstacles import FINGER1, FINGER2, OBSTACLES, TABLE, Fingertip, TablePlane
-from .relaxation import RELEASE, SLIDE, relax_contacts
+from .relaxation import RELEASE, SLIDE, STICK, relax_contacts
 from .slip_system import NEWTON_MAX_ITER, NEWTON_TOL, CompiledSlipSystem, MixedSlipSystem, SlipFailure
 
 __all__ = ["FINGER1", "FINGER2", "OBSTACLES", "TABLE", "ContactEvent", "ContactState", "MixedSlipSystem", "Parameter",
@@ -961,6 +961,11 @@ class Tracker:
         nodes, owner = base.nodes.copy(), base.owner.copy()
         disp = base.disp + dt * vel
         slip = base.slip.copy()
+        # Every round relaxes from the held state of the increment (the contacts where the increment began, moved
+        # with their finger; added contacts where they touched), not from the previous round's result: the
+        # increment is one static problem, and a contact that slid in an earlier round with the wrong contact set
+        # must not keep that slip while it sticks in the final one (a contact that slides ends on its cone).
+        held_disp, held_slip = disp.copy(), slip.copy()
         fscale = self.force_scale(base)
         kw = {} if param == Parameter.LOAD else {param: getattr(base, param) + dt}
         at = replace(base, **kw)
@@ -970,26 +975,29 @@ class Tracker:
             events.append(ContactEvent(phase, kind, int(node), OBSTACLES[o], at.squeeze_depth, at.lift_height))
 
         status = np.zeros(m, dtype=np.int64)
+        start = None  # the sweeps of a later round begin at the earlier round's state (only where they begin)
         for _ in range(max_rounds):
             resp = self.response(nodes)
-            forces = (resp.reduced_stiffness @ disp.reshape(-1)).reshape(-1, 3) + load * resp.gravity_forces
-            q0 = self.points[nodes] + disp
+            forces = (resp.reduced_stiffness @ held_disp.reshape(-1)).reshape(-1, 3) + load * resp.gravity_forces
+            q0 = self.points[nodes] + held_disp
             cen = [None if o == TABLE else centers[o] for o in owner]
             try:
                 rel = relax_contacts(resp.reduced_stiffness, forces, q0, cen, self.up, self.mu[owner], fscale,
-                                     max_slip=MAX_SLIP * self.diameter)
+                                     max_slip=MAX_SLIP * self.diameter, start=start)
             except RelaxationFailure as exc:
                 raise TrackingError(f"no quasi-static equilibrium at {_where(param, at)}"
                                     f"{': ' + why if why else ''}; a static stick/slip state was sought and "
                                     f"not found: {exc}") from None
-            disp = disp + rel.displacements
-            slip = slip + rel.slips
+            disp = held_disp + rel.displacements
+            slip = held_slip + rel.slips
             status = rel.status
             released = status == RELEASE
             for j in np.flatnonzero(released):
                 record("B", nodes[j], owner[j])
             keep = ~released
             nodes, owner, disp, slip, status = nodes[keep], owner[keep], disp[keep], slip[keep], status[keep]
+            held_disp, held_slip = held_disp[keep], held_slip[keep]
+            start = (status, rel.displacements[keep], rel.motions[keep])
             surface = self.surface_points + self.surface_field(nodes, disp, load)
             gaps = self.obstacle_gaps(surface, centers)
             in_contact = set(int(k) for k in nodes)
@@ -1013,6 +1021,11 @@ class Tracker:
             owner = np.concatenate([owner, [a[1] for a in added]]).astype(np.int64)
             disp = np.vstack([disp] + [a[2][None, :] for a in added])
             slip = np.concatenate([slip, np.zeros(len(added))])
+            held_disp = np.vstack([held_disp] + [a[2][None, :] for a in added])
+            held_slip = np.concatenate([held_slip, np.zeros(len(added))])
+            start = (np.concatenate([start[0], np.full(len(added), STICK)]),
+                     np.vstack([start[1], np.zeros((len(added), 3))]),
+                     np.vstack([start[2], np.zeros((len(added), 2))]))
             try:
                 check_contact_set(self.points, nodes)
             except CollinearContactError as exc:

@@ -1,36 +1,24 @@
-"""A known defect, pinned down: an implicit increment of the tracking is not one static contact problem.
+"""An implicit increment of the tracking is one static contact problem.
 
-``Tracker.implicit_step`` relaxes the contacts, adds nodes that come to
-penetrate an obstacle and relaxes again *from the previous round's result*.  A
-contact that slid in an earlier round (when the contact set still missed a
-node) and sticks in the final round keeps that slip, with its friction strictly
-inside its cone: Coulomb's law for the increment is violated (a contact that
-slides in an increment ends on its cone).  The returned states pass
-``PickupResult.check()``, which tests cones, not the slip-friction pairing.
-On every shipped scene 10–50 % of the implicit steps (most in the lift test)
-return such contacts, moved by up to 2.9 % of the diameter (found by the
-independent reference, verification/friction/; evidence and the
-proposed fix in verification/friction/README.md, "Disagreements found").
-
-The obvious fix — every round relaxes from the held state of the increment —
-removes them, but then ``relax_contacts`` reports gross slip on the ν = 0.4999
-box of tests/test_extreme.py where a static state exists (the reference finds
-it in one step), so the fix needs a warm-started relaxation too and is left to
-the library's owner.  This test is strict-xfail: it fails as soon as the
-defect is fixed, so that the marker is removed with the fix.
+``Tracker.implicit_step`` relaxes the contacts, adds nodes that come to penetrate an obstacle and releases
+tensile ones, and relaxes again.  Every round solves the increment's problem from its held state (the
+contacts where the increment began, moved with their finger), its sweeps only starting at the previous
+round's state: a contact that slid in an earlier round, while the contact set still missed a node, and sticks
+in the final one is back where the increment held it (a contact that slides in an increment ends on its cone;
+one that sticks has not moved).  ``PickupResult.check()`` cannot see a violation (it tests cones, not the
+pairing of slip and friction); this test does, on the quick foam block, whose lift test settles many hanging
+states by implicit steps.  The independent frictional-contact reference found the violation when rounds
+relaxed from the previous round's result (10–50 % of the implicit steps of every shipped scene).
 """
 
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 import fem_grasp.contact.tracking as tracking
 from fem_grasp import Body, box_mesh, pickup
 
 
-@pytest.mark.xfail(strict=True, reason="known defect: implicit_step's later rounds keep earlier rounds' slips "
-                                       "(verification/friction/README.md, 'Disagreements found')")
 def test_sticking_contacts_do_not_move_within_an_implicit_step(monkeypatch):
     moved: list[tuple[str, int, float]] = []
     steps = [0]
