@@ -23,7 +23,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 import scipy.sparse as sp
@@ -83,6 +83,27 @@ def _mumps(mat, symmetric: bool = True):
     from .linalg import mumps_solver
 
     return mumps_solver(mat, symmetric=symmetric)
+
+
+def _solve_linear(a: Any, L: Any, bc: Any, V: Any) -> Any:
+    """The solution of the linear problem a(u, v) = L(v) with the Dirichlet condition ``bc`` (MUMPS)."""
+    import dolfinx.fem.petsc as fp
+    from dolfinx import fem
+    from petsc4py import PETSc
+
+    A = fp.assemble_matrix(a, bcs=[bc])
+    A.assemble()
+    b = fp.assemble_vector(L)
+    fp.apply_lifting(b, [a], bcs=[[bc]])
+    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
+    fp.set_bc(b, [bc])
+    uh = fem.Function(V)
+    ksp = _mumps(A)
+    ksp.solve(b, uh.vector)
+    uh.x.scatter_forward()
+    for obj in (A, b, ksp):  # PETSc objects are freed by hand
+        obj.destroy()
+    return uh
 
 
 @dataclass(frozen=True)
@@ -355,10 +376,8 @@ def solve_manufactured(mesh: "TetMesh", field: UFLField, young: float, poisson: 
     ManufacturedResult
     """
     import dolfinx.fem as fem
-    import dolfinx.fem.petsc as fp
     import dolfinx.mesh as dmesh
     import ufl
-    from petsc4py import PETSc
 
     msh = dolfinx_mesh(mesh)
     lam_c = fem.Constant(msh, lame(young, poisson)[0])
@@ -384,16 +403,7 @@ def solve_manufactured(mesh: "TetMesh", field: UFLField, young: float, poisson: 
     u_d = fem.Function(V)
     u_d.interpolate(lambda p: field.value(p.T).T)
     bc = fem.dirichletbc(u_d, dofs)
-    A = fp.assemble_matrix(a, bcs=[bc])
-    A.assemble()
-    b = fp.assemble_vector(L)
-    fp.apply_lifting(b, [a], bcs=[[bc]])
-    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-    fp.set_bc(b, [bc])
-    ksp = _mumps(A)
-    uh = fem.Function(V)
-    ksp.solve(b, uh.vector)
-    uh.x.scatter_forward()
+    uh = _solve_linear(a, L, bc, V)
     seconds = time.perf_counter() - t0
 
     e = uh - u_ex
@@ -411,8 +421,6 @@ def solve_manufactured(mesh: "TetMesh", field: UFLField, young: float, poisson: 
         energy_norm=np.sqrt(integral(ufl.inner(sigma(u_ex), _strain(u_ex)))),
         seconds=seconds,
     )
-    for obj in (A, b, ksp):
-        obj.destroy()
     log.debug("dolfinx P%d manufactured: %d dofs, L2 %.3e, energy %.3e, %.2f s", degree, result.n_dofs,
               result.l2_error, result.energy_error, seconds)
     return result
@@ -462,10 +470,8 @@ def solve_clamped_gravity(mesh: "TetMesh", degree: int, young: float, poisson: f
     equilibrium), ``n_dofs`` and ``seconds``.
     """
     import dolfinx.fem as fem
-    import dolfinx.fem.petsc as fp
     import dolfinx.mesh as dmesh
     import ufl
-    from petsc4py import PETSc
 
     msh = dolfinx_mesh(mesh)
     lam_c = fem.Constant(msh, lame(young, poisson)[0])
@@ -485,16 +491,7 @@ def solve_clamped_gravity(mesh: "TetMesh", degree: int, young: float, poisson: f
     L = fem.form(ufl.inner(load, v) * ufl.dx)
     facets = dmesh.locate_entities_boundary(msh, 2, lambda p: np.abs(p[0] - x0) <= tol)
     bc = fem.dirichletbc(np.zeros(3), fem.locate_dofs_topological(V, 2, facets), V)
-    A = fp.assemble_matrix(a, bcs=[bc])
-    A.assemble()
-    b = fp.assemble_vector(L)
-    fp.apply_lifting(b, [a], bcs=[[bc]])
-    b.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
-    fp.set_bc(b, [bc])
-    ksp = _mumps(A)
-    uh = fem.Function(V)
-    ksp.solve(b, uh.vector)
-    uh.x.scatter_forward()
+    uh = _solve_linear(a, L, bc, V)
     seconds = time.perf_counter() - t0
     coords = V.tabulate_dof_coordinates()
     k = int(np.argmin(np.linalg.norm(coords - np.asarray(probe), axis=1)))
@@ -503,6 +500,4 @@ def solve_clamped_gravity(mesh: "TetMesh", degree: int, young: float, poisson: f
     work = float(fem.assemble_scalar(fem.form(ufl.inner(load, uh) * ufl.dx)))
     out = {"probe_displacement": uh.x.array.reshape(-1, 3)[k].copy(), "work": work,
            "n_dofs": int(V.dofmap.index_map.size_local * 3), "seconds": seconds}
-    for obj in (A, b, ksp):
-        obj.destroy()
     return out
