@@ -49,8 +49,8 @@ test: setup
 # [dev] extra (pytest, hypothesis, ruff) into a fresh venv without system site packages, made from a Python that
 # is not Debian's (PIP_PYTHON, default: the python3 first on PATH). From a folder outside the source tree:
 # `fem-grasp --version`, a one-level pickup of the shipped tomato (its committed mesh, no gmsh; plain-Python
-# kernels, no numba) and the test suite against the installed wheel (a copy of tests/; fem_grasp must come from
-# the venv). No extra is installed, so the tests of gmsh, numba, pyvista, dask/pandas, dolfinx and of the
+# kernels, no numba) and the test suite against the installed wheel (a copy of tests/ and of the README, whose
+# snippets it runs; fem_grasp must come from the venv). No extra is installed, so the tests of gmsh, numba, pyvista, dask/pandas, dolfinx and of the
 # verification/bench/examples/scripts folders skip, each saying why (tests/conftest.py). The tests marked slow are
 # left out (-m "not slow"): on the plain-Python kernels they take more than 10 minutes each (a pickup test rerun
 # under OpenBLAS's oldest kernels); the rest takes about 10 minutes on 2 cores.
@@ -67,12 +67,12 @@ test-pip:
 	$(PIP_VENV)/bin/python -m pip wheel -q --no-deps -w $(PIP_WHEELS) .
 	$(PIP_VENV)/bin/python -m pip install -q "$$(ls $(PIP_WHEELS)/fem_grasp-*.whl)[dev]"
 	@venv="$(abspath $(PIP_VENV))"; tmp="$$(mktemp -d)"; trap 'rm -rf "$$tmp"' EXIT; \
-	  cp -r tests pyproject.toml "$$tmp"/ && cd "$$tmp" && set -x && \
+	  cp -r tests pyproject.toml README.md "$$tmp"/ && cd "$$tmp" && set -x && \
 	  "$$venv/bin/python" -c "import sys, fem_grasp; print('fem_grasp', fem_grasp.__version__, 'from', \
 	    fem_grasp.__file__); sys.exit(not fem_grasp.__file__.startswith('$$venv/'))" && \
 	  "$$venv/bin/fem-grasp" --version && \
-	  { "$$venv/bin/fem-grasp" run tomato --accuracy off --no-cache --out tomato; [ $$? -le 1 ]; } && \
-	  test -s tomato/result.json && \
+	  { "$$venv/bin/fem-grasp" run tomato --accuracy off --no-cache --out run-tomato; [ $$? -le 1 ]; } && \
+	  test -s run-tomato/result.json && \
 	  FEM_GRASP_INSTALLED=1 "$$venv/bin/python" -m pytest -p no:cacheprovider -m "not slow" $(PYTEST_ARGS) tests
 
 # The API reference from the docstrings and docs/*.md: docs/_build/html/index.html. A docstring that

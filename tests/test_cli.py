@@ -79,7 +79,8 @@ def test_top_level_help_lists_every_command(capsys):
         assert f"    {cmd} " in text, cmd
 
 
-def test_info_of_a_scene_prints_labelled_lines_with_units_not_dicts(capsys):
+def test_info_of_a_scene_prints_labelled_lines_with_units_not_dicts(capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # a folder named tomato in the working directory would be read instead
     assert main(["info", "tomato"]) == 0
     text = capsys.readouterr().out
     assert "{" not in text and "None" not in text, text
