@@ -25,16 +25,15 @@ def section(part: dict[str, Any], images: dict[str, str]) -> str:
     if not pert:
         return ""
     parts = ["<h2>Same answer on every machine: round-off perturbations</h2>"]
-    if pert:
-        tol = pert["tolerances"]
-        parts.append(f"<p class='note'>Each case picked up in a fresh process under each variant ({', '.join(pert['variants'])}): "
-                     f"coordinates jittered by {fmt(tol['jitter'])} × the diameter, the plain-Python kernels, one "
-                     "and two BLAS threads, other OpenBLAS kernels, numpy without its widest SIMD loops. Promised: "
-                     f"the reference's verdict, ρ* within {fmt(tol['depth_steps'])} increment, finger forces within "
-                     f"{fmt(tol['force_of_weight'])} mg, check() on every snapshot.</p>")
-        rows = []
-        for line in pert["table"].splitlines()[2:]:
-            rows.append([c.strip() for c in line.strip("|").split("|")])
-        parts.append(table(["case", "reference", "variants", "same events", "max Δρ* (increments)",
-                            "max Δforce (mg)", "problems"], rows))
+    tol = pert["tolerances"]
+    parts.append(f"<p class='note'>Each case picked up in a fresh process under each variant ({', '.join(pert['variants'])}): "
+                 f"coordinates jittered by {fmt(tol['jitter'])} × the diameter, the plain-Python kernels, one "
+                 "and two BLAS threads, other OpenBLAS kernels, numpy without its widest SIMD loops. Promised: "
+                 f"the reference's verdict, ρ* within {fmt(tol['depth_steps'])} increment, finger forces within "
+                 f"{fmt(tol['force_of_weight'])} mg, check() on every snapshot.</p>")
+    rows = []
+    for line in pert["table"].splitlines()[2:]:
+        rows.append([c.strip() for c in line.strip("|").split("|")])
+    parts.append(table(["case", "reference", "variants", "same events", "max Δρ* (increments)",
+                        "max Δforce (mg)", "problems"], rows))
     return "\n".join(parts)
