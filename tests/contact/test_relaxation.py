@@ -116,6 +116,40 @@ def test_a_load_friction_can_hold_sticks_at_once():
     assert res.sweeps == 1 and np.all(res.status == STICK) and np.all(res.displacements == 0)
 
 
+def test_motion_that_does_not_decay_ends_at_the_growth_bound(monkeypatch):
+    """0.8 N sideways per newton down, μ = 0.5: the contacts slide ever faster from sweep to sweep.  Once a
+    contact has moved DRIFT_SLIP × max_slip, a motion per sweep no smaller than GROWTH_SWEEPS sweeps before ends
+    the sweeps — before the drift bound (which needs DRIFT_SWEEPS sweeps of unchanged statuses) or the slip
+    bound — and names the contact that has moved furthest.  (At 0.6 N the motion decays, if slowly: the drift
+    bound, below, ends that one.)"""
+    import re
+
+    import fem_grasp.contact.relaxation as relaxation
+
+    c, f, q, centers, mu = box_on_the_table_pushed_sideways(0.8)
+    match = r"move no slower after (\d+) Gauss–Seidel sweeps than 20 sweeps before \(contact (\d+) has moved"
+    with pytest.raises(RelaxationFailure, match=match) as failure:
+        relax_contacts(c, f, q, centers, UP, mu, 1.0, max_slip=1.0)
+    assert failure.value.kind == "gross slip"
+    sweeps, k = (int(g) for g in re.search(match, str(failure.value)).groups())
+    assert relaxation.GROWTH_SWEEPS < sweeps < relaxation.DRIFT_SWEEPS
+    assert failure.value.contact == k and 0 <= k < len(f)
+    # Without the growth bound the same slide runs on until another bound ends it.
+    monkeypatch.setattr(relaxation, "GROWTH_SWEEPS", 10**9)
+    with pytest.raises(RelaxationFailure, match=r"(?:after|sweep) (\d+)") as later:
+        relax_contacts(c, f, q, centers, UP, mu, 1.0, max_slip=1.0)
+    assert later.value.kind == "gross slip"
+    assert int(re.search(r"(?:after|sweep) (\d+)", str(later.value)).group(1)) > sweeps
+
+
+def test_a_slowly_converging_relaxation_is_not_ended_by_the_growth_bound():
+    """A load friction can hold, on contacts that slide before they stick (the squeezed box): the sweeps' motion
+    decays, so the growth bound never fires and the static state is found."""
+    c, f0, q0, centers, mu, _ = squeezed_box_contacts()
+    res = relax_contacts(c, f0, q0, centers, UP, mu, float(np.abs(f0).max()))
+    assert res.sweeps >= 2 and np.all(np.isfinite(res.forces))
+
+
 @pytest.mark.parametrize("bound, value, match", [
     ("DRIFT_SWEEPS", 20, r"keep sliding at a steady rate after (\d+) Gauss–Seidel sweeps"),
     ("DRIFT_SWEEPS", 300, r"keep sliding at a steady rate after (\d+) Gauss–Seidel sweeps"),  # the default
@@ -131,6 +165,7 @@ def test_gross_slip_ends_at_the_drift_or_stall_bound(monkeypatch, bound, value, 
     import fem_grasp.contact.relaxation as relaxation
 
     monkeypatch.setattr(relaxation, bound, value)
+    monkeypatch.setattr(relaxation, "GROWTH_SWEEPS", 10**9)  # the bound that would end it first
     c, f, q, centers, mu = box_on_the_table_pushed_sideways(0.6)
     with pytest.raises(RelaxationFailure, match=match) as failure:
         relax_contacts(c, f, q, centers, UP, mu, 1.0, max_slip=1.0)
@@ -161,6 +196,7 @@ def test_a_contact_with_no_local_state_ends_at_the_stuck_bound(monkeypatch):
 
     import fem_grasp.contact.relaxation as relaxation
 
+    monkeypatch.setattr(relaxation, "GROWTH_SWEEPS", 10**9)  # the bound that would end it first
     c, f, q, centers, mu = box_on_the_table_pushed_sideways(1.0)
     ends = []
     for stuck in (2, 5, relaxation.STUCK_SWEEPS):
