@@ -29,12 +29,12 @@ def test_every_shipped_scene_runs_quick_and_the_exit_status_matches_the_result(s
 def test_young_override_reaches_the_scene():
     from argparse import Namespace
 
-    from fem_grasp.cli import _load_scene
+    from fem_grasp.cli.common import scene_of
 
     args = Namespace(scene="orange", quick=True, backend=None, no_lift=False, young="12.5 kPa")
-    assert _load_scene(args).young == 12500.0
+    assert scene_of(args).young == 12500.0
     args.young = None
-    assert _load_scene(args).young == 20000.0  # the scene's own
+    assert scene_of(args).young == 20000.0  # the scene's own
 
 
 @pytest.mark.requires("gmsh")  # the quick scene remeshes its object

@@ -83,8 +83,9 @@ def _imports(name: str) -> list[tuple[str, list[str], int]]:
 
 
 MODULES = _modules()
-#: Modules that can be imported without running something (``python -m fem_grasp`` runs the CLI).
-IMPORTABLE = [n for n in MODULES if n != "fem_grasp.__main__"]
+#: Modules that can be imported without running something (``python -m fem_grasp`` and ``python -m fem_grasp.cli`` run
+#: the CLI).
+IMPORTABLE = [n for n in MODULES if n.rsplit(".", 1)[-1] != "__main__"]
 
 
 @pytest.mark.parametrize("name", [n for n in MODULES if _source(n).name == "__init__.py"])

@@ -1,0 +1,97 @@
+"""Running a scene as ``fem-grasp run`` does: its body, its resting state (cached, re-solved before use) and
+the pickup, with errors about the fingers raised naming the scene file and its key.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from ..errors import SceneError
+
+__all__ = ["pickup_scene"]
+
+if TYPE_CHECKING:
+    from ..grasp.pickup import PickupResult
+    from ..mesh.tetmesh import TetMesh
+    from .scene import Scene
+
+
+def pickup_scene(scene: Scene, cache_dir: Path | None = None, phase: Any = None) -> tuple["PickupResult", bool]:
+    """Run a scene as ``fem-grasp run`` does: its body (mesh cached in ``cache_dir``), its resting state (cached,
+    re-solved before use), then :func:`~fem_grasp.grasp.pickup.pickup` with its settings.
+
+    ``phase``, when given, is called with a phase name ("meshing the object", "resting on the table",
+    "squeeze, lift test, lift") and returns a context manager around that phase (the CLI's progress bar).
+    Errors about the fingers (contact nodes, placement, squeeze directions) are raised naming the scene file
+    and its key.  ``result.timings["rest"]`` is the time the resting state took (to solve or to check from the
+    cache).  Returns (result, whether the resting state came from the cache).
+    """
+    import contextlib
+    import time
+
+    from ..grasp.pickup import pickup
+    from .cache import cached_rest
+
+    step = phase if phase is not None else (lambda name: contextlib.nullcontext())
+    with step("meshing the object"):
+        body = scene.body(cache_dir)
+        _check_contacts(scene, body.mesh)
+    t0 = time.perf_counter()
+    with step("resting on the table"):
+        rs, cached = cached_rest(body, scene.mu_table, backend=scene.backend, down=scene.object.down,
+                                 cache_dir=cache_dir)
+    t_rest = time.perf_counter() - t0
+    refine = scene.accuracy is not None and not scene.quick
+    with step("squeeze and lift, refining" if refine else "squeeze, lift test, lift"):
+        try:
+            if refine:
+                result = pickup(body, accuracy=scene.accuracy, geometry=scene.geometry(), rest_state=rs,
+                                **scene.pickup_kwargs())
+            else:
+                result = pickup(body, rest_state=rs, **scene.pickup_kwargs())
+                from ..grasp.accuracy import single_run_report
+
+                # One run, always said so: not converged; the scene states how far such a run is from the converged
+                # answer (its solver.expected_error, measured by the convergence study), or nothing is known.
+                result.accuracy = single_run_report(
+                    result, scene.accuracy, scene.expected_error,
+                    "--quick: one run on the coarse mesh, no refinement" if scene.quick else
+                    "one run on the scene's mesh (accuracy off)")
+        except SceneError as exc:
+            raise _in_scene(scene, exc) from None
+    result.timings["rest"] = t_rest
+    result.timings["total"] = result.timings.get("total", 0.0) + t_rest
+    return result, cached
+
+
+def _check_contacts(scene: Scene, mesh: "TetMesh") -> None:
+    """Node indices given in the scene exist and lie on the surface (else a SceneError naming the file and key)."""
+    if scene.contacts is None:
+        return
+    src = scene.path or "<scene>"
+    surface = set(mesh.surface_nodes.tolist())
+    for k in scene.contacts:
+        if k >= mesh.n_points:
+            raise SceneError(f"{src}: fingers.contacts: node {k} does not exist (the mesh has {mesh.n_points} nodes, "
+                             f"0 … {mesh.n_points - 1}); with --quick the mesh differs, use contacts = \"auto\"",
+                             file=str(src), key="fingers.contacts")
+        if k not in surface:
+            raise SceneError(f"{src}: fingers.contacts: node {k} is not on the surface of the mesh",
+                             file=str(src), key="fingers.contacts")
+
+
+#: The scene key an error about the fingers is about.
+_ERROR_KEYS = {"DirectionError": "fingers.directions", "ContactNodeError": "fingers.contacts",
+               "PlacementError": "fingers.contacts"}
+
+
+def _in_scene(scene: Scene, exc: SceneError) -> SceneError:
+    """``exc`` (raised by pickup() for the scene's settings) again, its message starting with the file and key."""
+    if exc.file is not None:
+        return exc
+    src = str(scene.path) if scene.path is not None else "<scene>"
+    key = _ERROR_KEYS.get(type(exc).__name__, "fingers")
+    how = "" if scene.contacts is not None or key != "fingers.contacts" else \
+        f" (contacts chosen by the rule {scene.placement_rule!r})"
+    return type(exc)(f"{src}: {key}{how}: {exc}", file=src, key=key)
