@@ -866,8 +866,10 @@ def _pct(x: float | None) -> str:
 def print_accuracy(sec: dict[str, Any]) -> None:
     print(f"\n== accuracy: each shipped scene's answer against the convergence study's reference ({sec['study']} "
           f"study); adaptive at {100 * sec['target']:g} %, cap {sec['cap_s']:g} s per run")
+    print("    error: relative to the reference (inf: the verdict differs); stated: the run's own estimate of its error "
+          "in rho* / force\n    (the scene's expected_error, or the adaptive loop's), covers: stated >= actual for both")
     print(f"{'object':<11} {'run':<28} {'seconds':>8} {'vertices':>8} {'verdict':<22} {'rho* mm':>8} "
-          f"{'error':>13} {'force N':>8} {'error':>13} {'stated':>15} {'covers':>6}")
+          f"{'error':>15} {'force N':>8} {'error':>15} {'stated':>15} {'covers':>6}")
     for name, obj in sec["objects"].items():
         ref = obj.get("reference")
         if not ref:
@@ -876,9 +878,12 @@ def print_accuracy(sec: dict[str, Any]) -> None:
         verdict = "picked up" if ref["success"] else "NOT picked up"
         if ref["success"]:
             rho, force = ref["rho"], ref["force"]
+
+            def band(q: dict[str, Any]) -> str:  # the reference's own uncertainty (inf: a single level, none known)
+                return f"±{_pct(q['error'])} {q['method']}" if math.isfinite(q["error"]) else q["method"]
+
             print(f"{name:<11} {'reference':<28} {'':>8} {ref['vertices']:8d} {verdict:<22} "
-                  f"{1e3 * rho['value']:8.3f} {'±' + _pct(rho['error']):>13} {force['value']:8.3f} "
-                  f"{'±' + _pct(force['error']):>13}")
+                  f"{1e3 * rho['value']:8.3f} {band(rho):>15} {force['value']:8.3f} {band(force):>15}")
         else:
             print(f"{name:<11} {'reference':<28} {'':>8} {ref['vertices']:8d} {verdict:<22}")
         for run, label in ACCURACY_RUNS:
@@ -895,8 +900,9 @@ def print_accuracy(sec: dict[str, Any]) -> None:
             covers = {None: "–", True: "yes", False: "NO"}[r["covers"]]
             e = r["error"]
             print(f"{'':<11} {label:<28} {r['seconds']:8.1f} {r['vertices']:8d} {v:<22} {1e3 * r['rho']:8.3f} "
-                  f"{_pct(e['squeeze_depth']):>13} {r['force']:8.3f} {_pct(e['finger_force']):>13} {stated:>15} "
-                  f"{covers:>6}")
+                  f"{_pct(e['squeeze_depth']):>15} {r['force']:8.3f} {_pct(e['finger_force']):>15} {stated:>15} "
+                  f"{covers:>6}" + (f"  {r['levels']} levels, {'converged' if r['converged'] else 'not converged'}"
+                                    if (r.get("levels") or 0) > 1 else ""))
 
 
 # -------------------------------------------------------------------- main
