@@ -866,8 +866,8 @@ def _pct(x: float | None) -> str:
 def print_accuracy(sec: dict[str, Any]) -> None:
     print(f"\n== accuracy: each shipped scene's answer against the convergence study's reference ({sec['study']} "
           f"study); adaptive at {100 * sec['target']:g} %, cap {sec['cap_s']:g} s per run")
-    print("    error: relative to the reference (inf: the verdict differs); stated: the run's own estimate of its error "
-          "in rho* / force\n    (the scene's expected_error, or the adaptive loop's), covers: stated >= actual for both")
+    print("    error: relative to the reference (or 'wrong verdict'); stated: the run's own estimate of its error in "
+          "rho* / force\n    (the scene's expected_error, or the adaptive loop's); covers: stated >= actual for both")
     print(f"{'object':<11} {'run':<28} {'seconds':>8} {'vertices':>8} {'verdict':<22} {'rho* mm':>8} "
           f"{'error':>15} {'force N':>8} {'error':>15} {'stated':>15} {'covers':>6}")
     for name, obj in sec["objects"].items():

@@ -343,7 +343,8 @@ def test_the_accuracy_section_measures_each_run_against_the_study_reference(monk
 
     bench.print_accuracy(sec)
     text = capsys.readouterr().out
-    assert "not run (cap" in text and "no reference" in text and "wrong verdict" not in text
+    assert "not run (cap" in text and "no reference" in text
+    assert not any("wrong verdict" in line for line in text.splitlines() if "picked up" in line)
     assert "10 %" in text and "yes" in text and "NO" in text
 
 
