@@ -139,7 +139,9 @@ search: setup
 # pickups, sparse against spectral, compiled against plain kernels, column batches, the floor of the method (flops
 # against the dense peak; about 10 GiB at 100k), the placement search serially and on Dask (section search), the
 # time to a 10/5/2 % answer (section converge, from the cached study of `make converge`), and the pickup engine
-# against a baseline commit side by side (section tracker; BENCH_ARGS="--only tracker --baseline REV"); tables on
+# against a baseline commit side by side (section tracker; BENCH_ARGS="--only tracker --baseline REV"), and each
+# shipped scene's actual error against the study's reference, one run, as shipped and adaptive at 5 % (section
+# accuracy; objects without a cached reference are skipped); tables on
 # stdout and bench/out/bench.json (long: shorter with BENCH_ARGS="--max-vertices 10000").
 bench: setup
 	$(PY) -m bench.bench $(BENCH_ARGS)

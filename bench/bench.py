@@ -72,6 +72,20 @@ Sections (``--only NAME``, repeatable; default all):
     routes (the tomato and the football graded to R/4 at fingertips and
     table: the time to a converged answer) (:mod:`bench.tracker`;
     ``--baseline REV``).
+``accuracy``
+    Per shipped object (the four paper scenes and the foam block), the wall
+    time and the actual error against the convergence study's reference
+    (ρ* and Σ f·n̂ relative to it, the verdict against its verdict) of the
+    paper's method run once on the shipped mesh (accuracy off), of the scene
+    as shipped (``Scene.run()``: today the same run, measured on its own so
+    that the row follows the default), and of the adaptive loop at 5 %
+    (``pickup(..., accuracy=0.05)``, needs gmsh); with the error each run
+    states (the scene's ``expected_error``, the loop's estimate, or
+    "unknown") and whether it covers the actual one.  One subprocess per run
+    (``--accuracy-cap`` seconds, beyond which the row says "not run");
+    references are read from the study's cache (``--converge-quick``: its
+    quick study), and an object without one is skipped
+    (``--accuracy-compute`` computes it: hours, minutes for the quick study).
 
 Medians over ``--reps`` repetitions.  Prints tables and writes
 ``bench/out/bench.json`` (sections run earlier are kept when ``--only`` runs
@@ -85,6 +99,7 @@ import argparse
 import gc
 import json
 import logging
+import math
 import os
 import platform
 import resource
@@ -101,7 +116,8 @@ log = logging.getLogger("bench")
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "bench" / "out" / "bench.json"
-SECTIONS = ("solve", "scaling", "objects", "spectral", "jit", "columns", "floor", "search", "converge", "tracker")
+SECTIONS = ("solve", "scaling", "objects", "spectral", "jit", "columns", "floor", "search", "converge", "tracker",
+            "accuracy")
 SOLVE_SIZES = (10000, 50000)
 #: The uniform oranges of the tracker section (10k: the target is ≥ 5× faster than the baseline; 100k reported).
 TRACKER_LARGE = (10000, 100000)
@@ -693,6 +709,202 @@ def print_converge(sec: dict[str, Any]) -> None:
                   f"{cell(row['graded_table'][t]):>20} | {cell(a):>20} | {ae}")
 
 
+# -------------------------------------------------------------------- accuracy
+#: The objects of the accuracy section: the shipped scenes the convergence study has a reference for.
+ACCURACY_OBJECTS = ("tomato", "orange", "steam_bun", "football", "foam_block")
+#: The target of the adaptive row (``pickup(..., accuracy=ACCURACY_TARGET)``).
+ACCURACY_TARGET = 0.05
+#: The runs of each object: the paper's method once on the shipped mesh (the loop off), the scene as shipped
+#: (``Scene.run()``: whatever its default is), and the adaptive loop at :data:`ACCURACY_TARGET`.
+ACCURACY_RUNS = (("one_level", "one level (accuracy off)"), ("default", "Scene.run() as shipped"),
+                 ("adaptive", f"adaptive, accuracy = {100 * ACCURACY_TARGET:g} %"))
+#: The quantities compared, as named in the answer and in the loop's estimate.
+ACCURACY_QUANTITIES = ("squeeze_depth", "finger_force")
+
+
+def study_references(quick: bool = False, compute: bool = False,
+                     objects: tuple[str, ...] = ACCURACY_OBJECTS) -> dict[str, dict[str, Any] | None]:
+    """Each object's reference answer from the cache of ``python -m verification converge`` (``quick``: its quick
+    study): the analysis's ``reference`` (its verdict ``success``; on a pickup ``rho`` and ``force``, each a
+    ``{"value", "error", "method"}``), or None where the cache holds none.
+
+    Reading analyses the cached records without computing any (as ``--report-only``, which also rewrites the
+    study's converge.json and plots).  ``compute``: first run the cases a missing reference needs (the uniform
+    levels, then the finest one's increments halved), which takes from minutes (quick) to hours.
+    """
+    from verification import converge
+
+    if compute:
+        converge.study(quick=quick, objects=objects, series_filter={"uniform", "reference"})
+    analysis = converge.study(quick=quick, compute=False)
+    return {name: (analysis["objects"].get(name) or {}).get("reference") for name in objects}
+
+
+def accuracy_worker(name: str, run: str) -> None:
+    """Run in a subprocess: one of :data:`ACCURACY_RUNS` of a shipped scene, one JSON line with its answer, its
+    wall time (``Scene.run()`` with no mesh or rest cache: loading the mesh, the rest, the pickup; the numba
+    kernels loaded before) and the error it states."""
+    from fem_grasp.grasp.accuracy import answer_of
+    from fem_grasp.io.scene import Scene
+
+    scene = Scene.load(name)
+    if run == "one_level":
+        scene = scene.with_(accuracy=None)
+    elif run == "adaptive":
+        scene = scene.with_(accuracy=ACCURACY_TARGET)
+    elif run != "default":
+        raise SystemExit(f"unknown run {run!r}; expected one of {', '.join(k for k, _ in ACCURACY_RUNS)}")
+    from fem_grasp.contact.warm_up import prepare_kernels
+
+    kernels_s, _ = timed(prepare_kernels)  # numba's kernels loaded (or compiled: a cold cache) before the clock
+    seconds, result = timed(lambda: scene.run(cache_dir=None))
+    answer = answer_of(result, seconds).to_dict()
+    acc = result.accuracy or {}
+    est = acc.get("estimated_error") or {}
+    # A single run states the scene's expected_error, or nothing (single_run_report then puts inf there).
+    stated_any = acc.get("expected_error_stated", True) and est
+    stated = {q: float(est[q]) for q in ACCURACY_QUANTITIES if stated_any and q in est}
+    print(json.dumps({"seconds": seconds, "kernels_s": kernels_s, "vertices": answer["n_vertices"],
+                      "answer": {k: answer[k] for k in ("success", "reason", "squeeze_depth", "finger_force",
+                                                        "max_liftable", "weight")},
+                      "stated": stated, "converged": acc.get("converged"), "levels": len(acc.get("levels", [])),
+                      "note": acc.get("note", "")}, default=float), flush=True)
+
+
+def accuracy_errors(raw: dict[str, Any], reference: dict[str, Any]) -> dict[str, Any]:
+    """One row of the accuracy section: a run's answer (as :func:`accuracy_worker` prints it) against the study's
+    reference.
+
+    The actual error of ρ* and of Σ f·n̂ is |run − reference| / |reference|; inf when the verdict differs from
+    the reference's (the run answers another question), NaN when neither picks the object up (no ρ* to
+    compare: ``w_error`` then compares the largest weight held, in units of mg).  The stated error is the run's
+    own per quantity (None: unknown, or infinite: the run claims nothing).  ``covers``: the stated error is at
+    least the actual one for every quantity that has both (False on a wrong verdict; None when nothing is
+    stated).
+    """
+    from fem_grasp.grasp.accuracy import relative_change
+
+    ans = raw["answer"]
+    verdict_ok = bool(ans["success"]) == bool(reference["success"])
+    error: dict[str, float] = {}
+    for q, key in (("squeeze_depth", "rho"), ("finger_force", "force")):
+        if not verdict_ok:
+            error[q] = math.inf
+        elif not ans["success"]:
+            error[q] = math.nan
+        else:
+            error[q] = relative_change(float(ans[q]), float(reference[key]["value"]))
+    stated = {q: float(v) for q, v in (raw.get("stated") or {}).items() if math.isfinite(float(v))}
+    if len(stated) < len(ACCURACY_QUANTITIES):
+        stated = {}
+    if not stated:
+        covers = None
+    elif not verdict_ok:
+        covers = False
+    else:
+        covers = all(stated[q] >= e for q, e in error.items() if math.isfinite(e))
+    row = {"status": "ok", "seconds": raw["seconds"], "vertices": raw.get("vertices"), "success": bool(ans["success"]),
+           "verdict_ok": verdict_ok, "rho": ans["squeeze_depth"], "force": ans["finger_force"], "error": error,
+           "stated": stated or None, "covers": covers, "converged": raw.get("converged"),
+           "levels": raw.get("levels"), "note": raw.get("note", "")}
+    if not ans["success"] and not reference["success"] and reference.get("weight"):
+        row["w_error"] = abs(ans["max_liftable"] - reference["max_liftable"]) / reference["weight"]
+    return row
+
+
+def run_accuracy_worker(name: str, run: str, cap: float) -> dict[str, Any]:
+    """:func:`accuracy_worker` in a subprocess of at most ``cap`` seconds: its JSON line, or a ``status`` that says
+    why there is none ("cap" or the error)."""
+    cmd = [sys.executable, "-m", "bench.bench", "--worker-accuracy", f"{name}:{run}"]
+    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        out, err = proc.communicate(timeout=cap)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.communicate()
+        return {"status": "cap", "cap_s": cap}
+    if proc.returncode != 0:
+        return {"status": "error", "error": err.strip().splitlines()[-1] if err.strip() else f"exit {proc.returncode}"}
+    return json.loads(out.strip().splitlines()[-1])
+
+
+def section_accuracy(cap: float = 600.0, quick: bool = False, compute: bool = False,
+                     objects: tuple[str, ...] = ACCURACY_OBJECTS) -> dict[str, Any]:
+    """Per shipped object, the wall time and the actual error against the convergence study's reference of the one
+    level run, the default and the adaptive loop (module notes); objects without a cached reference are skipped."""
+    refs = study_references(quick=quick, compute=compute, objects=objects)
+    out: dict[str, Any] = {"study": "quick" if quick else "full", "cap_s": cap, "target": ACCURACY_TARGET,
+                           "objects": {}}
+    for name in objects:
+        ref = refs.get(name)
+        if not ref:
+            log.warning("accuracy: no reference for %s in the convergence study's cache (python -m verification "
+                        "converge%s --objects %s computes it); skipped", name, " --quick" if quick else "", name)
+            out["objects"][name] = {"reference": None}
+            continue
+        reference = {k: ref.get(k) for k in ("success", "vertices", "rho", "force", "max_liftable", "weight",
+                                             "step")}
+        rows: dict[str, Any] = {}
+        for run, _ in ACCURACY_RUNS:
+            raw = run_accuracy_worker(name, run, cap)
+            rows[run] = accuracy_errors(raw, reference) if "answer" in raw else raw
+            log.info("accuracy %s, %s: %s", name, run, rows[run].get("status"))
+        out["objects"][name] = {"reference": reference, "rows": rows}
+    return out
+
+
+def _pct(x: float | None) -> str:
+    if x is None:
+        return "–"
+    if math.isinf(x):
+        return "wrong verdict"
+    if math.isnan(x):
+        return "n/a"
+    return f"{100 * x:.2g} %"
+
+
+def print_accuracy(sec: dict[str, Any]) -> None:
+    print(f"\n== accuracy: each shipped scene's answer against the convergence study's reference ({sec['study']} "
+          f"study); adaptive at {100 * sec['target']:g} %, cap {sec['cap_s']:g} s per run")
+    print("    error: relative to the reference (or 'wrong verdict'); stated: the run's own estimate of its error in "
+          "rho* / force\n    (the scene's expected_error, or the adaptive loop's); covers: stated >= actual for both")
+    print(f"{'object':<11} {'run':<28} {'seconds':>8} {'vertices':>8} {'verdict':<22} {'rho* mm':>8} "
+          f"{'error':>15} {'force N':>8} {'error':>15} {'stated':>15} {'covers':>6}")
+    for name, obj in sec["objects"].items():
+        ref = obj.get("reference")
+        if not ref:
+            print(f"{name:<11} no reference in the study's cache: skipped")
+            continue
+        verdict = "picked up" if ref["success"] else "NOT picked up"
+        if ref["success"]:
+            rho, force = ref["rho"], ref["force"]
+
+            def band(q: dict[str, Any]) -> str:  # the reference's own uncertainty (inf: a single level, none known)
+                return f"±{_pct(q['error'])} {q['method']}" if math.isfinite(q["error"]) else q["method"]
+
+            print(f"{name:<11} {'reference':<28} {'':>8} {ref['vertices']:8d} {verdict:<22} "
+                  f"{1e3 * rho['value']:8.3f} {band(rho):>15} {force['value']:8.3f} {band(force):>15}")
+        else:
+            print(f"{name:<11} {'reference':<28} {'':>8} {ref['vertices']:8d} {verdict:<22}")
+        for run, label in ACCURACY_RUNS:
+            r = obj["rows"][run]
+            if r["status"] == "cap":
+                print(f"{'':<11} {label:<28} not run (cap: beyond {r['cap_s']:g} s)")
+                continue
+            if r["status"] != "ok":
+                print(f"{'':<11} {label:<28} failed: {r.get('error', r['status'])}")
+                continue
+            v = ("picked up" if r["success"] else "NOT picked up") + (", ok" if r["verdict_ok"] else ", WRONG")
+            st = r["stated"]
+            stated = "unknown" if not st else f"{_pct(st['squeeze_depth'])}/{_pct(st['finger_force'])}"
+            covers = {None: "–", True: "yes", False: "NO"}[r["covers"]]
+            e = r["error"]
+            print(f"{'':<11} {label:<28} {r['seconds']:8.1f} {r['vertices']:8d} {v:<22} {1e3 * r['rho']:8.3f} "
+                  f"{_pct(e['squeeze_depth']):>15} {r['force']:8.3f} {_pct(e['finger_force']):>15} {stated:>15} "
+                  f"{covers:>6}" + (f"  {r['levels']} levels, {'converged' if r['converged'] else 'not converged'}"
+                                    if (r.get("levels") or 0) > 1 else ""))
+
+
 # -------------------------------------------------------------------- main
 def _print_tracker(sec: dict[str, Any]) -> None:
     from bench.tracker import print_tracker
@@ -708,7 +920,7 @@ def print_search(sec: dict[str, Any]) -> None:
 
 PRINTERS = {"solve": print_solve, "scaling": print_scaling, "objects": print_objects, "spectral": print_spectral,
             "jit": print_jit, "columns": print_columns, "floor": print_floor, "search": print_search,
-            "converge": print_converge, "tracker": _print_tracker}
+            "converge": print_converge, "tracker": _print_tracker, "accuracy": print_accuracy}
 
 
 
@@ -725,11 +937,20 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                     help="candidates per paper scene in the search section (default 16)")
     ap.add_argument("--out", type=Path, default=OUT)
     ap.add_argument("--converge-quick", action="store_true",
-                    help="section converge: read (or compute) the quick study of verification.converge")
+                    help="sections converge and accuracy: read (or compute) the quick study of verification.converge")
     ap.add_argument("--baseline", default=None,
                     help="section tracker: the commit to compare this checkout against (default: the engine before the "
                          "event-tracking rewrite)")
+    ap.add_argument("--accuracy-cap", type=float, default=600.0,
+                    help="section accuracy: seconds allowed per run of a scene; a longer run is reported as not run "
+                         "(default 600)")
+    ap.add_argument("--accuracy-objects", nargs="+", choices=ACCURACY_OBJECTS, default=list(ACCURACY_OBJECTS),
+                    help="section accuracy: the shipped scenes to run (default: all five)")
+    ap.add_argument("--accuracy-compute", action="store_true",
+                    help="section accuracy: compute the convergence study's missing references first (hours; "
+                         "minutes with --converge-quick); by default an object without one is skipped")
     ap.add_argument("--worker-scaling", type=int, help=argparse.SUPPRESS)
+    ap.add_argument("--worker-accuracy", help=argparse.SUPPRESS)
     ap.add_argument("--worker-floor", type=int, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
@@ -739,6 +960,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         return {}
     if args.worker_floor:
         floor_worker(args.worker_floor, args.reps)
+        return {}
+    if args.worker_accuracy:
+        accuracy_worker(*args.worker_accuracy.split(":", 1))
         return {}
     sections = args.only or list(SECTIONS)
     data: dict[str, Any] = {}
@@ -774,6 +998,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             data["tracker"] = section_tracker(args.baseline or DEFAULT_BASELINE, args.reps,
                                               large=tuple(s for s in TRACKER_LARGE if s <= args.max_vertices),
                                               routes=ROUTES)
+        elif name == "accuracy":
+            data["accuracy"] = section_accuracy(args.accuracy_cap, args.converge_quick, args.accuracy_compute,
+                                                tuple(args.accuracy_objects))
         elif name == "floor":
             data["floor"] = section_floor([s for s in SCALING_SIZES if s <= args.max_vertices], args.reps,
                                           data.get("scaling"))

@@ -283,3 +283,81 @@ def test_the_tracker_section_runs_a_placement_search_in_both_workers():
     a = row["answer"]
     assert a["same"] and a["placements"] == 3 and a["events"][0] > 0 and a["picked_up"][0] == a["picked_up"][1]
     assert "phases" not in row["current"] or row["current"]["phases"] == {}
+
+
+def _fake_answer(success=True, rho=0.011, force=6.6, seconds=2.0, stated=None, vertices=600, max_liftable=2.0):
+    return {"seconds": seconds, "vertices": vertices, "levels": 1, "converged": False, "note": "",
+            "stated": stated if stated is not None else {},
+            "answer": {"success": success, "reason": "" if success else "lift test did not pass",
+                       "squeeze_depth": rho, "finger_force": force, "max_liftable": max_liftable, "weight": 2.0}}
+
+
+def test_the_accuracy_section_measures_each_run_against_the_study_reference(monkeypatch, capsys):
+    """bench.bench's accuracy section: a run's error is |run − reference| / |reference| for ρ* and Σ f·n̂, the
+    stated error covers it only when it is at least as large for both, a wrong verdict is never covered, a run
+    beyond the cap is reported as not run, and an object the study has no reference for is skipped (nothing is
+    computed for it)."""
+    from bench import bench
+
+    reference = {"success": True, "vertices": 50000, "rho": {"value": 0.010, "error": 0.01, "method": "bracket"},
+                 "force": {"value": 6.0, "error": 0.02, "method": "band"}, "max_liftable": 2.0, "weight": 2.0,
+                 "step": 1e-4}
+    asked = []
+    monkeypatch.setattr(bench, "study_references", lambda quick, compute, objects: (
+        asked.append((quick, compute, objects)) or {"orange": reference, "tomato": None}))
+    raw = {"one_level": _fake_answer(rho=0.011, force=6.6, stated={"squeeze_depth": 0.3, "finger_force": 0.3}),
+           # states 5 %: covers ρ* (4 %) but not the force (10 %)
+           "default": _fake_answer(rho=0.0104, force=6.6, stated={"squeeze_depth": 0.05, "finger_force": 0.05}),
+           "adaptive": {"status": "cap", "cap_s": 7.0}}
+    ran = []
+
+    def fake_worker(name, run, cap):
+        ran.append((name, run, cap))
+        return raw[run]
+
+    monkeypatch.setattr(bench, "run_accuracy_worker", fake_worker)
+    sec = bench.section_accuracy(cap=7.0, objects=("orange", "tomato"))
+    assert asked == [(False, False, ("orange", "tomato"))]  # read only: the study is not started
+    assert ran == [("orange", run, 7.0) for run, _ in bench.ACCURACY_RUNS]  # tomato: no reference, not run
+    assert sec["objects"]["tomato"] == {"reference": None}
+    rows = sec["objects"]["orange"]["rows"]
+    one, default = rows["one_level"], rows["default"]
+    assert one["verdict_ok"] and one["error"]["squeeze_depth"] == pytest.approx(0.1)
+    assert one["error"]["finger_force"] == pytest.approx(0.1) and one["covers"] is True
+    assert default["error"]["squeeze_depth"] == pytest.approx(0.04) and default["covers"] is False
+    assert rows["adaptive"]["status"] == "cap"
+
+    # nothing stated (or only an infinite bound): unknown, neither covered nor not
+    unknown = bench.accuracy_errors(_fake_answer(stated={"squeeze_depth": float("inf"),
+                                                         "finger_force": float("inf")}), reference)
+    assert unknown["stated"] is None and unknown["covers"] is None
+    # the wrong verdict: infinite error, never covered however large the stated error
+    wrong = bench.accuracy_errors(_fake_answer(success=False, stated={"squeeze_depth": 0.9, "finger_force": 0.9}),
+                                  reference)
+    assert not wrong["verdict_ok"] and wrong["error"]["squeeze_depth"] == float("inf") and wrong["covers"] is False
+    # neither picks it up: the same verdict, no ρ* to compare, the largest weight held compared instead
+    dropped = dict(reference, success=False, max_liftable=1.6)
+    both = bench.accuracy_errors(_fake_answer(success=False, max_liftable=1.8,
+                                              stated={"squeeze_depth": 0.2, "finger_force": 0.2}), dropped)
+    assert both["verdict_ok"] and both["covers"] is True and both["w_error"] == pytest.approx(0.1)
+
+    bench.print_accuracy(sec)
+    text = capsys.readouterr().out
+    assert "not run (cap" in text and "no reference" in text
+    assert not any("wrong verdict" in line for line in text.splitlines() if "picked up" in line)
+    assert "10 %" in text and "yes" in text and "NO" in text
+
+
+def test_the_accuracy_section_runs_a_shipped_scene_in_a_subprocess_within_its_cap():
+    """The accuracy section's worker runs the shipped foam block once on its own grid (accuracy off): it picks the
+    block up, on the scene's mesh, and states the error the scene states for such a run; a cap shorter than the
+    run stops it and says so."""
+    from bench import bench
+    from fem_grasp.io.scene import Scene
+
+    scene = Scene.load("foam_block")
+    raw = bench.run_accuracy_worker("foam_block", "one_level", cap=600.0)
+    assert raw["answer"]["success"] and raw["answer"]["squeeze_depth"] > 0 and raw["answer"]["finger_force"] > 0
+    assert raw["vertices"] == scene.load_mesh().n_points and raw["levels"] == 1 and raw["seconds"] > 0
+    assert raw["stated"] == {"squeeze_depth": scene.expected_error, "finger_force": scene.expected_error}
+    assert bench.run_accuracy_worker("foam_block", "one_level", cap=0.5) == {"status": "cap", "cap_s": 0.5}
