@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from fem_grasp.contact import tracking
-from fem_grasp.contact.kernels import jit, slip_trial
+from fem_grasp.contact.kernels import jit, slip_residual, slip_trial
 from fem_grasp.contact.obstacles import FINGER1, FINGER2, TABLE
 from fem_grasp.contact.slip_system import CompiledSlipSystem, MixedSlipSystem, SlipFailure
 from tests.contact.test_jit import SLIP_SOLVE_AGREEMENT
@@ -154,14 +154,14 @@ def test_the_fused_residual_jacobian_and_newton_are_the_slip_newton_kernels(free
     x = 1e-3 * np.random.default_rng(8).normal(size=comp.n) * comp.xscale
     p = len(comp.sliding)
     out, f, d, n = np.empty(comp.n), np.empty((p, 3)), np.empty((p, 3)), np.empty((p, 3))
-    slip_trial._fused_residual(x, *args, out, f, d, n)
+    slip_residual.fused_residual(x, *args, out, f, d, n)
     _close(out, slip_newton.residual(x, *args), ASSEMBLY_AGREEMENT)
     jac = np.empty((comp.n, comp.n))
-    slip_trial._fused_jacobian(x, comp.g_sl, comp.dmap, comp.kappa, comp.mu, comp.sph, comp.free, f, d, n, jac)
+    slip_residual.fused_jacobian(x, comp.g_sl, comp.dmap, comp.kappa, comp.mu, comp.sph, comp.free, f, d, n, jac)
     _close(jac, slip_newton.jacobian(x, *args), ASSEMBLY_AGREEMENT)
     lim = np.maximum(1e-12, comp.row_noise)
     old = slip_newton.newton(np.zeros(comp.n), lim, 40, comp.xscale, comp.row_scale, *args)
-    new = slip_trial.fused_newton(np.zeros(comp.n), lim, 40, comp.xscale, comp.row_scale, *args)
+    new = slip_residual.fused_newton(np.zeros(comp.n), lim, 40, comp.xscale, comp.row_scale, *args)
     assert old[0] == new[0]
     if old[0]:
         _close(new[1], old[1], SLIP_SOLVE_AGREEMENT)
