@@ -64,7 +64,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     relax = implicit_step.relax_contacts  # (called by the tracker's implicit step)
     # The slip systems the trackers build (compiled where numba is installed; the homotopy of a compiled system is
     # its reference's, counted once, as the compiled system's).
-    system = tracking.CompiledSlipSystem if tracking.COMPILED_TRIALS else tracking.MixedSlipSystem
+    compiled = tracking.Tracker.default_settings.compiled_trials
+    compiled = tracking.COMPILED_TRIALS if compiled is None else compiled
+    system = tracking.CompiledSlipSystem if compiled else tracking.MixedSlipSystem
     solve = system.solve
     trial = tracking.Tracker.trial
     trials = [0]

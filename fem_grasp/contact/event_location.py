@@ -5,7 +5,7 @@ by :class:`EventLocation`) the continuous event functions are evaluated: A, a fr
 ℱ₁, ℱ₂ or 𝒫; B, a normal force becomes tensile; C, a sticking force leaves its friction cone; D, the slip
 rate of a sliding contact reaches zero.
 
-When one fires, the event's t is located to ``TOL_LOCATE`` × diameter by interpolation
+When one fires, the event's t is located to ``tol_locate`` × diameter (:class:`~fem_grasp.settings.EngineSettings`) by interpolation
 (inverse quadratic, secant) of the continuous event function predicted to
 fire first, safeguarded by Illinois regula falsi on the bracket — the
 "Newton polish" of §III-C; about four trials per located event — and the
@@ -44,41 +44,16 @@ from .states import ContactEvent, ContactState, Parameter
 from .states import Trial as _Trial
 from .states import where as _where
 
-__all__ = ["INCREMENT_HALVINGS", "MAX_SETTLE_TOGGLES", "MIN_STEP", "STICK_HYSTERESIS", "TOL_CONE", "TOL_FORCE_FLOOR",
-           "TOL_LOCATE", "TOL_PENETRATION", "TOL_RATE", "TOL_TENSILE", "TURNING_PROBE", "TURNING_PROBE_REL",
-           "EventLocation"]
+__all__ = ["EventLocation"]
 
 log = logging.getLogger(__name__)
-
-#: Event thresholds (see module notes).
-TOL_PENETRATION = 1e-10  # × diameter
-TOL_TENSILE = 1e-11  # × force scale
-TOL_CONE = 1e-9  # × f·n̂
-TOL_FORCE_FLOOR = 1e-7  # × force scale: contacts carrying less are 'just touching'
-TOL_RATE = 1e-9  # slip per unit parameter
-#: Event localisation tolerance in t, × diameter.
-TOL_LOCATE = 1e-10
-#: Failed halvings of an increment before it is taken as one implicit step (:meth:`Tracker.implicit_step`).
-INCREMENT_HALVINGS = 2
-#: A sliding contact whose normal force falls below this fraction of the force floor sticks (event D): the
-#: factor ten below the floor of event C is a hysteresis against C/D chatter of lightly loaded nodes.
-STICK_HYSTERESIS = 0.1
-#: A node toggling between stick and slip more often than this within one settle has no rate solution there
-#: (a friction limit): the settle is finished by an implicit step.
-MAX_SETTLE_TOGGLES = 3
-#: Beyond a turning point of the slip system, a candidate sticking node is accepted when the parameter can
-#: advance by max(``TURNING_PROBE`` × diameter, ``TURNING_PROBE_REL`` × |t|) from the new state.
-TURNING_PROBE = 1e-6
-TURNING_PROBE_REL = 1e-3
-#: Smallest increment of the parameter, × diameter, before the halvings of a failing slip solve give up.
-MIN_STEP = 1e-9
 
 
 class EventLocation:
     """The event functions, the location of the first event in an increment, and the application of events with
     their cascade: the methods of :class:`~fem_grasp.contact.tracking.Tracker` that test and place events A–D
     (module notes).  They read the tracker's geometry (``surface``, ``diameter``, ``radius``, ``up``, ``table``,
-    ``mu``) and call its :meth:`~fem_grasp.contact.tracking.Tracker.trial` and
+    ``mu``) and its tolerances (``settings``, :class:`~fem_grasp.settings.EngineSettings`) and call its :meth:`~fem_grasp.contact.tracking.Tracker.trial` and
     :meth:`~fem_grasp.contact.implicit_step.ImplicitStep.implicit_step`."""
 
     # --------------------------------------------------------------- events
@@ -103,29 +78,30 @@ class EventLocation:
         B, C, D: positions in the contact set.
         """
         st = trial.state
+        s = self.settings
         if self.compiled:
             table = self.table
             a_val, b_val, c_val, d_val = events.event_functions(
                 st.surface_positions, st.centers, self.radius, table is not None, self.up,
                 0.0 if table is None else float(table.height), self.surface_index[st.nodes], st.owner, st.forces,
                 st.normals, st.sliding, trial.rates, self.mu[st.owner], float(fscale), float(self.diameter),
-                TOL_PENETRATION, TOL_TENSILE, TOL_CONE, TOL_FORCE_FLOOR, TOL_RATE, STICK_HYSTERESIS)
+                s.tol_penetration, s.tol_tensile, s.tol_cone, s.tol_force_floor, s.tol_rate, s.stick_hysteresis)
             ids = np.arange(st.n_contacts)
             return {"A": (a_val, np.arange(a_val.size)), "B": (b_val, ids), "C": (c_val, ids), "D": (d_val, ids)}
         gaps = self.obstacle_gaps(st.surface_positions, st.centers)
         own = self.surface_index[st.nodes]
         on = own >= 0
         gaps[own[on], st.owner[on]] = np.inf  # its own obstacle
-        a_val = (-gaps / self.diameter - TOL_PENETRATION).reshape(-1)
+        a_val = (-gaps / self.diameter - s.tol_penetration).reshape(-1)
         a_ids = np.arange(a_val.size)
         fn = st.normal_forces
         ft = st.tangential_forces
-        b_val = -fn / fscale - TOL_TENSILE
+        b_val = -fn / fscale - s.tol_tensile
         mu = self.mu[st.owner]
-        c_val = np.where(st.sliding, -np.inf, (ft - mu * fn - TOL_CONE * np.maximum(fn, 0.0)) / fscale
-                         - TOL_FORCE_FLOOR)
-        slip_test = -trial.rates - TOL_RATE
-        d_val = np.where(st.sliding, np.maximum(slip_test, STICK_HYSTERESIS * TOL_FORCE_FLOOR - fn / fscale), -np.inf)
+        c_val = np.where(st.sliding, -np.inf, (ft - mu * fn - s.tol_cone * np.maximum(fn, 0.0)) / fscale
+                         - s.tol_force_floor)
+        slip_test = -trial.rates - s.tol_rate
+        d_val = np.where(st.sliding, np.maximum(slip_test, s.stick_hysteresis * s.tol_force_floor - fn / fscale), -np.inf)
         ids = np.arange(st.n_contacts)
         return {"A": (a_val, a_ids), "B": (b_val, ids), "C": (c_val, ids), "D": (d_val, ids)}
 
@@ -176,9 +152,9 @@ class EventLocation:
         system has no root, down to ``min_step``; then :class:`TrackingError`.
         """
         phase = phase or base.phase
-        if len(base.nodes) > self.implicit_contacts:
+        if len(base.nodes) > self.settings.implicit_contacts:
             return self.implicit_step(base, dt, velocities, load_rate=load_rate, param=param, phase=phase)
-        min_step = MIN_STEP * self.diameter if min_step is None else min_step
+        min_step = self.settings.min_step * self.diameter if min_step is None else min_step
         fscale = self.force_scale(base)
         h = dt
         halvings = 0
@@ -192,7 +168,7 @@ class EventLocation:
             except SlipFailure as exc:
                 h *= 0.5
                 halvings += 1
-                if (self.implicit or halvings > INCREMENT_HALVINGS) and h >= min_step:
+                if (self.implicit or halvings > self.settings.increment_halvings) and h >= min_step:
                     # The rate problem has no solution near here (a friction limit): one implicit step.
                     log.debug("%s = %.6g: slip system fails (%s); implicit step of %.3g", param,
                               getattr(base, param), exc, 2.0 * h if self.implicit else h)
@@ -212,7 +188,7 @@ class EventLocation:
         # Locate the first event in (0, h] on the event function predicted to fire first (smooth in the
         # parameter, unlike the max of them all, which switches between functions): interpolation through
         # its latest trials, safeguarded by Illinois regula falsi on the bracket.
-        tol = TOL_LOCATE * self.diameter
+        tol = self.settings.tol_locate * self.diameter
         lo, g_lo = 0.0, None
         try:
             t0 = self._zero_trial(base, velocities, load_rate, param)
@@ -314,7 +290,7 @@ class EventLocation:
             return state, events + more
         st = trial.state
         rates = np.where(st.sliding, trial.rates, np.inf)
-        probe = max(TURNING_PROBE * self.diameter, TURNING_PROBE_REL * abs(getattr(st, param)))
+        probe = max(self.settings.turning_probe * self.diameter, self.settings.turning_probe_rel * abs(getattr(st, param)))
         for j in np.argsort(rates)[: int(st.sliding.sum())]:
             vals = {k: (np.full_like(v, -np.inf), i) for k, (v, i) in trial.values.items()}
             vals["D"][0][j] = 1.0
@@ -354,7 +330,7 @@ class EventLocation:
             for e in ev:
                 if e.kind in "CD":
                     toggles[e.node] = toggles.get(e.node, 0) + 1
-                    if toggles[e.node] > MAX_SETTLE_TOGGLES:
+                    if toggles[e.node] > self.settings.max_settle_toggles:
                         # Friction limit of the rate problem: sticking, the node leaves its cone; sliding,
                         # its slip rate is negative.  The static state is reached by a finite slip.
                         state, ev2 = self.implicit_step(

@@ -16,12 +16,12 @@ every contact held, then the static stick / slide / release state of all of
 them at once (:func:`fem_grasp.contact.relaxation.relax_contacts`), with new
 contacts added as they appear.  This is used (i) when a settle after events
 finds no slip solution or a node toggles more than three times, (ii) when an
-increment's slip system still fails after ``INCREMENT_HALVINGS`` halvings (the
+increment's slip system still fails after ``increment_halvings`` halvings (the
 increment is then taken implicitly, and the next one tries Newton alone), and (iii) when a node chatters between stick and slip
 without progress in the parameter (one implicit increment of ``step``).
 Events inside an implicit increment are recorded at its end.
 
-Large contact sets: (iv) with more than ``IMPLICIT_CONTACTS`` contacts
+Large contact sets: (iv) with more than ``implicit_contacts`` contacts (:class:`~fem_grasp.settings.EngineSettings`)
 every increment is implicit.  Event by event, each event costs a slip solve
 of size |ℙ|; a flat base of 100–200 table contacts (the steam bun) fires
 hundreds of events per millimetre of squeeze — most of them rim nodes
@@ -45,18 +45,14 @@ import numpy as np
 
 from ..elastic.response import check_contact_set
 from ..errors import CollinearContactError, RelaxationFailure, TrackingError
-from .event_location import TOL_PENETRATION
 from .obstacles import FINGER1, FINGER2, OBSTACLES, TABLE
 from .relaxation import RELEASE, SLIDE, STICK, relax_contacts
 from .states import ContactEvent, ContactState, Parameter
 from .states import where as _where
 
-__all__ = ["MAX_SLIP", "ImplicitStep"]
+__all__ = ["ImplicitStep"]
 
 log = logging.getLogger(__name__)
-
-#: A contact sliding further than this × diameter in one implicit step is gross slip.
-MAX_SLIP = 0.1
 
 
 class ImplicitStep:
@@ -110,7 +106,7 @@ class ImplicitStep:
             cen = [None if o == TABLE else centers[o] for o in owner]
             try:
                 rel = relax_contacts(resp.reduced_stiffness, forces, q0, cen, self.up, self.mu[owner], fscale,
-                                     max_slip=MAX_SLIP * self.diameter, start=start)
+                                     max_slip=self.settings.max_slip * self.diameter, start=start)
             except RelaxationFailure as exc:
                 raise TrackingError(f"no quasi-static equilibrium at {_where(param, at)}"
                                     f"{': ' + why if why else ''}; a static stick/slip state was sought and "
@@ -128,7 +124,7 @@ class ImplicitStep:
             surface = self.surface_points + self.surface_field(nodes, disp, load)
             gaps = self.obstacle_gaps(surface, centers)
             in_contact = set(int(k) for k in nodes)
-            deep = np.argwhere(-gaps / self.diameter - TOL_PENETRATION > 0)
+            deep = np.argwhere(-gaps / self.diameter - self.settings.tol_penetration > 0)
             added = []
             for s_pos, o in deep:
                 k = int(self.surface[s_pos])

@@ -42,12 +42,12 @@ Compiled trials
 A trial state is ~6 numpy-sized steps on arrays of tens of contacts: the
 held prediction, the slip system's assembly, Newton's method (the homotopy
 where it fails), the read-out of forces, slips and rates, and the event
-functions.  Where numba is installed (:data:`COMPILED_TRIALS`) each is one
+functions.  Where numba is installed (``EngineSettings.compiled_trials``) each is one
 kernel call (:mod:`~fem_grasp.contact.kernels.slip_trial`,
 :mod:`~fem_grasp.contact.kernels.events`, :class:`CompiledSlipSystem`);
 the numpy versions (:class:`MixedSlipSystem`, :meth:`Tracker._held_prediction`,
 the body of :meth:`Tracker.event_values`) are the reference path
-(``Tracker.compiled = False``), which the tests compare with it.  The two
+(``compiled_trials=False``, or ``Tracker.compiled = False``), which the tests compare with it.  The two
 differ by round-off, so a pickup that sits on a knife edge can take the other
 branch: on the tomato a table node released in the lift penetrates the table
 by 0.98e-10 or 1.005e-10 diameters (the A test's tolerance is 1e-10),
@@ -84,22 +84,12 @@ from typing import Callable, Sequence
 import numpy as np
 
 from ..elastic.body import Body
-from ..elastic.compliance import PREFETCH_NODES
 from ..elastic.response import ContactResponse, contact_response
 from ..errors import CollinearContactError, TrackingError
+from ..settings import DEFAULT_SETTINGS, EngineSettings
 from ..threads import one_blas_thread
-from .event_location import (
-    MAX_SETTLE_TOGGLES,
-    STICK_HYSTERESIS,
-    TOL_CONE,
-    TOL_FORCE_FLOOR,
-    TOL_LOCATE,
-    TOL_PENETRATION,
-    TOL_RATE,
-    TOL_TENSILE,
-    EventLocation,
-)
-from .implicit_step import MAX_SLIP, ImplicitStep
+from .event_location import EventLocation
+from .implicit_step import ImplicitStep
 from .kernels import events, jit, slip_trial
 from .kernels.jit import sample_contacts, warm_up_sample
 from .obstacles import FINGER1, FINGER2, OBSTACLES, TABLE, Fingertip, TablePlane
@@ -109,37 +99,23 @@ from .states import Trial as _Trial
 from .states import contact_set_key as _key
 from .states import where as _where  # noqa: F401 - the name the tests and tools know
 
-__all__ = ["FINGER1", "FINGER2", "MAX_SETTLE_TOGGLES", "MAX_SLIP", "OBSTACLES", "TABLE", "TOL_CONE", "TOL_FORCE_FLOOR",
-           "TOL_LOCATE", "TOL_PENETRATION", "TOL_RATE", "TOL_TENSILE", "ContactEvent", "ContactState",
-           "MixedSlipSystem", "Parameter", "SlipFailure", "Tracker", "TrackingError", "run"]
+__all__ = ["COMPILED_TRIALS", "CRAWL_TOGGLES", "FINGER1", "FINGER2", "OBSTACLES", "TABLE", "TOL_LOCATE", "ContactEvent",
+           "ContactState", "EngineSettings", "MixedSlipSystem", "Parameter", "SlipFailure", "Tracker", "TrackingError",
+           "run"]
 
 log = logging.getLogger(__name__)
 
-#: With more contacts than this, increments are taken implicitly (:mod:`~fem_grasp.contact.implicit_step`, "Large contact sets").
-IMPLICIT_CONTACTS = 40
-#: A tracker keeps the contact responses of its latest contact sets, at most this many and this many bytes
-#: (each holds dense (3m+6)² matrices: 16 responses of 600 contacts took 1.3 GB at 100k vertices).
-RESPONSE_CACHE = 16
-RESPONSE_CACHE_BYTES = 256 * 2**20
-#: Gravity's own fields (contacts held at zero) kept per tracker for states below full load (the lift test's
-#: hanging weights revisit a few contact sets).
-ZERO_FIELD_CACHE = 16
-#: Trackers assemble, solve and read out their slip systems with compiled kernels (:class:`CompiledSlipSystem`)
-#: where numba is installed; False: with :class:`MixedSlipSystem` (numpy), the reference path the tests compare.
-COMPILED_TRIALS = jit.ENABLED
-#: Full-gravity fields of the latest contact displacements kept per tracker (whole body and surface; see
-#: ``Tracker._at_load``): a lift-test weight and the implicit step's last round reuse them.
-LATEST_FIELDS = 4
-#: A node switching between stick and slip more than this many times within ``CHATTER_WINDOW`` × diameter of
-#: the parameter is chattering: the run crosses the spot with one implicit increment.
-CHATTER_TOGGLES = 8
-CHATTER_WINDOW = 1e-6
-#: ... or more than this many times within one increment ``step``: a node that sticks and slides again at every
-#: few tens of nanometres crawls through the increment (the quick tomato at 20 kPa: node 118 toggled 2,000 times
-#: between ρ = 13.737 and 13.777 mm, 40 nm apart, until the run gave up after 5,000 events).
-CRAWL_TOGGLES = 40
-#: A held force's tangential part shorter than this fraction of the force has no direction (no slip axis).
-DIRECTION_FLOOR = 1e-12
+# The engine's knobs are fields of :class:`~fem_grasp.settings.EngineSettings`, read from ``Tracker.settings``.
+# These names are aliases of three defaults, for the readers that know them from here; setting them changes
+# nothing.
+#: Default events location tolerance, × diameter (``EngineSettings.tol_locate``).
+TOL_LOCATE = DEFAULT_SETTINGS.tol_locate
+#: Default stick/slip switches of one node within one increment before it is crossed implicitly
+#: (``EngineSettings.crawl_toggles``).
+CRAWL_TOGGLES = DEFAULT_SETTINGS.crawl_toggles
+#: Whether a tracker with the default settings uses the compiled trials (numba installed;
+#: ``EngineSettings.compiled_trials``).
+COMPILED_TRIALS = jit.ENABLED if DEFAULT_SETTINGS.compiled_trials is None else DEFAULT_SETTINGS.compiled_trials
 
 
 class Tracker(EventLocation, ImplicitStep):
@@ -157,12 +133,24 @@ class Tracker(EventLocation, ImplicitStep):
     table : TablePlane or None
         The supporting plane (None: no table, the object hangs from the fingers).
     backend : "sparse" or "spectral" (see :class:`~fem_grasp.elastic.response.ContactResponse`)
+    settings : EngineSettings, optional
+        The tolerances, limits, caches and paths of the tracking (:class:`~fem_grasp.settings.EngineSettings`);
+        default :attr:`default_settings`, the engine's defaults.
     """
 
+    #: The settings of a tracker built without any: the engine's defaults (:data:`~fem_grasp.settings.DEFAULT_SETTINGS`).
+    #: ``bench.tracker --against settings.FIELD=VALUE`` replaces it in its worker process, so that every pickup there
+    #: runs with the changed field; library code passes ``settings`` instead.
+    default_settings: EngineSettings = DEFAULT_SETTINGS
+
     def __init__(self, body: Body, *, radius: float, mu_finger: float, mu_table: float,
-                 table: TablePlane | None, backend: str = "sparse") -> None:
+                 table: TablePlane | None, backend: str = "sparse", settings: EngineSettings | None = None) -> None:
         if not (mu_finger > 0 and mu_table > 0):
             raise ValueError("event tracking needs positive friction coefficients (μ = 0 has no slip direction)")
+        if settings is not None and not isinstance(settings, EngineSettings):
+            raise TypeError(f"settings must be an EngineSettings, got {type(settings).__name__}")
+        #: The engine's knobs this tracker reads (immutable; :class:`~fem_grasp.settings.EngineSettings`).
+        self.settings: EngineSettings = self.default_settings if settings is None else settings
         self.body = body
         self.radius = float(radius)
         self.mu = np.array([mu_finger, mu_finger, mu_table], dtype=float)
@@ -183,13 +171,11 @@ class Tracker(EventLocation, ImplicitStep):
         self.solves = 0
         #: The slip systems are assembled, solved and read out by compiled kernels (:class:`CompiledSlipSystem`);
         #: False: by :class:`MixedSlipSystem` (numpy; the reference path the tests compare with).
-        self.compiled = COMPILED_TRIALS
+        self.compiled = jit.ENABLED if self.settings.compiled_trials is None else self.settings.compiled_trials
         #: Slip forms tried in order: False = great circle (the paper's), True = free direction.
         self.forms: tuple[bool, ...] = (False, True)
         #: The last increment was implicit (the next one tries the rate problem with Newton only).
         self.implicit = False
-        #: Above this many contacts every increment is implicit (module notes).
-        self.implicit_contacts = IMPLICIT_CONTACTS
         #: Slip roots found from the latest base state and motion, per form: (dt, x) (warm starts for nearby dt).
         self._warm_key: tuple | None = None
         self._warm: dict[bool, list[tuple[float, np.ndarray]]] = {}
@@ -205,29 +191,31 @@ class Tracker(EventLocation, ImplicitStep):
         key = _key(nodes)
         resp = self._responses.get(key)
         if resp is None:
-            try:  # derived from the cached set nearest in nodes where that pays (a node or two joined or left)
+            # Derived from the cached set nearest in nodes where that pays (a node or two joined or left).
+            cached = self._responses.values() if self.settings.neighbour_updates else ()
+            try:
                 resp = contact_response(self.body, np.asarray(key, dtype=np.int64), backend=self.backend,
-                                        cached=self._responses.values())
+                                        cached=cached)
             except CollinearContactError as exc:
                 raise TrackingError(f"the object is no longer held: {exc}") from None
             self._responses[key] = resp
             while len(self._responses) > 1 and (
-                    len(self._responses) > RESPONSE_CACHE
-                    or sum(r.nbytes for r in self._responses.values()) > RESPONSE_CACHE_BYTES):
+                    len(self._responses) > self.settings.response_cache
+                    or sum(r.nbytes for r in self._responses.values()) > self.settings.response_cache_bytes):
                 self._responses.pop(next(iter(self._responses)))  # the oldest
         return resp
 
     def prefetch_columns(self, nodes: Sequence[int], surface_positions: np.ndarray, centers: np.ndarray) -> None:
         """With the sparse backend, when new contact ``nodes`` lack their compliance columns, compute them
         together with those of the uncached surface nodes nearest an obstacle (the likely next contacts):
-        ``compliance.PREFETCH_NODES`` in one solve (a new contact's own three columns alone cost
+        ``settings.prefetch_nodes`` in one solve (a new contact's own three columns alone cost
         several times more per column)."""
         comp = self.body.compliance if self.backend == "sparse" else None
         if comp is None or all(comp.is_cached(k) for k in nodes):
             return
         gap = self.obstacle_gaps(surface_positions, centers).min(axis=1)
         comp.prefetch(np.asarray(nodes, dtype=np.int64), likely=self.surface[np.argsort(gap, kind="stable")],
-                      count=PREFETCH_NODES)
+                      count=self.settings.prefetch_nodes)
 
     def field(self, nodes: np.ndarray, disp: np.ndarray, load: float) -> np.ndarray:
         """(n, 3) displacement field for prescribed contact displacements at gravity factor λ (eq. 4)."""
@@ -251,14 +239,14 @@ class Tracker(EventLocation, ImplicitStep):
             full = solve(self.response(nodes), disp)
             full.setflags(write=False)
             self._latest_full[memo] = full
-            while len(self._latest_full) > LATEST_FIELDS:
+            while len(self._latest_full) > self.settings.latest_fields:
                 self._latest_full.pop(next(iter(self._latest_full)))
         if load == 1.0:
             return full
         zero = zero_fields.get(key)
         if zero is None:
             zero = solve(self.response(nodes), np.zeros_like(disp))
-            if len(zero_fields) >= ZERO_FIELD_CACHE:
+            if len(zero_fields) >= self.settings.zero_field_cache:
                 zero_fields.pop(next(iter(zero_fields)))
             zero_fields[key] = zero
         return full - (1.0 - load) * zero
@@ -339,8 +327,8 @@ class Tracker(EventLocation, ImplicitStep):
             (code, disp_h, fh, dfh, t_hat, r, found, x, forces, disp, normals, amounts,
              rates) = slip_trial.newton_trial(
                 c, f0, base.disp, base.owner, velocities, float(dt), float(load), float(load_rate), base.forces,
-                base.normals, sl, kinds, self.points[base.nodes[sl]], base.centers, self.radius, DIRECTION_FLOOR,
-                self.mu[kinds], self.up, first, NEWTON_TOL, NEWTON_MAX_ITER, self.points[base.nodes], centers, TABLE)
+                base.normals, sl, kinds, self.points[base.nodes[sl]], base.centers, self.radius,
+                self.settings.direction_floor, self.mu[kinds], self.up, first, NEWTON_TOL, NEWTON_MAX_ITER, self.points[base.nodes], centers, TABLE)
             if code == slip_trial.TRIAL_NO_DIRECTION:
                 raise SlipFailure("a sliding contact has no tangential force, so no slip direction")
             if code == slip_trial.TRIAL_NO_ROOT:
@@ -350,7 +338,8 @@ class Tracker(EventLocation, ImplicitStep):
         elif self.compiled:
             disp_h, fh, dfh, t_hat, r, has_directions = slip_trial.held_prediction(
                 c, f0, base.disp, base.owner, velocities, float(dt), float(load), float(load_rate), base.forces,
-                base.normals, sl, kinds, self.points[base.nodes[sl]], base.centers, self.radius, DIRECTION_FLOOR)
+                base.normals, sl, kinds, self.points[base.nodes[sl]], base.centers, self.radius,
+                self.settings.direction_floor)
             if not has_directions:
                 raise SlipFailure("a sliding contact has no tangential force, so no slip direction")
         else:
@@ -447,7 +436,7 @@ class Tracker(EventLocation, ImplicitStep):
         for src in (base.forces[sl], fh[sl]):
             ft = src - np.einsum("ki,ki->k", src, n_b)[:, None] * n_b
             ftn = np.linalg.norm(ft, axis=1)
-            ok = ftn > DIRECTION_FLOOR * max(float(np.abs(src).max(initial=0.0)), 1e-300)
+            ok = ftn > self.settings.direction_floor * max(float(np.abs(src).max(initial=0.0)), 1e-300)
             t_hat[ok] = ft[ok] / ftn[ok, None]
         if np.any(np.linalg.norm(t_hat, axis=1) == 0):
             raise SlipFailure("a sliding contact has no tangential force, so no slip direction")
@@ -489,7 +478,8 @@ def _run(tracker: Tracker, state: ContactState, velocities: np.ndarray, *, stop:
     events: list[ContactEvent] = []
     n_events = 0
     toggles: dict[int, list[float]] = {}
-    window = CHATTER_WINDOW * tracker.diameter
+    settings = tracker.settings
+    window = settings.chatter_window * tracker.diameter
     while getattr(state, param) < stop - 1e-15 * max(1.0, abs(stop)):
         dt = min(step, stop - getattr(state, param))
         state, ev = tracker.advance(state, dt, velocities, param=param, phase=phase)
@@ -505,8 +495,8 @@ def _run(tracker: Tracker, state: ContactState, velocities: np.ndarray, *, stop:
                 if e.kind in "CD":
                     hist = [t for t in toggles.get(e.node, []) if now - t <= step] + [now]
                     toggles[e.node] = hist
-                    if (sum(now - t <= window for t in hist) > CHATTER_TOGGLES
-                            or len(hist) > CRAWL_TOGGLES):
+                    if (sum(now - t <= window for t in hist) > settings.chatter_toggles
+                            or len(hist) > settings.crawl_toggles):
                         chatter = e
             if chatter is not None:
                 # Sticking, its force leaves the cone; sliding, its slip rate is negative: the rate problem
@@ -534,21 +524,22 @@ def _compile_the_trial_kernels() -> None:
     :mod:`~fem_grasp.contact.kernels.slip_trial` and :mod:`~fem_grasp.contact.kernels.events` that
     :meth:`Tracker.trial` and :meth:`Tracker.event_values` call), on the warm-up's two contacts."""
     s = sample_contacts()
+    d = DEFAULT_SETTINGS
     owner = np.array([TABLE, FINGER1])
     sl = np.array([0, 1])
     normals = np.array([s["up"], [0.0, 0.0, 1.0]])
     slip_trial.held_prediction(100.0 * np.eye(6), s["forces"], np.zeros((2, 3)), owner, np.zeros((2, 3)), 0.0, 1.0,
                                0.0, s["forces"], normals, sl, owner[sl], s["positions"],
-                               np.array([s["centre"], s["centre"]]), 0.01, DIRECTION_FLOOR)
+                               np.array([s["centre"], s["centre"]]), 0.01, d.direction_floor)
     for free in (False, True):
         slip_trial.newton_trial(100.0 * np.eye(6), s["forces"], np.zeros((2, 3)), owner, np.zeros((2, 3)), 0.0, 1.0,
                                 0.0, s["forces"], normals, sl, owner[sl], s["positions"],
-                                np.array([s["centre"], s["centre"]]), 0.01, DIRECTION_FLOOR, s["mu"], s["up"], free,
+                                np.array([s["centre"], s["centre"]]), 0.01, d.direction_floor, s["mu"], s["up"], free,
                                 NEWTON_TOL, NEWTON_MAX_ITER, s["positions"], np.array([s["centre"], s["centre"]]),
                                 TABLE)
     events.contact_normals(owner, s["positions"], np.array([s["centre"], s["centre"]]), s["up"], TABLE)
     for has_table in (True, False):
         events.event_functions(s["positions"], np.array([s["centre"], s["centre"]]), 0.01, has_table, s["up"], 0.0,
                                np.array([0, 1]), owner, s["forces"], normals, np.array([False, True]), np.zeros(2),
-                               s["mu"], 1.0, 0.1, TOL_PENETRATION, TOL_TENSILE, TOL_CONE, TOL_FORCE_FLOOR, TOL_RATE,
-                               STICK_HYSTERESIS)
+                               s["mu"], 1.0, 0.1, d.tol_penetration, d.tol_tensile, d.tol_cone, d.tol_force_floor, d.tol_rate,
+                               d.stick_hysteresis)

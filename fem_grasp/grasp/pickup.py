@@ -71,6 +71,7 @@ from ..contact.tracking import ContactEvent, ContactState, Tracker
 from ..contact.warm_up import prepare_kernels
 from ..elastic.body import Body
 from ..errors import ContactNodeError, PickupCheckError, SceneError, TrackingError
+from ..settings import EngineSettings
 from ..validation import check_finger_friction, check_friction, check_positive
 from .closure import placement_closure
 from .default_contacts import default_finger_contacts, default_max_squeeze
@@ -125,7 +126,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
            rest_state: RestState | None = None, lift_test_step: float | None = None,
            max_lift: float | None = None, lift: bool = True, max_lift_attempts: int = 4,
            placement_rule: str = DEFAULT_PLACEMENT_RULE, accuracy: float | None = None,
-           geometry: Any = None) -> PickupResult:
+           geometry: Any = None, settings: EngineSettings | None = None) -> PickupResult:
     """Run Algorithm 1: will two hemispherical fingers pick ``body`` up from the table?
 
     Parameters
@@ -157,6 +158,9 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
         level's) carries the estimated error in ``result.accuracy``
     geometry : what to remesh for ``accuracy`` (:class:`fem_grasp.mesh.remesh.Geometry`); default: the body's
         boundary surface (:func:`fem_grasp.mesh.remesh.geometry_of_mesh`)
+    settings : the engine's numerical settings for the squeeze, lift test and lift trackers
+        (:class:`~fem_grasp.settings.EngineSettings`; default: the engine's defaults); the same at every level of
+        an ``accuracy`` refinement
 
     Returns
     -------
@@ -171,7 +175,8 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
                                 finger_radius=finger_radius, contacts=contacts, directions=directions, ratio=ratio,
                                 max_squeeze=max_squeeze, step=step, backend=backend, rest_state=rest_state,
                                 lift_test_step=lift_test_step, max_lift=max_lift, lift=lift,
-                                max_lift_attempts=max_lift_attempts, placement_rule=placement_rule)
+                                max_lift_attempts=max_lift_attempts, placement_rule=placement_rule,
+                                settings=settings)
     t_start = time.perf_counter()
     mu_f = check_finger_friction(DEFAULT_FRICTION if mu_finger is None else mu_finger, "mu_finger")
     mu_t = mu_f if mu_table is None else check_friction(mu_table, "mu_table")
@@ -232,8 +237,10 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
 
     # Steps 3-4: squeeze with the lift test.
     t0 = time.perf_counter()
-    tracker = Tracker(posed, radius=finger_radius, mu_finger=mu_f, mu_table=mu_t, table=table, backend=backend)
-    hanging = Tracker(posed, radius=finger_radius, mu_finger=mu_f, mu_table=mu_t, table=None, backend=backend)
+    tracker = Tracker(posed, radius=finger_radius, mu_finger=mu_f, mu_table=mu_t, table=table, backend=backend,
+                      settings=settings)
+    hanging = Tracker(posed, radius=finger_radius, mu_finger=mu_f, mu_table=mu_t, table=None, backend=backend,
+                      settings=settings)
     velocities = np.stack([d1, ratio * d2])
 
     surface = posed.mesh.surface_nodes
