@@ -84,3 +84,30 @@ def test_every_increment_implicit_gives_the_same_answer_on_the_quick_tomato(monk
     implicit = pickup(body, settings=EngineSettings(implicit_contacts=0), **kw)
     assert len(calls) >= implicit.squeeze_depth / implicit.step - 1  # every squeeze increment was implicit
     assert_same_pickup(default, implicit)
+
+
+def test_a_tracker_without_neighbour_updates_factorises_every_contact_set_afresh(monkeypatch):
+    """neighbour_updates=False: no response is derived from a cached neighbour's; the responses are the same to
+    round-off."""
+    import numpy as np
+
+    from fem_grasp.elastic import response
+    from fem_grasp.grasp.rest import rest
+    from tests.helpers import RADIUS, pickup_box
+
+    asked = []
+    neighbour = response.ContactResponse.neighbour
+    monkeypatch.setattr(response.ContactResponse, "neighbour",
+                        lambda self, nodes: asked.append(1) or neighbour(self, nodes))
+    rs = rest(pickup_box(), 0.5)
+    others = np.setdiff1d(rs.body.mesh.surface_nodes, rs.contact_nodes)
+    sets = [np.concatenate([rs.contact_nodes, others[:i]]) for i in range(3)]
+    out = {}
+    for updates in (True, False):
+        tracker = Tracker(rs.body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table,
+                          settings=EngineSettings(neighbour_updates=updates))
+        asked.clear()
+        out[updates] = [tracker.response(k).reduced_stiffness for k in sets]
+        assert bool(asked) == updates
+    for a, b in zip(out[True], out[False]):
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-10 * np.abs(b).max())
