@@ -55,16 +55,18 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
 
     import contextlib
 
-    from fem_grasp.contact import relaxation, tracking
+    from fem_grasp.contact import implicit_step, relaxation, tracking
     from fem_grasp.grasp.pickup import pickup
     from fem_grasp.io.scene import load_scene, resolve_scene
 
     relax_stats: dict[str, list[float]] = collections.defaultdict(lambda: [0, 0.0])
     slip_stats: dict[tuple[str, str, str], list[float]] = collections.defaultdict(lambda: [0, 0.0])
-    relax = tracking.relax_contacts
+    relax = implicit_step.relax_contacts  # (called by the tracker's implicit step)
     # The slip systems the trackers build (compiled where numba is installed; the homotopy of a compiled system is
     # its reference's, counted once, as the compiled system's).
-    system = tracking.CompiledSlipSystem if tracking.COMPILED_TRIALS else tracking.MixedSlipSystem
+    compiled = tracking.Tracker.default_settings.compiled_trials
+    compiled = tracking.COMPILED_TRIALS if compiled is None else compiled
+    system = tracking.CompiledSlipSystem if compiled else tracking.MixedSlipSystem
     solve = system.solve
     trial = tracking.Tracker.trial
     trials = [0]
@@ -116,7 +118,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         return out
 
     limit = getattr(tracking, "one_blas_thread", None)
-    tracking.relax_contacts = counted_relax
+    implicit_step.relax_contacts = counted_relax
     system.solve = counted_solve
     slip_trial.newton_trial = counted_newton_trial
     tracking.Tracker.trial = counted_trial
@@ -154,7 +156,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         res = pickup(body, **kwargs)
     finally:
         prof.disable()
-        tracking.relax_contacts = relax
+        implicit_step.relax_contacts = relax
         system.solve = solve
         slip_trial.newton_trial = newton_trial
         tracking.Tracker.trial = trial

@@ -26,12 +26,12 @@ OUT = Path(__file__).resolve().parent / "out"
 
 def capture(scene_name: str, out: Path, quick: bool = False) -> list[tuple]:
     """Run the scene's pickup, recording each relax_contacts call as (args, kwargs, outcome)."""
-    from fem_grasp.contact import relaxation, tracking
+    from fem_grasp.contact import implicit_step, relaxation  # the implicit step is what calls relax_contacts
     from fem_grasp.grasp.pickup import pickup
     from fem_grasp.io.scene import load_scene, resolve_scene
 
     calls: list[tuple] = []
-    original = tracking.relax_contacts
+    original = implicit_step.relax_contacts
 
     def recorded(*args: Any, **kwargs: Any):
         try:
@@ -42,12 +42,12 @@ def capture(scene_name: str, out: Path, quick: bool = False) -> list[tuple]:
         calls.append((args, kwargs, ("ok", res.status.copy(), res.sweeps, res.forces.copy())))
         return res
 
-    tracking.relax_contacts = recorded
+    implicit_step.relax_contacts = recorded
     try:
         scene = load_scene(resolve_scene(scene_name), quick=quick)
         result = pickup(scene.body(), **scene.pickup_kwargs())
     finally:
-        tracking.relax_contacts = original
+        implicit_step.relax_contacts = original
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_bytes(pickle.dumps(calls))
     ok = sum(c[2][0] == "ok" for c in calls)

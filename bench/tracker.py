@@ -10,10 +10,12 @@ level of the answer: the verdict, ρ* within :data:`SAME_RHO_STEPS` squeeze incr
 an instrument (at a knife edge round-off decides them, not the model).
 
 ``--against SETTING …`` compares this checkout with itself instead: the "baseline" worker runs this checkout's
-fem_grasp with each SETTING applied — ``module.ATTRIBUTE=VALUE`` (a switch such as
-``fem_grasp.elastic.response.NEIGHBOUR_UPDATES=False``, set after import; VALUE a Python literal) or
-``ENV:NAME=VALUE`` (an environment variable of the worker, e.g. ``ENV:FEM_GRASP_NO_JIT=1``): what one step of the
-engine is worth, measured in one interleaved run.  A constant that other modules import by value (``from
+fem_grasp with each SETTING applied — ``settings.FIELD=VALUE`` (a field of
+:class:`fem_grasp.settings.EngineSettings`, e.g. ``settings.implicit_contacts=0``: every tracker of the worker is
+built with it, ``Tracker.default_settings``; an unknown field is refused naming it), ``module.ATTRIBUTE=VALUE``
+(any other switch, such as ``fem_grasp.elastic.response.NEIGHBOUR_UPDATES=False``, set after import; VALUE a
+Python literal) or ``ENV:NAME=VALUE`` (an environment variable of the worker, e.g. ``ENV:FEM_GRASP_NO_JIT=1``):
+what one step of the engine is worth, measured in one interleaved run.  A constant that other modules import by value (``from
 fem_grasp.elastic.compliance import PREFETCH_NODES``) keeps its old value there: the worker warns, naming those
 modules (:func:`by_value_copies`), unless they are switched too.
 
@@ -355,12 +357,20 @@ def export_baseline(rev: str, into: Path | None = None) -> tuple[str, Path]:
 
 
 def _apply_switches() -> None:
-    """Set the module attributes named in ``BENCH_SWITCHES`` (a JSON list of [module.ATTRIBUTE, value]); see
-    ``--against``."""
+    """Set the module attributes named in ``BENCH_SWITCHES`` (a JSON list of [module.ATTRIBUTE, value]) and the
+    engine settings named ``settings.FIELD`` (the worker's ``Tracker.default_settings``); see ``--against``."""
     import ast
     import importlib
 
     switches = json.loads(os.environ.get("BENCH_SWITCHES", "[]"))
+    overrides = {name.partition(".")[2]: ast.literal_eval(value) for name, value in switches
+                 if name.startswith("settings.")}
+    switches = [[name, value] for name, value in switches if not name.startswith("settings.")]
+    if overrides:
+        from fem_grasp.contact.tracking import Tracker
+        from fem_grasp.settings import EngineSettings
+
+        Tracker.default_settings = EngineSettings.from_overrides(overrides, base=Tracker.default_settings)
     if switches:
         # Everything a pickup imports, so that copies of a switched constant imported by value can be found.
         importlib.import_module("fem_grasp.io.scene")
@@ -398,7 +408,8 @@ def _against(settings: list[str]) -> tuple[dict[str, str], list[list[str]]]:
     for item in settings:
         name, eq, value = item.partition("=")
         if not eq or not name:
-            raise SystemExit(f"--against {item!r}: expected module.ATTRIBUTE=VALUE or ENV:NAME=VALUE")
+            raise SystemExit(f"--against {item!r}: expected settings.FIELD=VALUE, module.ATTRIBUTE=VALUE or "
+                             "ENV:NAME=VALUE")
         if name.startswith("ENV:"):
             env[name[4:]] = value
         else:
@@ -557,9 +568,10 @@ def main(argv: list[str] | None = None) -> int:
                          "worker's process), compared placement by placement")
     ap.add_argument("--candidates", type=int, default=SEARCH_CANDIDATES, help="placements per --search")
     ap.add_argument("--against", nargs="+", default=[], metavar="SETTING",
-                    help="instead of a commit, this checkout with these settings: module.ATTRIBUTE=VALUE "
-                         "(e.g. fem_grasp.elastic.response.NEIGHBOUR_UPDATES=False) or ENV:NAME=VALUE "
-                         "(e.g. ENV:FEM_GRASP_NO_JIT=1)")
+                    help="instead of a commit, this checkout with these settings: settings.FIELD=VALUE (a field "
+                         "of fem_grasp.settings.EngineSettings, e.g. settings.implicit_contacts=0), "
+                         "module.ATTRIBUTE=VALUE (e.g. fem_grasp.elastic.response.NEIGHBOUR_UPDATES=False) or "
+                         "ENV:NAME=VALUE (e.g. ENV:FEM_GRASP_NO_JIT=1)")
     ap.add_argument("--serve", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.serve:

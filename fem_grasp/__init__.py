@@ -50,6 +50,7 @@ from .grasp import (
 )
 from .io import Scene, run_scene
 from .mesh import TetMesh, box_mesh
+from .settings import EngineSettings
 
 #: The installed distribution's version (:mod:`importlib.metadata`), or a source tree's ``pyproject.toml``.
 __version__ = _version.version()
@@ -60,7 +61,7 @@ _LAZY = {"objects": "fem_grasp.grasp.objects", "placement": "fem_grasp.grasp.pla
          "output": "fem_grasp.io.output", "report": "fem_grasp.io.report", "batch": "fem_grasp.batch"}
 
 __all__ = ["Body", "ClosureResult", "CollinearContactError", "ContactEvent", "ContactNodeError", "ContactResponse",
-           "ContactSolution", "ContactState", "DirectionError", "Fingertip", "FrictionError", "LockingWarning",
+           "ContactSolution", "ContactState", "DirectionError", "EngineSettings", "Fingertip", "FrictionError", "LockingWarning",
            "MaterialError", "MeshError", "PickupResult", "PlacementError", "RestCheckError", "RestConvergenceError",
            "RestState", "RestingPose", "RigidGrasp", "Scene", "SceneError", "Snapshot", "TablePlane", "TetMesh",
            "TrackingError", "box_mesh", "contact", "elastic", "errors", "force_closure", "grasp", "io", "mesh",

@@ -7,7 +7,7 @@ import pytest
 pytest.importorskip("bench", reason="the source tree's bench/ package (not installed with fem_grasp)")
 
 from bench import profile  # noqa: E402
-from fem_grasp.contact import tracking
+from fem_grasp.contact import implicit_step, tracking
 from tests.helpers import perturbed_box
 
 
@@ -21,7 +21,7 @@ def test_profile_counts_the_return_mappings_and_slip_solves_of_a_pickup(capsys):
     # every slip solve belongs to a trial state, and each event takes at least the trial that fired it
     assert calls >= out["trials"] >= out["events"] > 0 and "per event" in text
     # the solvers are restored afterwards
-    assert tracking.relax_contacts.__name__ == "relax_contacts"
+    assert implicit_step.relax_contacts.__name__ == "relax_contacts"
     assert tracking.MixedSlipSystem.solve.__name__ == "solve"
     assert tracking.CompiledSlipSystem.solve.__name__ == "solve"
     assert tracking.Tracker.trial.__name__ == "trial"
@@ -216,28 +216,49 @@ def test_the_tracker_section_compares_this_checkout_with_a_switch_set(tmp_path):
 def test_a_switched_constant_imported_by_value_elsewhere_is_named(monkeypatch, caplog):
     """--against module.ATTRIBUTE sets the attribute in that module only: the modules that imported the constant by
     value keep the old one, and the worker warns naming them (the batch size PREFETCH_NODES is imported by the
-    tracker and the rest) unless the switches name them too."""
+    rest) unless the switches name them too.  The trackers read their own settings, not the constant."""
     import importlib
     import logging
 
     from bench.tracker import _apply_switches, by_value_copies
 
     # (by importlib: the packages export functions named compliance and rest)
-    compliance, tracker, rest = (importlib.import_module(f"fem_grasp.{name}") for name in
-                                 ("elastic.compliance", "contact.tracking", "grasp.rest"))
-    assert by_value_copies(compliance, "PREFETCH_NODES") == ["fem_grasp.contact.tracking", "fem_grasp.grasp.rest"]
-    for module in (compliance, tracker, rest):
+    compliance, rest = (importlib.import_module(f"fem_grasp.{name}") for name in ("elastic.compliance", "grasp.rest"))
+    importlib.import_module("fem_grasp.contact.tracking")
+    assert by_value_copies(compliance, "PREFETCH_NODES") == ["fem_grasp.grasp.rest"]
+    for module in (compliance, rest):
         monkeypatch.setattr(module, "PREFETCH_NODES", module.PREFETCH_NODES)  # restored after the test
     old = compliance.PREFETCH_NODES
+    monkeypatch.setenv("BENCH_SWITCHES", json.dumps([["fem_grasp.elastic.compliance.PREFETCH_NODES", "7"]]))
+    with caplog.at_level(logging.WARNING, logger="bench"):
+        _apply_switches()
+    assert compliance.PREFETCH_NODES == 7
+    assert rest.PREFETCH_NODES == old  # not named: it keeps its copy ...
+    warned = [r.getMessage() for r in caplog.records if r.name == "bench"]
+    assert len(warned) == 1 and "fem_grasp.grasp.rest" in warned[0]  # ... and the worker says so
+    caplog.clear()
     monkeypatch.setenv("BENCH_SWITCHES", json.dumps([["fem_grasp.elastic.compliance.PREFETCH_NODES", "7"],
                                                      ["fem_grasp.grasp.rest.PREFETCH_NODES", "7"]]))
     with caplog.at_level(logging.WARNING, logger="bench"):
         _apply_switches()
-    assert compliance.PREFETCH_NODES == 7 and rest.PREFETCH_NODES == 7
-    assert tracker.PREFETCH_NODES == old  # not named: it keeps its copy ...
-    warned = [r.getMessage() for r in caplog.records if r.name == "bench"]
-    assert len(warned) == 1 and "fem_grasp.contact.tracking" in warned[0]  # ... and the worker says so
-    assert "fem_grasp.grasp.rest" not in warned[0]  # named, so not warned about
+    assert rest.PREFETCH_NODES == 7 and not [r for r in caplog.records if r.name == "bench"]  # named: no warning
+
+
+def test_an_engine_setting_switched_by_the_bench_reaches_every_tracker_of_the_worker(monkeypatch):
+    """--against settings.FIELD=VALUE: the worker's trackers are built with that field changed (and only it); an
+    unknown field is refused naming it."""
+    from bench.tracker import _against, _apply_switches
+    from fem_grasp.settings import DEFAULT_SETTINGS
+
+    monkeypatch.setattr(tracking.Tracker, "default_settings", DEFAULT_SETTINGS)  # restored after the test
+    env, switches = _against(["settings.implicit_contacts=0", "ENV:OMP_NUM_THREADS=1"])
+    assert switches == [["settings.implicit_contacts", "0"]] and env == {"OMP_NUM_THREADS": "1"}
+    monkeypatch.setenv("BENCH_SWITCHES", json.dumps(switches))
+    _apply_switches()
+    assert tracking.Tracker.default_settings.changed() == {"implicit_contacts": 0}
+    monkeypatch.setenv("BENCH_SWITCHES", json.dumps([["settings.implicit_contact", "0"]]))
+    with pytest.raises(ValueError, match="'implicit_contact' .did you mean 'implicit_contacts'"):
+        _apply_switches()
 
 
 def test_two_placement_searches_are_compared_placement_by_placement():

@@ -1,6 +1,6 @@
 """The package's public face and its floors: what ``__all__`` promises exists and is documented, imports run one way.
 
-The floors, bottom to top: the ground (``errors``, ``_version``, ``validation``, ``threads``, ``_files``, ``progress``, ``spawn``) < ``mesh`` <
+The floors, bottom to top: the ground (``errors``, ``_version``, ``validation``, ``settings``, ``threads``, ``_files``, ``progress``, ``spawn``) < ``mesh`` <
 ``elastic`` (paper §II) < ``contact`` (§III-A/C) < ``grasp`` (Algorithm 1) < ``io`` < ``batch`` (many pickups:
 the placement search on Dask) < the applications (``cli``, ``paper``).  A module may import from its own floor and the floors below, never above; no module
 imports another module's private (``_name``) objects; and the modules form no import circle.
@@ -20,7 +20,7 @@ import fem_grasp
 
 PACKAGE = Path(fem_grasp.__file__).resolve().parent
 #: Floor of each top-level part of the package.
-FLOORS = {"errors": 0, "_version": 0, "validation": 0, "threads": 0, "_files": 0, "progress": 0, "spawn": 0, "mesh": 1,
+FLOORS = {"errors": 0, "_version": 0, "validation": 0, "settings": 0, "threads": 0, "_files": 0, "progress": 0, "spawn": 0, "mesh": 1,
           "elastic": 2, "contact": 3, "grasp": 4, "io": 5, "batch": 6, "cli": 7, "paper": 7, "__main__": 7, "__init__": 7}
 
 

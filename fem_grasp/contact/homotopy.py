@@ -23,7 +23,7 @@ from typing import Callable, Optional
 import numpy as np
 import scipy.linalg as la
 
-from .kernels import slip_trial
+from .kernels import slip_homotopy
 
 __all__ = ["SLIP_INITIAL_STEP", "SLIP_MAX_STEP", "HomotopyResult", "HomotopyError", "newton", "track", "solve"]
 
@@ -39,9 +39,9 @@ _REASONS = {
     "polish_failed": "Newton polishing of the end point at t = 1 failed",
 }
 # The limits the compiled homotopy shares (kernels cannot import this module).
-_COND_MAX = slip_trial.COND_MAX
-_CORRECTOR_TOL = slip_trial.CORRECTOR_TOL
-_CORRECTOR_ITERS = slip_trial.CORRECTOR_ITERS
+_COND_MAX = slip_homotopy.COND_MAX
+_CORRECTOR_TOL = slip_homotopy.CORRECTOR_TOL
+_CORRECTOR_ITERS = slip_homotopy.CORRECTOR_ITERS
 #: First and largest continuation steps in t for the slip systems of eqs. (6)–(8) (plane slip and mixed slip
 #: alike): larger than :func:`track`'s defaults because their paths from the held state are short and smooth.
 SLIP_INITIAL_STEP = 0.25
@@ -106,16 +106,16 @@ class HomotopyError(RuntimeError):
 def kernel_error(reason: int, detail: int, t: float, value: float, x: np.ndarray, *, tol: float, min_step: float,
                  max_steps: int, max_iter: int) -> HomotopyError:
     """The :class:`HomotopyError` :func:`track` would raise for a failed outcome of the compiled
-    :func:`~fem_grasp.contact.kernels.slip_trial.homotopy` run with these limits (its reason and detail codes, the
+    :func:`~fem_grasp.contact.kernels.slip_homotopy.homotopy` run with these limits (its reason and detail codes, the
     t it reached, the value its message quotes, the last point)."""
-    name = slip_trial.HOMOTOPY_REASONS[reason]
+    name = slip_homotopy.HOMOTOPY_REASONS[reason]
     if name == "polish_failed":
-        inner = slip_trial.HOMOTOPY_REASONS[detail]
+        inner = slip_homotopy.HOMOTOPY_REASONS[detail]
         extra = {"diverged": "non-finite residual" if value < 0 else f"||x|| > {value:.3g}",
-                 "singular_jacobian": slip_trial.SINGULAR_DETAILS[int(value)],
+                 "singular_jacobian": slip_homotopy.SINGULAR_DETAILS[int(value)],
                  "max_steps": f"Newton: {max_iter} iterations, ||P|| = {value:.3g} > {tol:.3g}"}[inner]
         return HomotopyError(name, t=1.0, x=x, detail=str(HomotopyError(inner, t=1.0, x=x, detail=extra)))
-    extra = {"diverged": f"||x|| > {value:.3g}", "singular_jacobian": slip_trial.SINGULAR_DETAILS[detail],
+    extra = {"diverged": f"||x|| > {value:.3g}", "singular_jacobian": slip_homotopy.SINGULAR_DETAILS[detail],
              "step_too_small": f"step {value:.3g} < {min_step:.3g}, turning point?",
              "max_steps": f"{max_steps} continuation steps"}[name]
     return HomotopyError(name, t=t, x=x, detail=extra)

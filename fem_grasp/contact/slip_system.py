@@ -25,7 +25,7 @@ import scipy.linalg as la
 
 from ..elastic.response import contact_dofs
 from . import homotopy
-from .kernels import jit, slip_newton, slip_trial
+from .kernels import jit, slip_homotopy, slip_newton, slip_trial
 from .kernels.jit import sample_contacts, warm_up_sample
 from .obstacles import FINGER1, TABLE, cross_rows, great_circle_axes, tangent_bases
 
@@ -453,7 +453,7 @@ class CompiledSlipSystem:
                 last = x if found else None
                 attempts.append("Newton from the nearby root did not converge")
         if "homotopy" in methods:
-            reason, detail, t, value, y, _ = slip_trial.homotopy(
+            reason, detail, t, value, y, _ = slip_homotopy.homotopy(
                 np.zeros(self.n), HOMOTOPY_TOL, homotopy.SLIP_INITIAL_STEP, homotopy.SLIP_MAX_STEP,
                 SLIP_HOMOTOPY_STEPS, SLIP_HOMOTOPY_MIN_STEP, _HOMOTOPY_POLISH_ITER, self.xscale, self.row_scale, self.base_sl,
                 self.g_sl, self.dmap, self.n0, self.kappa, self.mu, self.sph, self.free)

@@ -55,6 +55,7 @@ import scipy.sparse.linalg as spla
 
 from ..errors import MissingExtraError
 from ..mesh.tetmesh import check_rotation
+from ..settings import DEFAULT_SETTINGS
 from ..threads import outer_blas_threads
 
 __all__ = ["Compliance", "PREFETCH_NODES", "SOLVERS", "SOLVER_ENV", "cholmod_available", "choose_solver",
@@ -68,8 +69,9 @@ SOLVERS = ("cholmod", "superlu", "mumps")
 SOLVER_ENV = "FEM_GRASP_SOLVER"
 #: Nodes whose columns are solved for together when a new contact needs its own (:meth:`Compliance.prefetch`;
 #: ``make bench``, section ``columns``, 31k vertices: 10.7 ms per column in batches of 90, 12.2 in batches of
-#: 30, 40 for one node's three).
-PREFETCH_NODES = 30
+#: 30, 40 for one node's three): the default of ``EngineSettings.prefetch_nodes``, which the contact trackers
+#: read; the resting iteration reads this name.
+PREFETCH_NODES = DEFAULT_SETTINGS.prefetch_nodes
 #: The right-hand sides and solutions of one multi-column solve take at most about this many bytes; more columns
 #: are solved in blocks.  (The steam bun's flat base puts 2,714 nodes on the table at 21k vertices: their 8,142
 #: columns at once needed two dense 129k × 8,142 arrays, 7.8 GiB each.)

@@ -66,7 +66,7 @@ SURFACE_BLOCK_AFTER = 2
 #: a time.
 NEIGHBOUR_NODES = 6
 #: False: :meth:`ContactResponse.neighbour` derives nothing (every set factorised afresh, the reference the tests
-#: compare with).
+#: compare with).  A contact tracker derives only with ``EngineSettings.neighbour_updates`` too (its own switch).
 NEIGHBOUR_UPDATES = True
 #: Largest backward error ‖M x − r‖∞ / (‖M‖∞ ‖x‖∞) of a derived response's solves (x = M⁻¹ r for a probe r)
 #: before it is refused and the set factorised afresh.  A fresh LU solve reaches ~2e-17 here, a chain of 100

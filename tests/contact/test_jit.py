@@ -109,7 +109,8 @@ def test_warm_up_compiles_every_entry_point(tmp_path):
 
     points = entry_points()
     assert set(points) == {"fem_grasp.contact.kernels.gauss_seidel", "fem_grasp.contact.kernels.slip_newton",
-                           "fem_grasp.contact.kernels.slip_trial", "fem_grasp.contact.kernels.polish",
+                           "fem_grasp.contact.kernels.slip_trial", "fem_grasp.contact.kernels.slip_residual",
+                           "fem_grasp.contact.kernels.slip_homotopy", "fem_grasp.contact.kernels.polish",
                            "fem_grasp.contact.kernels.events", "fem_grasp.contact.kernels.dense"}
     for module, names in points.items():
         mod = importlib.import_module(module)

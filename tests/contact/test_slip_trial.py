@@ -3,7 +3,7 @@
 The tracker's trials assemble, solve and read out their slip systems with
 :class:`~fem_grasp.contact.slip_system.CompiledSlipSystem` where numba is
 installed; :class:`~fem_grasp.contact.slip_system.MixedSlipSystem` stays as the
-reference path (``tracking.COMPILED_TRIALS = False``).  The two do the same
+reference path (``EngineSettings(compiled_trials=False)``).  The two do the same
 arithmetic in another summation order, so they agree to round-off: the arrays
 of the system to ``ASSEMBLY_AGREEMENT``, roots and rates to the slip solves'
 own agreement (``SLIP_SOLVE_AGREEMENT``), and whole pickups with the same
@@ -14,11 +14,14 @@ import numpy as np
 import pytest
 
 from fem_grasp.contact import tracking
-from fem_grasp.contact.kernels import jit, slip_trial
+from fem_grasp.contact.kernels import jit, slip_residual, slip_trial
 from fem_grasp.contact.obstacles import FINGER1, FINGER2, TABLE
 from fem_grasp.contact.slip_system import CompiledSlipSystem, MixedSlipSystem, SlipFailure
+from fem_grasp.contact.tracking import Tracker
+from fem_grasp.grasp.rest import rest
+from fem_grasp.settings import EngineSettings
 from tests.contact.test_jit import SLIP_SOLVE_AGREEMENT
-from tests.helpers import box_squeezed_3mm, pick_up_box, spd_matrix
+from tests.helpers import box_squeezed_3mm, pick_up_box, pickup_box, spd_matrix
 
 #: The system's arrays from the kernels against numpy's, relative to each array's largest entry: sums of three
 #: products in another order (C times the slip directions), a few units of round-off.
@@ -121,13 +124,12 @@ def test_compiled_trials_are_the_reference_trials(method):
             _close(u, v, SLIP_SOLVE_AGREEMENT)
 
 
-def test_a_pickup_with_compiled_trials_is_the_reference_pickup(monkeypatch):
+def test_a_pickup_with_compiled_trials_is_the_reference_pickup():
     """The box picked up at μ = 0.5 with either path: the same verdict and events, ρ* to 1e-9 and the final contact
     forces to 1e-9 of the weight (issue #27's "same answer")."""
     results = {}
     for compiled in (False, True):
-        monkeypatch.setattr(tracking, "COMPILED_TRIALS", compiled)
-        results[compiled] = pick_up_box(0.5)
+        results[compiled] = pick_up_box(0.5, settings=EngineSettings(compiled_trials=compiled))
     ref, comp = results[False], results[True]
     assert ref.success == comp.success
     assert [(e.kind, e.node, e.contact, e.phase) for e in comp.events] == \
@@ -141,6 +143,8 @@ def test_a_pickup_with_compiled_trials_is_the_reference_pickup(monkeypatch):
 
 def test_trackers_compile_their_trials_where_numba_is_installed():
     assert tracking.COMPILED_TRIALS == jit.ENABLED
+    rs = rest(pickup_box(), 0.5)
+    assert Tracker(rs.body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table).compiled == jit.ENABLED
 
 
 @pytest.mark.parametrize("free", [False, True])
@@ -154,14 +158,14 @@ def test_the_fused_residual_jacobian_and_newton_are_the_slip_newton_kernels(free
     x = 1e-3 * np.random.default_rng(8).normal(size=comp.n) * comp.xscale
     p = len(comp.sliding)
     out, f, d, n = np.empty(comp.n), np.empty((p, 3)), np.empty((p, 3)), np.empty((p, 3))
-    slip_trial._fused_residual(x, *args, out, f, d, n)
+    slip_residual.fused_residual(x, *args, out, f, d, n)
     _close(out, slip_newton.residual(x, *args), ASSEMBLY_AGREEMENT)
     jac = np.empty((comp.n, comp.n))
-    slip_trial._fused_jacobian(x, comp.g_sl, comp.dmap, comp.kappa, comp.mu, comp.sph, comp.free, f, d, n, jac)
+    slip_residual.fused_jacobian(x, comp.g_sl, comp.dmap, comp.kappa, comp.mu, comp.sph, comp.free, f, d, n, jac)
     _close(jac, slip_newton.jacobian(x, *args), ASSEMBLY_AGREEMENT)
     lim = np.maximum(1e-12, comp.row_noise)
     old = slip_newton.newton(np.zeros(comp.n), lim, 40, comp.xscale, comp.row_scale, *args)
-    new = slip_trial.fused_newton(np.zeros(comp.n), lim, 40, comp.xscale, comp.row_scale, *args)
+    new = slip_residual.fused_newton(np.zeros(comp.n), lim, 40, comp.xscale, comp.row_scale, *args)
     assert old[0] == new[0]
     if old[0]:
         _close(new[1], old[1], SLIP_SOLVE_AGREEMENT)

@@ -91,9 +91,7 @@ def test_a_new_contact_brings_the_columns_of_the_surface_nodes_nearest_an_obstac
     assert {int(k) for k in surf if comp.is_cached(k)} == now
 
 
-def test_the_tracker_keeps_its_latest_contact_responses_within_a_byte_budget(monkeypatch):
-    from fem_grasp.contact import tracking
-
+def test_the_tracker_keeps_its_latest_contact_responses_within_a_byte_budget():
     rs = rest(pickup_box(), 0.5)
     tracker = Tracker(rs.body, radius=RADIUS, mu_finger=0.5, mu_table=0.5, table=rs.table)
     others = np.setdiff1d(rs.body.mesh.surface_nodes, rs.contact_nodes)
@@ -101,12 +99,12 @@ def test_the_tracker_keeps_its_latest_contact_responses_within_a_byte_budget(mon
     size = [tracker.response(k).nbytes for k in sets]  # under the default budget: all kept
     assert len(tracker._responses) == 6 and size[5] > size[0] > 0
     budget = size[4] + size[5] + size[0] // 2
-    monkeypatch.setattr(tracking, "RESPONSE_CACHE_BYTES", budget)
+    tracker.settings = tracker.settings.replace(response_cache_bytes=budget)
     latest = tracker.response(others[:7])  # a seventh set: the oldest go until the rest fit
     assert sum(r.nbytes for r in tracker._responses.values()) <= budget
     assert list(tracker._responses)[-1] == tuple(others[:7]) and tracker.response(others[:7]) is latest
     assert tuple(sets[0]) not in tracker._responses
-    monkeypatch.setattr(tracking, "RESPONSE_CACHE_BYTES", 1)  # smaller than any: the latest alone is kept
+    tracker.settings = tracker.settings.replace(response_cache_bytes=1)  # smaller than any: the latest alone is kept
     again = tracker.response(sets[0])
     assert list(tracker._responses) == [tuple(sets[0])] and tracker.response(sets[0]) is again
     # Recomputed (derived from the cached neighbour, ContactResponse.neighbour): a fresh tracker's to round-off.

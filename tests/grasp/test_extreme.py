@@ -317,7 +317,7 @@ def test_friction_ten_completes_and_a_failed_hanging_relaxation_counts_as_not_he
             failures.append(str(exc))
             raise
 
-    monkeypatch.setattr("fem_grasp.contact.tracking.relax_contacts", counting)
+    monkeypatch.setattr("fem_grasp.contact.implicit_step.relax_contacts", counting)
     res = pick_up_box(pickup_box(), mu=10.0, step=1.2e-4, lift=False)
     res.check()
     assert res.reason.startswith("the lift test passed") and res.liftable[-1][1] >= WEIGHT

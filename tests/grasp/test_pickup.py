@@ -164,15 +164,14 @@ def test_implicit_increments_alone_pick_up_the_box_at_the_same_depth(lifted, mon
 
 
 def test_large_contact_sets_go_by_implicit_increments_to_the_same_depth(lifted, monkeypatch):
-    """Above IMPLICIT_CONTACTS contacts every increment is a return mapping; with the threshold at 0 the
-    whole box pickup goes that way and must agree with the event tracking."""
-    import fem_grasp.contact.tracking as tracking
+    """Above EngineSettings.implicit_contacts contacts every increment is a return mapping; with the threshold at 0
+    the whole box pickup goes that way and must agree with the event tracking."""
+    from fem_grasp.settings import EngineSettings
 
     calls = []
     original = Tracker.implicit_step
-    monkeypatch.setattr(tracking, "IMPLICIT_CONTACTS", 0)
     monkeypatch.setattr(Tracker, "implicit_step", lambda self, *a, **k: calls.append(1) or original(self, *a, **k))
-    res = pick_up_box(0.5)
+    res = pick_up_box(0.5, settings=EngineSettings(implicit_contacts=0))
     assert res.success, res.reason
     res.check()
     assert len(calls) >= lifted.squeeze_depth / lifted.step - 1  # every squeeze increment

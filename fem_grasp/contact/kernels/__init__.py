@@ -8,13 +8,15 @@
 * :mod:`~fem_grasp.contact.kernels.slip_newton` — the residual, Jacobian and damped Newton iteration of the
   slip systems of eqs. (6)–(8) (the numpy reference path's);
 * :mod:`~fem_grasp.contact.kernels.slip_trial` — one trial state of the event tracking: the held prediction,
-  the slip system assembled, solved (fused Newton, Newton homotopy of footnote 2) and read out (forces, slips,
-  slip rates);
+  the slip system assembled, solved and read out (forces, slips, slip rates);
+* :mod:`~fem_grasp.contact.kernels.slip_residual` — the slip system's residual and Jacobian in one pass and the
+  damped (fused) Newton iteration on them;
+* :mod:`~fem_grasp.contact.kernels.slip_homotopy` — the Newton homotopy of footnote 2 where Newton's method fails;
 * :mod:`~fem_grasp.contact.kernels.events` — the event functions A–D at a trial state;
 * :mod:`~fem_grasp.contact.kernels.dense` — LAPACK's LU for the kernels' dense systems.
 
 The kernels polish, slip_trial and events replace numpy code that stays as the reference path:
-``tracking.COMPILED_TRIALS`` and ``relaxation.COMPILED_POLISH`` (both on where numba is installed) choose, and
+``EngineSettings.compiled_trials`` and ``relaxation.COMPILED_POLISH`` (both on where numba is installed) choose, and
 the tests compare the two.
 """
 

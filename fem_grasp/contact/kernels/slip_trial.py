@@ -10,15 +10,17 @@ tracking.  These kernels do the same in a few calls per trial:
 * :func:`assemble` — the system's arrays (both forms, the same unknowns, scales
   and rows as ``MixedSlipSystem``);
 * :func:`newton_root` — the damped Newton iteration of
-  :func:`~fem_grasp.contact.kernels.slip_newton.newton` and the admissibility test
+  :func:`~fem_grasp.contact.kernels.slip_newton.newton` (fused residual and Jacobian,
+  :mod:`~fem_grasp.contact.kernels.slip_residual`) and the admissibility test
   (no compressive sliding contact on the far root through its cone's axis);
-* :func:`homotopy` — the Newton-homotopy continuation of paper footnote 2 where
-  Newton's method finds no root (``homotopy.track`` as ``MixedSlipSystem.solve``
-  calls it, its linear solves and condition test included);
+* the Newton-homotopy continuation of paper footnote 2 where Newton's method
+  finds no root is :func:`~fem_grasp.contact.kernels.slip_homotopy.homotopy`;
 * :func:`outcome` — forces, displacement changes, slip amounts and the slip
   rates of event D by the implicit-function theorem (a partial-pivoting LU
   whose smallest pivot below ``SINGULAR_PIVOT`` of the largest reads as a
-  friction limit, as scipy's factors do in ``MixedSlipSystem.rates``).
+  friction limit, as scipy's factors do in ``MixedSlipSystem.rates``);
+* :func:`held_prediction` and :func:`newton_trial` — step 1 of an increment, and the
+  whole trial in one call where Newton's method from zero slip finds the root.
 
 The arithmetic is that of ``MixedSlipSystem`` in another summation order:
 the two agree to round-off (``tests/contact/test_slip_trial.py``), and the
@@ -31,15 +33,20 @@ import math
 
 import numpy as np
 
-from . import dense, events, slip_newton
+from . import dense, events, slip_newton, slip_residual
 from .jit import jit
+from .slip_homotopy import COND_MAX, CORRECTOR_ITERS, CORRECTOR_TOL, HOMOTOPY_REASONS, SINGULAR_DETAILS, homotopy
+from .slip_residual import fused_newton
+
+# (homotopy, fused_newton and the homotopy's codes and limits are re-exported for the callers that know them from
+# here; their kernels live in slip_homotopy and slip_residual, which list them as entry points)
 
 __all__ = ["COND_MAX", "CORRECTOR_ITERS", "CORRECTOR_TOL", "ENTRY_POINTS", "HOMOTOPY_REASONS", "SINGULAR_DETAILS",
            "TRIAL_NO_DIRECTION", "TRIAL_NO_ROOT", "TRIAL_ROOT", "assemble", "fused_newton",
            "held_prediction", "homotopy", "newton_root", "newton_trial", "outcome"]
 
 #: The kernels called from Python (what a warm-up must reach).
-ENTRY_POINTS = ("assemble", "held_prediction", "homotopy", "newton_root", "newton_trial", "outcome")
+ENTRY_POINTS = ("assemble", "held_prediction", "newton_root", "newton_trial", "outcome")
 
 #: Owner code of a table contact (``fem_grasp.contact.obstacles.TABLE``).
 _TABLE = 2
@@ -218,7 +225,7 @@ def newton_root(y, lim, scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, 
     """Damped Newton from the scaled start y (:func:`fused_newton`, the iteration of
     :func:`~fem_grasp.contact.kernels.slip_newton.newton`), then the admissibility test: (a root was found, it is
     admissible, x = scale · y)."""
-    ok, yy = fused_newton(y, lim, max_iter, scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free)
+    ok, yy = slip_residual.fused_newton(y, lim, max_iter, scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free)
     x = yy * scale
     if not ok:
         return False, False, x
@@ -291,330 +298,6 @@ def outcome(x, fh, g, sl, dfh, base, g_sl, dmap, n0, kappa, mu, sph, free, t_hel
         rates[j] = -(dirs[j, 0] * dd[j, 0] + dirs[j, 1] * dd[j, 1] + dirs[j, 2] * dd[j, 2])
     return forces, disp, amounts, rates
 
-
-# ------------------------------------------------------------------ homotopy
-#: Outcome codes of :func:`homotopy` (``fem_grasp.contact.homotopy.HomotopyError.reason``, in this order).
-HOMOTOPY_REASONS = ("", "diverged", "singular_jacobian", "step_too_small", "max_steps", "polish_failed")
-#: Why a linear solve of the homotopy failed (``homotopy._Singular``'s messages, in this order).
-SINGULAR_DETAILS = ("", "non-finite matrix or right-hand side", "zero matrix", "condition number > 1e+14")
-#: The Newton homotopy's limits, here and in its numpy reference (``fem_grasp.contact.homotopy`` imports them): the
-#: condition number above which a Jacobian counts as singular, the relative Newton-step size at which the path
-#: corrector stops, and its iterations per step.
-COND_MAX = 1e14
-CORRECTOR_TOL = 1e-9
-CORRECTOR_ITERS = 6
-
-
-@jit
-def _lin_solve(a, b):
-    """``homotopy._lin_solve``: (detail code, x), code 0 when solved; singular when the matrix or right-hand side is
-    not finite, the matrix is zero, or its 1-norm condition number exceeds 1e14 (here ‖A‖₁‖A⁻¹‖₁ itself, where
-    LAPACK's gecon estimates ‖A⁻¹‖₁ from below: a matrix within a factor of a few of the limit may be judged
-    singular here and not there)."""
-    n = a.shape[0]
-    if not (np.isfinite(a).all() and np.isfinite(b).all()):
-        return 1, b
-    anorm = 0.0
-    for col in range(n):
-        s = 0.0
-        for i in range(n):
-            s += abs(a[i, col])
-        anorm = max(anorm, s)
-    if anorm == 0.0:
-        return 2, b
-    lu, piv, info = dense.lu_factor(a)
-    if info > 0:
-        return 3, b
-    inv_norm = 0.0
-    e = np.zeros(n)
-    for col in range(n):
-        e[:] = 0.0
-        e[col] = 1.0
-        z = dense.lu_solve(lu, piv, e)
-        s = 0.0
-        for i in range(n):
-            s += abs(z[i])
-        inv_norm = max(inv_norm, s)
-    if not (np.isfinite(inv_norm) and anorm * inv_norm < COND_MAX):
-        return 3, b
-    return 0, dense.lu_solve(lu, piv, b)
-
-
-@jit
-def _scaled(y, scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free):
-    """P(y) = row_scale · residual(scale · y), the system the homotopy follows (``MixedSlipSystem.solve``'s fun)."""
-    p = mu.shape[0]
-    out = np.empty(y.shape[0])
-    _scaled_residual(y, scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free, np.empty(y.shape[0]), out,
-                     np.empty((p, 3)), np.empty((p, 3)), np.empty((p, 3)))
-    return out
-
-
-@jit
-def _scaled_with_jacobian(y, scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free):
-    """(P(y), ∂P/∂y): the Jacobian row_scale · ∂residual/∂x · scale with the residual it is built on (one evaluation
-    for both: ``_scaled`` gives the same numbers)."""
-    p = mu.shape[0]
-    nx = y.shape[0]
-    xs, r = np.empty(nx), np.empty(nx)
-    f, d, n = np.empty((p, 3)), np.empty((p, 3)), np.empty((p, 3))
-    _scaled_residual(y, scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free, xs, r, f, d, n)
-    jac = np.empty((nx, nx))
-    _fused_jacobian(xs, g_sl, dmap, kappa, mu, sph, free, f, d, n, jac)
-    for i in range(nx):
-        for j in range(nx):
-            jac[i, j] = row_scale[i] * jac[i, j] * scale[j]
-    return r, jac
-
-
-@jit
-def homotopy(y0, tol, initial_step, max_step, max_steps, min_step, max_iter,
-             scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free):
-    """The Newton homotopy H(y, t) = P(y) − (1 − t)² P(y₀) of paper footnote 2, as ``homotopy.track`` follows it
-    for ``MixedSlipSystem.solve`` (start Q = P − P(y₀), γ = 1): Euler predictor, Newton corrector, step in t halved
-    on a failed correction and doubled after one of ≤ 3 iterations, Newton polish of P at t = 1.
-
-    Returns
-    -------
-    (reason, detail, t, value, y, steps): reason 0 and the polished y on success, else an index into
-    ``HOMOTOPY_REASONS`` (polish failures: ``detail`` is the polish's own reason), where it stopped (t), the step
-    or residual its message quotes (value), the last point, and the continuation steps taken.
-    """
-    args = (scale, row_scale, base, g_sl, dmap, n0, kappa, mu, sph, free)
-    x = y0.copy()
-    limit = 1e8 * max(1.0, math.sqrt(np.dot(x, x)))
-    p0 = _scaled(x, *args)
-    t, h, steps, rejected = 0.0, initial_step, 0, 0
-    while t < 1.0:
-        if steps + rejected >= max_steps:
-            return 4, 0, t, float(max_steps), x, steps
-        pv, jx = _scaled_with_jacobian(x, *args)
-        jt = 2.0 * (1.0 - t) * (pv - (pv - p0))
-        b = (1.0 - t) ** 2
-        code, xdot = _lin_solve((1.0 - b) * jx + b * jx, -jt)
-        if code:
-            return 2, code, t, 0.0, x, steps
-        h = min(h, 1.0 - t)
-        t_new = 1.0 if h >= 1.0 - t else t + h
-        # Newton corrector on H(., t_new): accepted when it contracts and converges within a few iterations.
-        xc = x + h * xdot
-        bn = (1.0 - t_new) ** 2
-        prev = np.inf
-        accepted = 0
-        for k in range(1, CORRECTOR_ITERS + 1):
-            pc, jc = _scaled_with_jacobian(xc, *args)
-            code, dx = _lin_solve((1.0 - bn) * jc + bn * jc, -((1.0 - bn) * pc + bn * (pc - p0)))
-            if code:
-                break
-            xc = xc + dx
-            step = math.sqrt(np.dot(dx, dx))
-            if not np.isfinite(step):
-                break
-            if step <= CORRECTOR_TOL * (1.0 + math.sqrt(np.dot(xc, xc))):
-                accepted = k
-                break
-            if step > 0.5 * prev:
-                break
-            prev = step
-        if accepted == 0:
-            rejected += 1
-            h *= 0.5
-            if h < min_step:
-                return 3, 0, t, h, x, steps
-            continue
-        x, t = xc, t_new
-        steps += 1
-        if math.sqrt(np.dot(x, x)) > limit:
-            return 1, 0, t, limit, x, steps
-        if accepted <= 3:
-            h = min(2.0 * h, max_step)
-    # Polish: plain Newton on P (``homotopy._newton``); its failures are reported as polish failures.
-    res = 0.0
-    for it in range(max_iter + 1):
-        r = _scaled(x, *args)
-        if not np.isfinite(r).all():
-            return 5, 1, 1.0, -1.0, x, steps
-        res = math.sqrt(np.dot(r, r))
-        if res <= tol:
-            return 0, 0, 1.0, res, x, steps
-        if it == max_iter:
-            break
-        code, dx = _lin_solve(_scaled_with_jacobian(x, *args)[1], -r)
-        if code:
-            return 5, 2, 1.0, float(code), x, steps
-        x = x + dx
-        if not np.isfinite(x).all() or math.sqrt(np.dot(x, x)) > limit:
-            return 5, 1, 1.0, limit, x, steps
-    return 5, 4, 1.0, res, x, steps
-
-
-# ------------------------------------------------------------- fused Newton
-@jit
-def _fused_residual(x, base, g, dmap, n0, kappa, mu, sph, free, out, f, d, n):
-    """``slip_newton.residual`` into ``out``, leaving the sliding nodes' forces, slips and normals in f, d, n (p, 3)."""
-    p = mu.shape[0]
-    nx = x.shape[0]
-    for row in range(3 * p):
-        sf = 0.0
-        sd = 0.0
-        for col in range(nx):
-            sf += g[row, col] * x[col]
-            sd += dmap[row, col] * x[col]
-        f[row // 3, row % 3] = base[row] + sf
-        d[row // 3, row % 3] = sd
-    for j in range(p):
-        for i in range(3):
-            n[j, i] = n0[j, i] + kappa[j] * d[j, i]
-        fn = f[j, 0] * n[j, 0] + f[j, 1] * n[j, 1] + f[j, 2] * n[j, 2]
-        out[j] = (1.0 + mu[j] ** 2) * fn ** 2 - (f[j, 0] * f[j, 0] + f[j, 1] * f[j, 1] + f[j, 2] * f[j, 2])
-    q, k = sph.shape
-    for i in range(q):
-        t = x[sph[i, 0]] ** 2
-        for jj in range(1, k):
-            t += x[sph[i, jj]] ** 2
-        out[p + i] = 2.0 * x[sph[i, 0]] + t
-    if free:
-        for j in range(p):
-            c0 = f[j, 1] * d[j, 2] - f[j, 2] * d[j, 1]
-            c1 = f[j, 2] * d[j, 0] - f[j, 0] * d[j, 2]
-            c2 = f[j, 0] * d[j, 1] - f[j, 1] * d[j, 0]
-            out[p + q + j] = n[j, 0] * c0 + n[j, 1] * c1 + n[j, 2] * c2
-
-
-@jit
-def _fused_jacobian(x, g, dmap, kappa, mu, sph, free, f, d, n, jac):
-    """``slip_newton.jacobian`` at the state f, d, n of :func:`_fused_residual`, into ``jac``."""
-    p = mu.shape[0]
-    nx = x.shape[0]
-    q, k = sph.shape
-    jac[:, :] = 0.0
-    for j in range(p):
-        fn = f[j, 0] * n[j, 0] + f[j, 1] * n[j, 1] + f[j, 2] * n[j, 2]
-        a = 2.0 * (1.0 + mu[j] ** 2) * fn
-        r0, r1, r2 = 3 * j, 3 * j + 1, 3 * j + 2
-        kap = kappa[j]
-        for col in range(nx):
-            g0, g1, g2 = g[r0, col], g[r1, col], g[r2, col]
-            dn0, dn1, dn2 = kap * dmap[r0, col], kap * dmap[r1, col], kap * dmap[r2, col]
-            jac[j, col] = (a * ((n[j, 0] * g0 + n[j, 1] * g1 + n[j, 2] * g2) + (f[j, 0] * dn0 + f[j, 1] * dn1
-                                                                              + f[j, 2] * dn2))
-                           - 2.0 * (f[j, 0] * g0 + f[j, 1] * g1 + f[j, 2] * g2))
-    for i in range(q):
-        for jj in range(k):
-            jac[p + i, sph[i, jj]] = 2.0 * x[sph[i, jj]]
-        jac[p + i, sph[i, 0]] += 2.0
-    if free:
-        for j in range(p):
-            fd0 = f[j, 1] * d[j, 2] - f[j, 2] * d[j, 1]
-            fd1 = f[j, 2] * d[j, 0] - f[j, 0] * d[j, 2]
-            fd2 = f[j, 0] * d[j, 1] - f[j, 1] * d[j, 0]
-            dn_0 = d[j, 1] * n[j, 2] - d[j, 2] * n[j, 1]
-            dn_1 = d[j, 2] * n[j, 0] - d[j, 0] * n[j, 2]
-            dn_2 = d[j, 0] * n[j, 1] - d[j, 1] * n[j, 0]
-            nf0 = n[j, 1] * f[j, 2] - n[j, 2] * f[j, 1]
-            nf1 = n[j, 2] * f[j, 0] - n[j, 0] * f[j, 2]
-            nf2 = n[j, 0] * f[j, 1] - n[j, 1] * f[j, 0]
-            r0, r1, r2 = 3 * j, 3 * j + 1, 3 * j + 2
-            kap = kappa[j]
-            for col in range(nx):
-                jac[p + q + j, col] = ((fd0 * (kap * dmap[r0, col]) + fd1 * (kap * dmap[r1, col])
-                                        + fd2 * (kap * dmap[r2, col]))
-                                       + (dn_0 * g[r0, col] + dn_1 * g[r1, col] + dn_2 * g[r2, col])
-                                       + (nf0 * dmap[r0, col] + nf1 * dmap[r1, col] + nf2 * dmap[r2, col]))
-
-
-@jit
-def _scaled_residual(y, scale, row_scale, base, g, dmap, n0, kappa, mu, sph, free, xs, out, f, d, n):
-    for i in range(y.shape[0]):
-        xs[i] = scale[i] * y[i]
-    _fused_residual(xs, base, g, dmap, n0, kappa, mu, sph, free, out, f, d, n)
-    for i in range(out.shape[0]):
-        out[i] = row_scale[i] * out[i]
-
-
-@jit
-def _norm(v):
-    s = 0.0
-    for e in v:
-        s += e * e
-    return math.sqrt(s)
-
-
-@jit
-def fused_newton(y, lim, max_iter, scale, row_scale, base, g, dmap, n0, kappa, mu, sph, free):
-    """:func:`~fem_grasp.contact.kernels.slip_newton.newton` (the same damped iteration, tests and limits) on
-    preallocated arrays: residual and Jacobian in loops over the affine maps, the step by LAPACK's LU
-    (:mod:`~fem_grasp.contact.kernels.dense`).
-
-    Returns
-    -------
-    (converged, y)
-    """
-    nx = y.shape[0]
-    p = mu.shape[0]
-    y = y.copy()
-    xs = np.empty(nx)
-    f, d, n = np.empty((p, 3)), np.empty((p, 3)), np.empty((p, 3))
-    r = np.empty(nx)
-    r_new = np.empty(nx)
-    jac = np.empty((nx, nx))
-    y_new = np.empty(nx)
-    _scaled_residual(y, scale, row_scale, base, g, dmap, n0, kappa, mu, sph, free, xs, r, f, d, n)
-    best, since = np.inf, 0
-    for _ in range(max_iter):
-        if not np.isfinite(r).all():
-            return False, y
-        done = True
-        for i in range(nx):
-            if not abs(r[i]) <= lim[i]:
-                done = False
-                break
-        if done:
-            return True, y
-        norm = _norm(r)
-        best, since, give_up = slip_newton.progress(norm, best, since)
-        if give_up:
-            break
-        # The Jacobian at y: xs, f, d and n are those of the latest residual, which was y's.
-        _fused_jacobian(xs, g, dmap, kappa, mu, sph, free, f, d, n, jac)
-        for i in range(nx):
-            for j in range(nx):
-                jac[i, j] = row_scale[i] * jac[i, j] * scale[j]
-        lu, piv, info = dense.lu_factor(jac)  # as np.linalg.solve's LAPACK gesv
-        if info > 0:
-            return False, y
-        step = dense.lu_solve(lu, piv, -r)
-        if not np.isfinite(step).all():
-            return False, y
-        lam = 1.0
-        found = False
-        for _h in range(12):
-            for i in range(nx):
-                y_new[i] = y[i] + lam * step[i]
-            _scaled_residual(y_new, scale, row_scale, base, g, dmap, n0, kappa, mu, sph, free, xs, r_new, f, d, n)
-            if np.isfinite(r_new).all() and _norm(r_new) < (1.0 - 1e-4 * lam) * norm:
-                found = True
-                break
-            lam *= 0.5
-        if not found:  # no decrease: take the full step (round-off regime)
-            for i in range(nx):
-                y_new[i] = y[i] + step[i]
-            _scaled_residual(y_new, scale, row_scale, base, g, dmap, n0, kappa, mu, sph, free, xs, r_new, f, d, n)
-        dy = 0.0
-        yn = 0.0
-        for i in range(nx):
-            dy += (y_new[i] - y[i]) ** 2
-            yn += y_new[i] ** 2
-        stalled = math.sqrt(dy) <= 1e-14 * (1.0 + math.sqrt(yn))
-        y[:] = y_new
-        r[:] = r_new
-        if stalled:
-            break
-    ok = np.isfinite(r).all()
-    for i in range(nx):
-        if not abs(r[i]) <= 10.0 * lim[i]:
-            ok = False
-    return ok, y
 
 
 # --------------------------------------------------------- held prediction
