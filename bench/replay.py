@@ -84,8 +84,8 @@ def _watch_polish(relaxation: Any) -> tuple[list[tuple[bool, list]], Any]:
 
 def replay(path: Path, force_tol: float = 1e-9, polish_halvings: int | None = None) -> dict[str, Any]:
     """Solve the recorded calls again; times by outcome, the calls whose outcome changed, and how the
-    Newton polish of the return mappings fared (``polish_halvings`` overrides
-    ``relaxation.POLISH_HALVINGS`` for the replay)."""
+    Newton polish of the return mappings fared (``polish_halvings`` overrides the setting of that name for the
+    replay)."""
     from fem_grasp.contact import relaxation
 
     if hasattr(relaxation, "as_kernel_data"):  # the sweeps of fem_grasp.contact.kernels.gauss_seidel
@@ -98,20 +98,18 @@ def replay(path: Path, force_tol: float = 1e-9, polish_halvings: int | None = No
     times = {"ok": 0.0, "fail": 0.0}
     changed: list[str] = []
     outcomes = []
-    halvings = getattr(relaxation, "POLISH_HALVINGS", None)
-    if polish_halvings is not None:
-        relaxation.POLISH_HALVINGS = polish_halvings
     # The polish watched is the numpy one (the compiled kernel runs the same iteration, tests/contact/test_polish.py,
-    # but its line search cannot be watched from here).
-    compiled = getattr(relaxation, "COMPILED_POLISH", None)
-    if compiled is not None:
-        relaxation.COMPILED_POLISH = False
+    # but its line search cannot be watched from here): every call runs with these settings, whatever it recorded.
+    from fem_grasp.settings import DEFAULT_SETTINGS
+
+    settings = DEFAULT_SETTINGS.replace(compiled_polish=False, **(
+        {} if polish_halvings is None else {"polish_halvings": polish_halvings}))
     records, unwrap = _watch_polish(relaxation)
     try:
         for args, kwargs, _ in calls:
             t = time.perf_counter()
             try:
-                res = relaxation.relax_contacts(*args, **kwargs)
+                res = relaxation.relax_contacts(*args, **{**kwargs, "settings": settings})
                 now: tuple = ("ok", res.status, res.sweeps, res.forces)
             except relaxation.RelaxationFailure as exc:
                 now = ("fail", str(exc))
@@ -119,10 +117,6 @@ def replay(path: Path, force_tol: float = 1e-9, polish_halvings: int | None = No
             outcomes.append(now)
     finally:
         unwrap()
-        if halvings is not None:
-            relaxation.POLISH_HALVINGS = halvings
-        if compiled is not None:
-            relaxation.COMPILED_POLISH = compiled
     for i, ((_, _, before), now) in enumerate(zip(calls, outcomes)):
         if now[0] != before[0]:
             changed.append(f"call {i}: {before[0]} -> {now[0]}")
@@ -149,7 +143,7 @@ def replay(path: Path, force_tol: float = 1e-9, polish_halvings: int | None = No
     polish = {"attempts": len(records), "converged": len(converged),
               "converged_cut_below_eighth": sum(cut(st) for st in converged),
               "failed_cut_below_eighth_in_three_steps": sum(cut(st, 3) for st in failed)}
-    print(f"polish (Newton on fixed statuses, steps halved {halvings if polish_halvings is None else polish_halvings}"
+    print(f"polish (Newton on fixed statuses, steps halved {settings.polish_halvings}"
           f" times at most): {polish['attempts']} attempts, {polish['converged']} converged; a step cut below 1/8 "
           f"in {polish['converged_cut_below_eighth']} that converged, within three steps in "
           f"{polish['failed_cut_below_eighth_in_three_steps']} that failed")

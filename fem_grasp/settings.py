@@ -2,7 +2,9 @@
 
 The event tracking of the squeeze and the lift (:class:`~fem_grasp.contact.tracking.Tracker`, paper §III-C) has
 tolerances, limits, cache sizes and a choice of compiled or numpy trials; the compliance solves it asks for have a
-batch size, and its contact responses may be derived from a neighbouring contact set's.  Each is a field here,
+batch size, and its contact responses may be derived from a neighbouring contact set's; its return mapping (the
+implicit steps and the lift test's hanging weights) has iteration bounds, and the lift test halves a failing
+load step.  Each is a field here,
 with its unit and the reason for its default.  A tracker holds one :class:`EngineSettings` (``Tracker.settings``)
 and reads nothing else, so two trackers with different settings can run side by side, and a setting is changed by
 building a new record::
@@ -109,6 +111,39 @@ class EngineSettings:
     neighbour_updates : bool
         A tracker derives a new contact set's response from a cached neighbouring set's by rank-3 updates (True)
         instead of factorising every set afresh (False, the reference; the same answers to round-off).
+    drift_sweeps : int
+        Return mapping (:func:`~fem_grasp.contact.relaxation.relax_contacts`): sweeps of unchanged statuses over
+        which a steady drift, whose motion still to come at its rate of decay would carry a contact past the
+        slip bound, is gross slip (300).
+    drift_slip : float
+        ... once some contact has moved this fraction of the slip bound (0.01; also the threshold of
+        ``growth_sweeps``).
+    drift_decay : float
+        ... and the motion per sweep has not fallen below this fraction of its value ``drift_sweeps`` sweeps
+        before (0.5).
+    growth_sweeps : int
+        A motion per sweep that has not decayed at all over this many sweeps (whatever the statuses did) is gross
+        slip: the sweeps of a problem with no static state drift or grow, those of one with a static state
+        contract (20; replayed on 2,200 return mappings of the shipped scenes, the graded tomato and the 10k
+        orange, no outcome changed and failures ended 2–5× sooner than at the slip bound).
+    stuck_sweeps : int
+        Consecutive sweeps in which some contact has no local solution before the relaxation gives up (50).
+    stall_sweeps : int
+        Sweeps without halving the largest force change (statuses that keep cycling) before it gives up (1000).
+    polish_iterations : int
+        Newton iterations of one polish of the return mapping's smooth system (30).
+    polish_halvings : int
+        Halvings of a polish Newton step (down to 1/16) before the polish gives up and the sweeps go on (4).
+    chord_contraction : float
+        A polish reuses its Jacobian's LU factors (a chord step, O(n²)) while a full step still cuts the residual
+        to this fraction of its norm; a slower step factorises a new Jacobian (0.25).
+    compiled_polish : bool or None
+        The polish runs as one compiled kernel (True) or as its numpy reference (False); None: compiled where
+        numba is installed.  The two differ by round-off only.
+    load_halvings : int
+        Lift test (:mod:`~fem_grasp.grasp.lift_test`): halvings of a load step with no static state before the
+        weight counts as not held (3, steps down to h/8: they resolve the load path near the weight a finger lets
+        go; with none, 7 of the tomato's 64 search placements lift one or two squeeze increments later).
     """
 
     # events A-D (contact.event_location)
@@ -140,14 +175,28 @@ class EngineSettings:
     compiled_trials: bool | None = None
     prefetch_nodes: int = 30
     neighbour_updates: bool = True
+    # the return mapping (contact.relaxation)
+    drift_sweeps: int = 300
+    drift_slip: float = 0.01
+    drift_decay: float = 0.5
+    growth_sweeps: int = 20
+    stuck_sweeps: int = 50
+    stall_sweeps: int = 1000
+    polish_iterations: int = 30
+    polish_halvings: int = 4
+    chord_contraction: float = 0.25
+    compiled_polish: bool | None = None
+    # the lift test (grasp.lift_test)
+    load_halvings: int = 3
 
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
             kind = _KINDS[f.name]
             if kind is bool:
-                ok = isinstance(value, bool) or (value is None and f.name == "compiled_trials")
-                want = "True or False" + (" or None" if f.name == "compiled_trials" else "")
+                optional = f.name in ("compiled_trials", "compiled_polish")
+                ok = isinstance(value, bool) or (value is None and optional)
+                want = "True or False" + (" or None" if optional else "")
             elif kind is int:
                 ok = isinstance(value, int) and not isinstance(value, bool) and value >= 0
                 want = "a whole number ≥ 0"
@@ -188,10 +237,11 @@ class EngineSettings:
         return {f.name: getattr(self, f.name) for f in fields(self) if getattr(self, f.name) != getattr(default, f.name)}
 
 
-_KINDS: dict[str, type] = {"compiled_trials": bool, "neighbour_updates": bool, **{
+_KINDS: dict[str, type] = {"compiled_trials": bool, "neighbour_updates": bool, "compiled_polish": bool, **{
     name: int for name in ("increment_halvings", "implicit_contacts", "max_settle_toggles", "chatter_toggles",
                            "crawl_toggles", "response_cache", "response_cache_bytes", "zero_field_cache",
-                           "latest_fields", "prefetch_nodes")}}
+                           "latest_fields", "prefetch_nodes", "drift_sweeps", "growth_sweeps", "stuck_sweeps",
+                           "stall_sweeps", "polish_iterations", "polish_halvings", "load_halvings")}}
 _KINDS.update({f.name: float for f in fields(EngineSettings) if f.name not in _KINDS})
 
 #: The engine's defaults (what a :class:`~fem_grasp.contact.tracking.Tracker` built without settings uses).

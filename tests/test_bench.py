@@ -56,9 +56,8 @@ def test_replayed_return_mappings_reach_their_recorded_outcomes(tmp_path, capsys
     polish = again["polish"]  # the sweeps hand over to Newton's method; some attempts converge
     assert polish["attempts"] >= polish["converged"] > 0 and polish["converged_cut_below_eighth"] == 0
     # a replay with another polish setting leaves the library's own in place
-    default = relaxation.POLISH_HALVINGS
     replay.main(["run", str(path), "--polish-halvings", "10"])
-    assert relaxation.POLISH_HALVINGS == default and relaxation._polish.__name__ == "_polish"
+    assert relaxation._polish.__name__ == "_polish"
 
     original = relaxation.relax_contacts
     first = []
@@ -293,12 +292,12 @@ def test_two_placement_searches_are_compared_placement_by_placement():
 
 def test_the_tracker_section_runs_a_placement_search_in_both_workers():
     """--search: both workers run the placement search's candidates in their own process (the switch sets the
-    lift test's halvings the baseline worker reads at each call, here to its own value) and the rows are
-    compared placement by placement."""
+    lift test's halvings the baseline worker's trackers read, here to their default) and the rows are compared
+    placement by placement."""
     from bench.tracker import section_tracker
 
     sec = section_tracker(reps=1, scenes=(), warm_up=None, quick=True, searches=("foam_block",), candidates=3,
-                          against=("fem_grasp.grasp.lift_test.LOAD_HALVINGS=3",))
+                          against=("settings.load_halvings=3",))
     (row,) = sec["rows"]
     assert row["scene"] == "search foam_block" and row["repeatable"]
     a = row["answer"]

@@ -49,6 +49,13 @@ def test_the_tracking_modules_keep_no_knobs_of_their_own():
     for name in ("tracking", "event_location", "implicit_step"):
         module = importlib.import_module(f"fem_grasp.contact.{name}")
         assert not [g for g in gone if hasattr(module, g)], name
+    gone_too = {"contact.relaxation": ("DRIFT_SWEEPS", "DRIFT_SLIP", "DRIFT_DECAY", "GROWTH_SWEEPS", "STUCK_SWEEPS",
+                                       "STALL_SWEEPS", "POLISH_HALVINGS", "POLISH_ITERATIONS", "CHORD_CONTRACTION",
+                                       "COMPILED_POLISH"),
+                "grasp.lift_test": ("LOAD_HALVINGS",)}
+    for name, names in gone_too.items():
+        module = importlib.import_module(f"fem_grasp.{name}")
+        assert not [g for g in names if hasattr(module, g)], name
     tracking = importlib.import_module("fem_grasp.contact.tracking")
     assert (tracking.TOL_LOCATE, tracking.CRAWL_TOGGLES) == (DEFAULT_SETTINGS.tol_locate, DEFAULT_SETTINGS.crawl_toggles)
 

@@ -106,7 +106,8 @@ class ImplicitStep:
             cen = [None if o == TABLE else centers[o] for o in owner]
             try:
                 rel = relax_contacts(resp.reduced_stiffness, forces, q0, cen, self.up, self.mu[owner], fscale,
-                                     max_slip=self.settings.max_slip * self.diameter, start=start)
+                                     max_slip=self.settings.max_slip * self.diameter, start=start,
+                                     settings=self.settings)
             except RelaxationFailure as exc:
                 raise TrackingError(f"no quasi-static equilibrium at {_where(param, at)}"
                                     f"{': ' + why if why else ''}; a static stick/slip state was sought and "

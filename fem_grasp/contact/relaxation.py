@@ -41,7 +41,7 @@ their smooth system finishes the solve (quadratically).  Sliding that
 nothing stops shows as a steady drift — the same statuses, no root for
 them, and no decay of the motion from sweep to sweep — and is reported as
 gross slip, as is a motion per sweep that has not decayed at all over
-``GROWTH_SWEEPS`` sweeps once a contact has moved a little (the sweeps of a
+``growth_sweeps`` sweeps once a contact has moved a little (the sweeps of a
 problem with no static state drift or grow while contacts release one by
 one; those of one with a static state contract); statuses that keep cycling without progress (no halving of the
 largest force change in 1000 sweeps) are reported too.
@@ -58,6 +58,7 @@ import numpy as np
 import scipy.linalg
 
 from ..errors import RelaxationFailure
+from ..settings import DEFAULT_SETTINGS, EngineSettings
 from ..threads import blas_threads_for
 from .kernels import gauss_seidel as gs
 from .kernels import jit, polish
@@ -69,34 +70,6 @@ __all__ = ["RelaxationFailure", "Relaxation", "relax_contacts", "STICK", "SLIDE"
 log = logging.getLogger(__name__)
 
 
-#: Sweeps of unchanged statuses over which a steady drift (no decay of the motion) means gross slip.
-DRIFT_SWEEPS = 300
-#: ... once some contact has slid this fraction of ``max_slip``.
-DRIFT_SLIP = 0.01
-#: ... where the motion per sweep has not fallen below this fraction of its value DRIFT_SWEEPS sweeps before, and
-#: the motion still to come at that rate of decay would carry a contact past ``max_slip``.
-DRIFT_DECAY = 0.5
-#: Sweeps over which a motion per sweep that has not decayed at all (whatever the statuses did) means the sweeps
-#: do not converge: the object slides or falls away with nothing to stop it (gross slip, lost support).  A
-#: relaxation that finds a static state decays faster than that once a contact has moved ``DRIFT_SLIP`` ×
-#: ``max_slip``; a failing one otherwise runs on until a contact has moved ``max_slip`` (a hundred sweeps or
-#: more: two thirds of the lift test's time on fine patches).  Replayed on the 2,200 return mappings of the
-#: shipped scenes, the graded tomato and the 10k orange, no outcome changed and failures ended 2–5× sooner.
-GROWTH_SWEEPS = 20
-#: Consecutive sweeps in which some contact has no local solution before the relaxation gives up.
-STUCK_SWEEPS = 50
-#: Sweeps without halving the largest force change (statuses that keep cycling) before it gives up.
-STALL_SWEEPS = 1000
-#: Halvings of a polish Newton step (down to 1/8) before the polish gives up and the sweeps continue.
-POLISH_HALVINGS = 4
-#: Newton iterations of one polish.  Its Jacobian's LU factors are reused (a chord step, O(n²) instead of the
-#: O(n³) factorisation: the polish of a hanging patch of 300 contacts solves 600 unknowns) while a full step
-#: still cuts the residual to ``CHORD_CONTRACTION`` of its norm; a slower step factorises a new Jacobian.
-POLISH_ITERATIONS = 30
-CHORD_CONTRACTION = 0.25
-#: The polish runs as one compiled kernel (:func:`fem_grasp.contact.kernels.polish.polish`) where numba is
-#: installed; False: as :func:`_polish` (numpy), its reference.
-COMPILED_POLISH = jit.ENABLED
 
 
 @dataclass(frozen=True)
@@ -212,10 +185,14 @@ def _polish_system(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarra
 
 
 def _polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, status: np.ndarray,
-            d: np.ndarray, u: np.ndarray, tol: float, stick_tol: float, max_slip: float
+            d: np.ndarray, u: np.ndarray, tol: float, stick_tol: float, max_slip: float,
+            limits: tuple[int, int, float] = (DEFAULT_SETTINGS.polish_iterations, DEFAULT_SETTINGS.polish_halvings,
+                                              DEFAULT_SETTINGS.chord_contraction)
             ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Newton's method on the smooth system of fixed statuses (:func:`_polish_system`); None unless it
-    converges and the statuses still hold."""
+    converges and the statuses still hold.  ``limits``: (iterations, step halvings, chord contraction), the
+    settings ``polish_iterations``, ``polish_halvings`` and ``chord_contraction``."""
+    iterations, halvings, contraction = limits
     system = _polish_system(rec, c, f0, mu, status, d, u)
     if system is None:
         return None
@@ -223,7 +200,7 @@ def _polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, stat
     m = len(rec)
     r, f, dd, jac = evaluate(x, True)
     lu = None  # the LU factors of the latest Jacobian, reused while they still contract the residual
-    for _ in range(POLISH_ITERATIONS):
+    for _ in range(iterations):
         norm = float(np.linalg.norm(r))
         if np.abs(r).max() <= tol:
             break
@@ -243,7 +220,7 @@ def _polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, stat
         # A Newton step cut below 1/8 means the statuses are wrong (the sweeps go on): in the steam bun's
         # return mappings 3 of 220 polishes that converged ever cut a step below 1/8, 306 of 572 that failed
         # did so within three steps (halving on to 1/512 only delayed the failure).
-        found = _backtrack(lambda y: evaluate(y, False), x, step, norm, POLISH_HALVINGS)
+        found = _backtrack(lambda y: evaluate(y, False), x, step, norm, halvings)
         if found is None:
             if fresh:
                 return None
@@ -252,7 +229,7 @@ def _polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, stat
             continue
         x = x + found[0] * step
         r, f, dd, _ = found[1]
-        if float(np.linalg.norm(r)) > CHORD_CONTRACTION * norm or found[0] < 1.0:
+        if float(np.linalg.norm(r)) > contraction * norm or found[0] < 1.0:
             lu = None
             r, f, dd, jac = evaluate(x, True)
     else:
@@ -280,20 +257,25 @@ def _polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, stat
 
 
 def _compiled_polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, status: np.ndarray,
-                     d: np.ndarray, u: np.ndarray, tol: float, stick_tol: float, max_slip: float
+                     d: np.ndarray, u: np.ndarray, tol: float, stick_tol: float, max_slip: float,
+                     limits: tuple[int, int, float] = (DEFAULT_SETTINGS.polish_iterations,
+                                                       DEFAULT_SETTINGS.polish_halvings,
+                                                       DEFAULT_SETTINGS.chord_contraction)
                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """:func:`_polish` in one kernel call (:mod:`~fem_grasp.contact.kernels.polish`)."""
     with np.errstate(over="ignore", invalid="ignore"):
         ok, dd, u2, f = polish.polish(np.ascontiguousarray(rec), np.ascontiguousarray(c), np.ascontiguousarray(f0),
                                       np.ascontiguousarray(mu, dtype=float), status, np.ascontiguousarray(d),
-                                      np.ascontiguousarray(u), float(tol), float(stick_tol), float(max_slip))
+                                      np.ascontiguousarray(u), float(tol), float(stick_tol), float(max_slip),
+                                      int(limits[0]), int(limits[1]), float(limits[2]))
     return (dd, u2, f) if ok else None
 
 
 def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndarray, centers: list,
                    up: np.ndarray, mu: np.ndarray, force_scale: float, *, tol: float = 1e-11,
                    max_sweeps: int = 5000, max_slip: float = np.inf,
-                   start: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> Relaxation:
+                   start: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+                   settings: EngineSettings | None = None) -> Relaxation:
     """Static stick/slide/release state of every contact at fixed obstacles (module notes).
 
     Parameters
@@ -309,6 +291,9 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
     start : (status, displacements, motions) to start the sweeps from instead of every contact held at its start
         position: a nearby state (a relaxation of the same start positions with fewer contacts, say). Only where
         the sweeps begin: the static state they find is a property of the problem, wherever they begin.
+    settings : the iteration bounds (``drift_*``, ``growth_sweeps``, ``stuck_sweeps``, ``stall_sweeps``) and the
+        polish (``polish_*``, ``chord_contraction``, ``compiled_polish``) of :class:`~fem_grasp.settings.EngineSettings`
+        (default: the defaults)
 
     Raises
     ------
@@ -316,6 +301,9 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
         A contact has no stick, release or slide state with the others frozen (friction cannot hold
         it), or the sweeps do not settle within ``max_sweeps``.
     """
+    cfg = DEFAULT_SETTINGS if settings is None else settings
+    compiled_polish = jit.ENABLED if cfg.compiled_polish is None else cfg.compiled_polish
+    limits = (cfg.polish_iterations, cfg.polish_halvings, cfg.chord_contraction)
     c = np.asarray(stiffness, float)
     f0 = np.array(forces, float)
     m = len(f0)
@@ -363,7 +351,7 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
                                     "hold the object (gross slip)", "gross slip", k)
         if unsolved >= 0:
             stuck += 1
-            if stuck > STUCK_SWEEPS:
+            if stuck > cfg.stuck_sweeps:
                 fs = np.asarray(unsolved_force, float)
                 raise RelaxationFailure(
                     f"contact {unsolved} can neither stick, slide nor lift off with its neighbours held "
@@ -375,18 +363,18 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
             break
         if change < 0.5 * best_change:
             best_change, best_sweep = change, sweep
-        elif sweep - best_sweep > STALL_SWEEPS:
+        elif sweep - best_sweep > cfg.stall_sweeps:
             raise RelaxationFailure(f"the stick/slip state stops settling after {sweep} Gauss–Seidel sweeps "
-                                    f"(no progress in the last {STALL_SWEEPS}): friction cannot hold the "
+                                    f"(no progress in the last {cfg.stall_sweeps}): friction cannot hold the "
                                     "contacts in a static state")
         now_status = status.tobytes() if isinstance(status, np.ndarray) else list(status)  # (compiled: an array)
         same = now_status == last_status
         # Once the statuses stop changing, Newton's method on their smooth system finishes the job
         # (Gauss–Seidel converges only linearly, slowly when the contacts are strongly coupled).
         if sweep >= next_polish and same:
-            polished = (_compiled_polish if COMPILED_POLISH else _polish)(
+            polished = (_compiled_polish if compiled_polish else _polish)(
                 rec, c, f0, mu, np.asarray(status, dtype=np.int64), np.asarray(d, float), np.asarray(u, float),
-                local_tol, stick_tol, max_slip)
+                local_tol, stick_tol, max_slip, limits)
             if polished is not None:
                 break
             polish_fails += 1
@@ -399,19 +387,19 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
         # (ν → ½) also converges slowly, but geometrically: its remaining motion, extrapolated at the observed
         # rate, stays small, and the sweeps go on.
         history.append(move)
-        if len(history) > GROWTH_SWEEPS and history[-1] >= history[-1 - GROWTH_SWEEPS]:
+        if len(history) > cfg.growth_sweeps and history[-1] >= history[-1 - cfg.growth_sweeps]:
             travel = np.linalg.norm(np.asarray(d, float).reshape(m, 3), axis=1)
-            if float(travel.max()) > DRIFT_SLIP * max_slip:
+            if float(travel.max()) > cfg.drift_slip * max_slip:
                 k = int(np.argmax(travel))
                 raise RelaxationFailure(f"the contacts move no slower after {sweep} Gauss–Seidel sweeps than "
-                                        f"{GROWTH_SWEEPS} sweeps before (contact {k} has moved furthest): nothing "
+                                        f"{cfg.growth_sweeps} sweeps before (contact {k} has moved furthest): nothing "
                                         "stops them, friction cannot hold the object (gross slip)", "gross slip", k)
-        if len(moves) > DRIFT_SWEEPS and moves[-1] > DRIFT_DECAY * moves[-1 - DRIFT_SWEEPS]:
+        if len(moves) > cfg.drift_sweeps and moves[-1] > cfg.drift_decay * moves[-1 - cfg.drift_sweeps]:
             uu = np.asarray(u, float)[np.asarray(has_u) != 0]  # (only here: a sweep costs less than this)
             slid = float(np.sqrt((uu ** 2).sum(axis=1)).max()) if len(uu) else 0.0
-            rate = (moves[-1] / max(moves[-1 - DRIFT_SWEEPS], 1e-300)) ** (1.0 / DRIFT_SWEEPS)
+            rate = (moves[-1] / max(moves[-1 - cfg.drift_sweeps], 1e-300)) ** (1.0 / cfg.drift_sweeps)
             ahead = np.inf if rate >= 1.0 else moves[-1] * rate / (1.0 - rate)
-            if slid > DRIFT_SLIP * max_slip and slid + ahead > max_slip:
+            if slid > cfg.drift_slip * max_slip and slid + ahead > max_slip:
                 raise RelaxationFailure(f"the contacts keep sliding at a steady rate after {sweep} Gauss–Seidel "
                                         "sweeps: friction cannot hold the object (gross slip)")
         last_status = now_status

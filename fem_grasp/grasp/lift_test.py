@@ -19,8 +19,14 @@ least one sticking contact; it is **not held** when every contact of one
 finger slides (the object slides on that finger), when no static state
 exists (gross slip), or when too few contacts remain to fix the body
 (Theorem 3).  A load step with no static state is halved, up to
-``LOAD_HALVINGS`` times, before the weight counts as not held: a
-quasi-static loading path may pass where one jump does not.
+``load_halvings`` times (:class:`~fem_grasp.settings.EngineSettings`, three by
+default: steps down to h/8), before the weight counts as not held: a
+quasi-static loading path may pass where one jump does not, and the halvings
+resolve the path near the weight a finger lets go.  Six (h/64) took twice the
+time on the tomato, with w(ρ) higher by 2–3 steps h at 3 of its 23 increments
+(the next increment caught up) and the same lift-off depth and forces; with
+none, 7 of the tomato's 64 search placements lift one or two squeeze
+increments later (the coarser path lets go sooner).
 
 Incremental tracking (:class:`LiftTest`)
 ----------------------------------------
@@ -59,13 +65,6 @@ log = logging.getLogger(__name__)
 
 #: Default lift-test step h as a fraction of the object's weight.
 DEFAULT_STEP_FRACTION = 0.05
-#: Halvings of a load step with no static state before the weight counts as not held (steps down to h/8): they
-#: resolve the load path near the weight a finger lets go, which the step h alone does not.  Six (h/64) took
-#: twice the time on the tomato; w(ρ) was higher by 2–3 steps h at 3 of its 23 increments (the next increment
-#: caught up), with the same lift-off depth and forces.  With none, 7 of the tomato's 64 search placements lift
-#: one or two squeeze increments later (the coarser path lets go sooner), 4 of them by more than one increment
-#: (``python -m bench.tracker --against fem_grasp.grasp.lift_test.LOAD_HALVINGS=0 --search tomato``).
-LOAD_HALVINGS = 3
 #: w ≥ mg up to round-off passes (k·h with h = mg/20 lands on mg only to round-off).
 PASS_FRACTION = 1.0 - 1e-12
 
@@ -117,11 +116,11 @@ def hang(tracker: Tracker, start: ContactState, weight: float, *, max_depth: int
     ``start`` is a settled finger-only configuration (:func:`hanging_state`
     or an earlier :func:`hang`).  The weight is applied at once and the
     configuration settled; if no static state is found for that jump, the
-    load step is halved (up to ``max_depth`` times, default :data:`LOAD_HALVINGS` as it is at the call) and
+    load step is halved (up to ``max_depth`` times, default the tracker's ``settings.load_halvings``) and
     applied in two stages, each of which must be held.
     """
     if max_depth is None:
-        max_depth = LOAD_HALVINGS
+        max_depth = tracker.settings.load_halvings
     load = weight / tracker.body.weight
     try:
         begin = tracker.make_state(phase="lift test", squeeze_depth=start.squeeze_depth,

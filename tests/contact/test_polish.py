@@ -1,7 +1,7 @@
 """The return mapping's compiled Newton polish (fem_grasp.contact.kernels.polish) against its numpy reference.
 
 ``relaxation._polish`` stays as the reference of the kernel the return mappings call where numba is installed
-(``relaxation.COMPILED_POLISH``).  The two run the same iteration in another summation order: on every polish
+(``EngineSettings.compiled_polish``).  The two run the same iteration in another summation order: on every polish
 of the test problems both converge or both give up, to the same state within the polish's own tolerance; the
 return mappings that call either reach the same answer (:func:`tests.helpers.assert_same_relaxation`).  Each
 comparison runs on the problems as they are and jittered by :data:`tests.helpers.JITTER`, so one that holds only
@@ -13,7 +13,7 @@ import pytest
 
 from fem_grasp.contact import relaxation
 from fem_grasp.contact.kernels import jit
-from fem_grasp.contact.kernels import polish as kernel
+from fem_grasp.settings import DEFAULT_SETTINGS
 from tests.helpers import JITTER_SEEDS, assert_same_relaxation, relaxation_problems
 
 #: Compiled against numpy polish, relative to each array's largest entry: both stop once every residual is below
@@ -21,10 +21,19 @@ from tests.helpers import JITTER_SEEDS, assert_same_relaxation, relaxation_probl
 POLISH_AGREEMENT = 1e-9
 
 
-def test_the_kernel_has_the_reference_iteration_limits():
-    assert (kernel._ITERATIONS, kernel._HALVINGS, kernel._CONTRACTION) == (
-        relaxation.POLISH_ITERATIONS, relaxation.POLISH_HALVINGS, relaxation.CHORD_CONTRACTION)
-    assert relaxation.COMPILED_POLISH == jit.ENABLED
+def test_both_polishes_take_their_iteration_limits_from_the_settings(monkeypatch):
+    """Each polish of the test problems that converges with the default limits converges in neither path with no
+    Newton iteration allowed; the default is the compiled kernel where numba is installed."""
+    calls, _ = _polish_calls(monkeypatch, None)
+    monkeypatch.undo()
+    s = DEFAULT_SETTINGS
+    default, none = (s.polish_iterations, s.polish_halvings, s.chord_contraction), (0, s.polish_halvings, 0.25)
+    converging = [args[:10] for args in calls if relaxation._polish(*args[:10], default) is not None]
+    assert len(converging) >= 3
+    for args in converging:
+        assert relaxation._compiled_polish(*args, default) is not None
+        assert relaxation._polish(*args, none) is None and relaxation._compiled_polish(*args, none) is None
+    assert DEFAULT_SETTINGS.compiled_polish is None and jit.ENABLED
 
 
 def _outcome(args, kwargs):
@@ -45,9 +54,9 @@ def _polish_calls(monkeypatch, seed):
         calls.append(args)
         return reference(*args)
 
-    monkeypatch.setattr(relaxation, "COMPILED_POLISH", False)
     monkeypatch.setattr(relaxation, "_polish", recording)
-    return calls, [_outcome(args, kwargs) for args, kwargs in relaxation_problems(seed)]
+    numpy_polish = DEFAULT_SETTINGS.replace(compiled_polish=False)
+    return calls, [_outcome(args, {**kwargs, "settings": numpy_polish}) for args, kwargs in relaxation_problems(seed)]
 
 
 @pytest.mark.parametrize("seed", JITTER_SEEDS)
@@ -75,8 +84,8 @@ def test_return_mappings_with_the_compiled_polish_reach_the_reference_states(mon
     failure."""
     _, reference = _polish_calls(monkeypatch, seed)
     monkeypatch.undo()
-    monkeypatch.setattr(relaxation, "COMPILED_POLISH", True)
-    compiled = [_outcome(args, kwargs) for args, kwargs in relaxation_problems(seed)]
+    compiled_polish = DEFAULT_SETTINGS.replace(compiled_polish=True)
+    compiled = [_outcome(args, {**kwargs, "settings": compiled_polish}) for args, kwargs in relaxation_problems(seed)]
     assert len(compiled) == len(reference) == 7
     for comp, ref in zip(compiled, reference):
         assert_same_relaxation(comp, ref)

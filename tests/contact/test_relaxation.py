@@ -12,9 +12,12 @@ import pytest
 
 from fem_grasp import Body, ContactResponse, box_mesh
 from fem_grasp.contact.relaxation import RELEASE, SLIDE, STICK, RelaxationFailure, relax_contacts
+from fem_grasp.settings import DEFAULT_SETTINGS
 from tests.helpers import box_on_the_table_pushed_sideways, squeezed_box_contacts
 
 UP = np.array([0.0, 0.0, 1.0])
+#: The settings with the growth bound out of reach, to see the bounds it would otherwise come before.
+NO_GROWTH_BOUND = DEFAULT_SETTINGS.replace(growth_sweeps=10**9)
 
 
 @pytest.mark.parametrize("force, status", [((0.2, 0.0, 1.0), STICK), ((0.8, 0.0, 1.0), SLIDE),
@@ -124,20 +127,17 @@ def test_motion_that_does_not_decay_ends_at_the_growth_bound(monkeypatch):
     bound, below, ends that one.)"""
     import re
 
-    import fem_grasp.contact.relaxation as relaxation
-
     c, f, q, centers, mu = box_on_the_table_pushed_sideways(0.8)
     match = r"move no slower after (\d+) Gauss–Seidel sweeps than 20 sweeps before \(contact (\d+) has moved"
     with pytest.raises(RelaxationFailure, match=match) as failure:
         relax_contacts(c, f, q, centers, UP, mu, 1.0, max_slip=1.0)
     assert failure.value.kind == "gross slip"
     sweeps, k = (int(g) for g in re.search(match, str(failure.value)).groups())
-    assert relaxation.GROWTH_SWEEPS < sweeps < relaxation.DRIFT_SWEEPS
+    assert DEFAULT_SETTINGS.growth_sweeps < sweeps < DEFAULT_SETTINGS.drift_sweeps
     assert failure.value.contact == k and 0 <= k < len(f)
     # Without the growth bound the same slide runs on until another bound ends it.
-    monkeypatch.setattr(relaxation, "GROWTH_SWEEPS", 10**9)
     with pytest.raises(RelaxationFailure, match=r"(?:after|sweep) (\d+)") as later:
-        relax_contacts(c, f, q, centers, UP, mu, 1.0, max_slip=1.0)
+        relax_contacts(c, f, q, centers, UP, mu, 1.0, max_slip=1.0, settings=NO_GROWTH_BOUND)
     assert later.value.kind == "gross slip"
     assert int(re.search(r"(?:after|sweep) (\d+)", str(later.value)).group(1)) > sweeps
 
@@ -151,28 +151,25 @@ def test_a_slowly_converging_relaxation_is_not_ended_by_the_growth_bound():
 
 
 @pytest.mark.parametrize("bound, value, match", [
-    ("DRIFT_SWEEPS", 20, r"keep sliding at a steady rate after (\d+) Gauss–Seidel sweeps"),
-    ("DRIFT_SWEEPS", 300, r"keep sliding at a steady rate after (\d+) Gauss–Seidel sweeps"),  # the default
-    ("STALL_SWEEPS", 5, r"stops settling after (\d+) Gauss–Seidel sweeps \(no progress in the last 5\)"),
+    ("drift_sweeps", 20, r"keep sliding at a steady rate after (\d+) Gauss–Seidel sweeps"),
+    ("drift_sweeps", 300, r"keep sliding at a steady rate after (\d+) Gauss–Seidel sweeps"),  # the default
+    ("stall_sweeps", 5, r"stops settling after (\d+) Gauss–Seidel sweeps \(no progress in the last 5\)"),
 ])
 def test_gross_slip_ends_at_the_drift_or_stall_bound(monkeypatch, bound, value, match):
     """0.6 N sideways per newton down, μ = 0.5: the contacts slide at a steady rate forever.  With unchanged
-    statuses a steady drift is recognised after DRIFT_SWEEPS sweeps (the motion does not decay: at its rate the
+    statuses a steady drift is recognised after drift_sweeps sweeps (the motion does not decay: at its rate the
     contacts would slide past the slip bound); with no halving of the largest force
-    change in STALL_SWEEPS sweeps the sweeps stop too (here the stall bound is set below the drift one)."""
+    change in stall_sweeps sweeps the sweeps stop too (here the stall bound is set below the drift one)."""
     import re
 
-    import fem_grasp.contact.relaxation as relaxation
-
-    monkeypatch.setattr(relaxation, bound, value)
-    monkeypatch.setattr(relaxation, "GROWTH_SWEEPS", 10**9)  # the bound that would end it first
+    settings = NO_GROWTH_BOUND.replace(**{bound: value})
     c, f, q, centers, mu = box_on_the_table_pushed_sideways(0.6)
     with pytest.raises(RelaxationFailure, match=match) as failure:
-        relax_contacts(c, f, q, centers, UP, mu, 1.0, max_slip=1.0)
+        relax_contacts(c, f, q, centers, UP, mu, 1.0, max_slip=1.0, settings=settings)
     sweeps = int(re.search(match, str(failure.value)).group(1))
     # The statuses settle within the first sweeps, then the bound counts; the drift bound extrapolates the motion
-    # still to come from its decay over the last DRIFT_SWEEPS sweeps, so a steady drift ends within two windows.
-    assert value < sweeps <= (2 * value if bound == "DRIFT_SWEEPS" else value) + 5
+    # still to come from its decay over the last drift_sweeps sweeps, so a steady drift ends within two windows.
+    assert value < sweeps <= (2 * value if bound == "drift_sweeps" else value) + 5
 
 
 def test_max_sweeps_ends_a_slow_slide():
@@ -189,22 +186,19 @@ def test_max_sweeps_ends_a_slow_slide():
 
 def test_a_contact_with_no_local_state_ends_at_the_stuck_bound(monkeypatch):
     """1 N sideways per newton down: once the neighbours have slid far, some contact has no stick, slide or
-    release state with them frozen; after STUCK_SWEEPS such sweeps in a row the relaxation gives up
+    release state with them frozen; after stuck_sweeps such sweeps in a row the relaxation gives up
     (50, the default, is reached before the drift bound).  A larger bound can only end it later: a run of
     stuck sweeps long enough for a larger bound is long enough for a smaller one."""
     import re
 
-    import fem_grasp.contact.relaxation as relaxation
-
-    monkeypatch.setattr(relaxation, "GROWTH_SWEEPS", 10**9)  # the bound that would end it first
     c, f, q, centers, mu = box_on_the_table_pushed_sideways(1.0)
     ends = []
-    for stuck in (2, 5, relaxation.STUCK_SWEEPS):
-        monkeypatch.setattr(relaxation, "STUCK_SWEEPS", stuck)
+    for stuck in (2, 5, DEFAULT_SETTINGS.stuck_sweeps):
+        settings = NO_GROWTH_BOUND.replace(stuck_sweeps=stuck)
         with pytest.raises(RelaxationFailure, match=r"contact \d+ can neither stick, slide nor lift off with its "
                                                     r"neighbours held .* μ = 0.5; sweep (\d+)\): friction cannot "
                                                     r"hold it") as failure:
-            relax_contacts(c, f, q, centers, UP, mu, 1.0, max_slip=1.0)
+            relax_contacts(c, f, q, centers, UP, mu, 1.0, max_slip=1.0, settings=settings)
         sweep = int(re.search(r"sweep (\d+)\)", str(failure.value)).group(1))
         assert sweep > stuck
         ends.append(sweep)

@@ -63,6 +63,7 @@ from fem_grasp.grasp.pickup import PickupResult, pickup
 from fem_grasp.grasp.placement import PAPER_SQUEEZE_DIRECTIONS
 from fem_grasp.grasp.rest import rest
 from fem_grasp.grasp.squeeze import initial_state
+from fem_grasp.settings import DEFAULT_SETTINGS
 
 LOWER, UPPER = np.array([-0.015, -0.02, 0.0]), np.array([0.015, 0.02, 0.03])
 RADIUS, WEIGHT, YOUNG = 0.02, 0.3, 2e4
@@ -301,12 +302,13 @@ def test_friction_ten_completes_and_a_failed_hanging_relaxation_counts_as_not_he
     fails (a contact would have to move further than the slip bound to carry no force) and that weight
     counts as not held, until the squeeze passes the test.  Before fingertip contacts could lift off
     the curved tip sideways (gauss_seidel.outside_sphere), one of these relaxations stalled for
-    STALL_SWEEPS instead; the bound is lowered from 1000 to 50 so that such a return would stay cheap.
+    the stall bound instead; it is lowered from 1000 to 50 sweeps (``stall_sweeps``) so that such a return would
+    stay cheap.
     The full pickup with the lift takes minutes, stick/slip chatter on the table (docs/limits.md).
     """
     import fem_grasp.contact.relaxation as relaxation
 
-    monkeypatch.setattr(relaxation, "STALL_SWEEPS", 50)
+    settings = DEFAULT_SETTINGS.replace(stall_sweeps=50)
     failures = []
     original = relaxation.relax_contacts
 
@@ -318,7 +320,7 @@ def test_friction_ten_completes_and_a_failed_hanging_relaxation_counts_as_not_he
             raise
 
     monkeypatch.setattr("fem_grasp.contact.implicit_step.relax_contacts", counting)
-    res = pick_up_box(pickup_box(), mu=10.0, step=1.2e-4, lift=False)
+    res = pick_up_box(pickup_box(), mu=10.0, step=1.2e-4, lift=False, settings=settings)
     res.check()
     assert res.reason.startswith("the lift test passed") and res.liftable[-1][1] >= WEIGHT
     assert failures and any(w < WEIGHT for _, w in res.liftable[:-1])

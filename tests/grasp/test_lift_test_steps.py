@@ -8,6 +8,7 @@ import pytest
 
 from fem_grasp.grasp import lift_test
 from fem_grasp.grasp.lift_test import HangResult, LiftTest
+from fem_grasp.settings import DEFAULT_SETTINGS
 
 
 @dataclass
@@ -92,10 +93,9 @@ def test_the_weight_is_raised_from_zero_in_steps_of_h_each_from_the_state_before
 
 
 @pytest.mark.parametrize("halvings", [0, 1, 3])
-def test_a_weight_with_no_static_state_is_tried_at_each_halving_of_the_module_setting(monkeypatch, halvings):
-    """hang halves a load step that finds no static state LOAD_HALVINGS times — the module's value when it is
-    called (a switch set after import reaches it) — each halving one more settle of a smaller jump, every one
-    from the configuration held before."""
+def test_a_weight_with_no_static_state_is_tried_at_each_halving_of_the_tracker_setting(halvings):
+    """hang halves a load step that finds no static state load_halvings times — the setting of the tracker it is
+    given — each halving one more settle of a smaller jump, every one from the configuration held before."""
     from types import SimpleNamespace
 
     from fem_grasp.errors import TrackingError
@@ -104,6 +104,7 @@ def test_a_weight_with_no_static_state_is_tried_at_each_halving_of_the_module_se
 
     class NeverSettles:
         body = SimpleNamespace(weight=2.0)
+        settings = DEFAULT_SETTINGS.replace(load_halvings=halvings)
 
         def make_state(self, *, load, **_):
             return load
@@ -112,7 +113,6 @@ def test_a_weight_with_no_static_state_is_tried_at_each_halving_of_the_module_se
             settles.append(begin)
             raise TrackingError("no static state")
 
-    monkeypatch.setattr(lift_test, "LOAD_HALVINGS", halvings)
     start = SimpleNamespace(load=0.25, squeeze_depth=0.0, lift_height=0.0, centers=None, nodes=None, owner=None,
                             disp=None, sliding=None, slip=None)
     res = lift_test.hang(NeverSettles(), start, 1.5)  # from 0.5 N held to 1.5 N

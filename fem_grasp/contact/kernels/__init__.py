@@ -16,7 +16,7 @@
 * :mod:`~fem_grasp.contact.kernels.dense` — LAPACK's LU for the kernels' dense systems.
 
 The kernels polish, slip_trial and events replace numpy code that stays as the reference path:
-``EngineSettings.compiled_trials`` and ``relaxation.COMPILED_POLISH`` (both on where numba is installed) choose, and
+``EngineSettings.compiled_trials`` and ``EngineSettings.compiled_polish`` (both on where numba is installed) choose, and
 the tests compare the two.
 """
 

@@ -31,11 +31,6 @@ __all__ = ["ENTRY_POINTS", "polish"]
 #: The kernels called from Python (what a warm-up must reach).
 ENTRY_POINTS = ("polish",)
 
-# As relaxation.POLISH_ITERATIONS, POLISH_HALVINGS and CHORD_CONTRACTION (restated: kernels cannot import the
-# module that calls them; tests/contact/test_polish.py checks they agree).
-_ITERATIONS = 30
-_HALVINGS = 4
-_CONTRACTION = 0.25
 _SLIDE, _RELEASE, _STICK = gs.SLIDE, gs.RELEASE, gs.STICK
 
 
@@ -127,7 +122,7 @@ def _max_abs(r):
 
 
 @jit
-def polish(rec, c, f0, mu, status, d, u, tol, stick_tol, max_slip):
+def polish(rec, c, f0, mu, status, d, u, tol, stick_tol, max_slip, iterations, halvings, contraction):
     """``relaxation._polish``: Newton's method on the smooth system of fixed statuses.
 
     Returns
@@ -163,7 +158,7 @@ def polish(rec, c, f0, mu, status, d, u, tol, stick_tol, max_slip):
     have_lu = False
     lu, piv, info = dense.lu_factor(np.zeros((0, 0)))
     converged = False
-    for _ in range(_ITERATIONS):
+    for _ in range(iterations):
         norm = math.sqrt(np.dot(r, r))
         if _max_abs(r) <= tol:
             converged = True
@@ -180,7 +175,7 @@ def polish(rec, c, f0, mu, status, d, u, tol, stick_tol, max_slip):
         # Armijo backtracking on |r| down to 1/8 (a shorter step means wrong statuses: the sweeps go on).
         lam = 1.0
         found = False
-        for _h in range(_HALVINGS):
+        for _h in range(halvings):
             r2, f2, dd2, _j = _evaluate(x + lam * step, rec, c, f0, mu, d, act, slide, offs, False)
             if math.sqrt(np.dot(r2, r2)) < (1.0 - 1e-4 * lam) * norm:
                 found = True
@@ -194,7 +189,7 @@ def polish(rec, c, f0, mu, status, d, u, tol, stick_tol, max_slip):
             continue
         x = x + lam * step
         r, f, dd = r2, f2, dd2
-        if math.sqrt(np.dot(r, r)) > _CONTRACTION * norm or lam < 1.0:
+        if math.sqrt(np.dot(r, r)) > contraction * norm or lam < 1.0:
             have_lu = False
             r, f, dd, jac = _evaluate(x, rec, c, f0, mu, d, act, slide, offs, True)
     if not converged:
