@@ -38,7 +38,7 @@ import numpy as np
 from ..elastic.response import check_contact_set
 from ..errors import CollinearContactError, TrackingError
 from .kernels import events
-from .obstacles import FINGER1, FINGER2, OBSTACLES, TABLE
+from .obstacles import FINGER1, FINGER2, OBSTACLES, TABLE, sphere_gaps
 from .slip_system import SlipFailure
 from .states import ContactEvent, ContactState, Parameter
 from .states import Trial as _Trial
@@ -61,11 +61,10 @@ class EventLocation:
         """(s, 3) signed distance of each surface node (at ``surface_positions``) from ℱ₁, ℱ₂ and 𝒫 (inf for
         no table)."""
         gaps = np.full((len(surface_positions), 3), np.inf)
-        # The obstacles' signed_distance, without building them at every trial.
-        for code in (FINGER1, FINGER2):
-            gaps[:, code] = np.linalg.norm(surface_positions - centers[code], axis=1) - self.radius
+        for code in (FINGER1, FINGER2):  # the obstacles' signed_distance, without building them at every trial
+            gaps[:, code] = sphere_gaps(surface_positions, centers[code], self.radius)
         if self.table is not None:
-            gaps[:, TABLE] = surface_positions @ self.table.up - self.table.height
+            gaps[:, TABLE] = self.table.signed_distance(surface_positions)
         return gaps
 
     def force_scale(self, state: ContactState) -> float:

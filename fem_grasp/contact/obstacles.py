@@ -31,7 +31,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 __all__ = ["DEFAULT_RADIUS", "FINGER1", "FINGER2", "OBSTACLES", "TABLE", "Fingertip", "Obstacle", "TablePlane",
-           "cross_rows", "great_circle_axes", "tangent_basis", "tangent_bases"]
+           "cross_rows", "great_circle_axes", "sphere_gaps", "sphere_normals", "tangent_basis", "tangent_bases"]
 
 #: Owner codes of the contacts: which obstacle a contact node touches.
 FINGER1, FINGER2, TABLE = 0, 1, 2
@@ -131,6 +131,23 @@ class TablePlane:
 
 
 # ------------------------------------------------------------ the fingertips
+def sphere_gaps(points: np.ndarray, center: np.ndarray, radius: float) -> np.ndarray:
+    """|p − O| − R for each point (k, 3): its distance outside the fingertip sphere, negative inside (event A).
+
+    The one numpy copy of the gap (the compiled one is :func:`~fem_grasp.contact.kernels.events.event_functions`'s,
+    tested against it)."""
+    return np.linalg.norm(np.atleast_2d(points) - np.asarray(center, dtype=float), axis=1) - radius
+
+
+def sphere_normals(points: np.ndarray, center: np.ndarray) -> np.ndarray:
+    """n̂ = (p − O)/|p − O| for each point (k, 3): the unit normal into the object at a fingertip contact.
+
+    The one numpy copy of the normal (the compiled one is
+    :func:`~fem_grasp.contact.kernels.events.contact_normals`, tested against it)."""
+    d = np.atleast_2d(points) - np.asarray(center, dtype=float)
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
 @dataclass(frozen=True)
 class Fingertip:
     """A rigid hemispherical fingertip: the sphere of radius ``radius`` (m) about ``center`` O (3,) (m).
@@ -165,12 +182,11 @@ class Fingertip:
 
     def signed_distance(self, points: np.ndarray) -> np.ndarray:
         """Distance of each point outside the sphere; negative inside (penetration, event A)."""
-        return np.linalg.norm(np.atleast_2d(points) - self.center, axis=1) - self.radius
+        return sphere_gaps(points, self.center, self.radius)
 
     def inward_normals(self, points: np.ndarray) -> np.ndarray:
         """Unit normals n̂ at points on the sphere, pointing into the object (away from O)."""
-        d = np.atleast_2d(points) - self.center
-        return d / np.linalg.norm(d, axis=1, keepdims=True)
+        return sphere_normals(points, self.center)
 
     def project(self, points: np.ndarray) -> np.ndarray:
         """Radial projection of points (k, 3) onto the sphere."""

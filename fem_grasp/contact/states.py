@@ -17,6 +17,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from .friction import normal_component, tangential_component
+
 __all__ = ["ContactEvent", "ContactState", "Parameter", "Trial", "contact_set_key", "where"]
 
 
@@ -105,12 +107,12 @@ class ContactState:
     @property
     def normal_forces(self) -> np.ndarray:
         """(m,) f·n̂ at each contact."""
-        return np.einsum("ki,ki->k", self.forces, self.normals)
+        return normal_component(self.forces, self.normals)
 
     @property
     def tangential_forces(self) -> np.ndarray:
         """(m,) |f − (f·n̂)n̂| at each contact."""
-        return np.linalg.norm(self.forces - self.normal_forces[:, None] * self.normals, axis=1)
+        return np.linalg.norm(tangential_component(self.forces, self.normals), axis=1)
 
 
 @dataclass(frozen=True)

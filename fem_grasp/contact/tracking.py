@@ -92,7 +92,7 @@ from .event_location import EventLocation
 from .implicit_step import ImplicitStep
 from .kernels import events, jit, slip_trial
 from .kernels.jit import sample_contacts, warm_up_sample
-from .obstacles import FINGER1, FINGER2, OBSTACLES, TABLE, Fingertip, TablePlane
+from .obstacles import FINGER1, FINGER2, OBSTACLES, TABLE, Fingertip, TablePlane, sphere_normals
 from .slip_system import NEWTON_MAX_ITER, NEWTON_TOL, CompiledSlipSystem, MixedSlipSystem, SlipFailure
 from .states import ContactEvent, ContactState, Parameter
 from .states import Trial as _Trial
@@ -273,10 +273,10 @@ class Tracker(EventLocation, ImplicitStep):
                                           np.ascontiguousarray(centers, float), self.up, TABLE)
         out = np.empty(positions.shape)
         out[:] = self.up
-        tip = owner != TABLE
-        if tip.any():
-            d = positions[tip] - np.asarray(centers, float)[owner[tip]]
-            out[tip] = d / np.linalg.norm(d, axis=1, keepdims=True)
+        for f in (FINGER1, FINGER2):
+            on = owner == f
+            if on.any():
+                out[on] = sphere_normals(positions[on], np.asarray(centers, float)[f])
         return out
 
     # --------------------------------------------------------------- states

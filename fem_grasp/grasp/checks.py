@@ -22,6 +22,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ..contact.friction import cone_violation, normal_component
 from ..contact.obstacles import OBSTACLES, Obstacle
 from ..elastic.body import Body
 from ..elastic.response import equilibrium_residual
@@ -101,9 +102,8 @@ def contact_law_figures(body: Body, obstacles: Sequence[Obstacle | None], owner:
             depth = float(-obstacle.signed_distance(surface_positions[free]).min())
             if depth > penetration:
                 penetration, deepest = depth, OBSTACLES[code]
-    fn = np.einsum("ki,ki->k", forces, normals)
-    ft = np.linalg.norm(forces - fn[:, None] * normals, axis=1)
-    excess = ft - mu * fn
+    fn = normal_component(forces, normals)
+    excess = cone_violation(forces, normals, mu)  # |f_t| − μ f·n̂
     stick = ~sliding
     with np.errstate(divide="ignore", invalid="ignore"):
         rel = excess / fn

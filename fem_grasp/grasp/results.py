@@ -28,7 +28,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
-from ..contact.obstacles import FINGER1, FINGER2, OBSTACLES, TABLE, Fingertip, TablePlane
+from ..contact.obstacles import FINGER1, FINGER2, OBSTACLES, TABLE, Fingertip, TablePlane, sphere_normals
 from ..contact.tracking import ContactEvent, ContactState
 from ..elastic.body import Body
 from ..errors import PickupCheckError
@@ -139,8 +139,8 @@ class Snapshot:
         """Inward normals n̂ at the contacts of each body."""
         out = {}
         for f, name in ((FINGER1, "finger1"), (FINGER2, "finger2")):
-            d = self.node_positions(self.contact_nodes[name]) - self.finger_centers[f]
-            out[name] = d / np.linalg.norm(d, axis=1, keepdims=True) if len(d) else np.zeros((0, 3))
+            p = self.node_positions(self.contact_nodes[name])
+            out[name] = sphere_normals(p, self.finger_centers[f]) if len(p) else np.zeros((0, 3))
         out["table"] = np.broadcast_to(table.up, (len(self.contact_nodes["table"]), 3)).copy()
         return out
 

@@ -84,3 +84,21 @@ def test_tangent_bases_are_the_tangent_basis_of_each_normal(rng):
         # vectorised norms and cross products round differently on some CPUs).
         np.testing.assert_allclose(b, tangent_basis(n), rtol=0, atol=UNIT_ROUNDOFF)
         np.testing.assert_allclose(np.cross(b[0], b[1]), n / np.linalg.norm(n), atol=1e-15)
+
+
+def test_the_sphere_gap_and_normal_are_the_fingertip_geometry(rng):
+    """sphere_gaps and sphere_normals (the one numpy copy the tracker, the checks and the results use): points
+    placed at known distances along known directions from the centre give those distances minus R and those
+    directions; they are the Fingertip's own signed distance and inward normal."""
+    from fem_grasp.contact.obstacles import sphere_gaps, sphere_normals
+
+    centre, radius = np.array([0.01, -0.02, 0.03]), 0.008
+    directions = rng.normal(size=(9, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    distances = radius * rng.uniform(0.5, 1.5, size=9)
+    points = centre + distances[:, None] * directions
+    np.testing.assert_allclose(sphere_gaps(points, centre, radius), distances - radius, atol=1e-15)
+    np.testing.assert_allclose(sphere_normals(points, centre), directions, atol=1e-15)
+    tip = Fingertip(centre, radius)
+    np.testing.assert_array_equal(tip.signed_distance(points), sphere_gaps(points, centre, radius))
+    np.testing.assert_array_equal(tip.inward_normals(points), sphere_normals(points, centre))
