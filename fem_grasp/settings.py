@@ -143,7 +143,8 @@ class EngineSettings:
     load_halvings : int
         Lift test (:mod:`~fem_grasp.grasp.lift_test`): halvings of a load step with no static state before the
         weight counts as not held (3, steps down to h/8: they resolve the load path near the weight a finger lets
-        go; with none, 7 of the tomato's 64 search placements lift one or two squeeze increments later).
+        go; with none, 6 of the tomato's 64 search placements lift one or two squeeze increments later, 4 of
+        them by more than one: ``python -m bench.tracker --against settings.load_halvings=0 --search tomato``).
     """
 
     # events A-D (contact.event_location)

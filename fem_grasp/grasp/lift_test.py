@@ -25,8 +25,10 @@ quasi-static loading path may pass where one jump does not, and the halvings
 resolve the path near the weight a finger lets go.  Six (h/64) took twice the
 time on the tomato, with w(ρ) higher by 2–3 steps h at 3 of its 23 increments
 (the next increment caught up) and the same lift-off depth and forces; with
-none, 7 of the tomato's 64 search placements lift one or two squeeze
-increments later (the coarser path lets go sooner).
+none, 6 of the tomato's 64 search placements lift one or two squeeze
+increments later, 4 of them by more than one (the coarser path lets go
+sooner; ``python -m bench.tracker --against settings.load_halvings=0
+--search tomato``).
 
 Incremental tracking (:class:`LiftTest`)
 ----------------------------------------
