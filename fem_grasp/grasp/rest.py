@@ -19,7 +19,8 @@ one engine the squeeze, the lift and the lift test use,
    pushes into it join at once, those it would pull off are released one at
    a time, the most tensile first (event B), and as every force is then
    proportional to λ until the next event, the configuration is settled at
-   the first load step λ = :data:`LOAD_STEP` instead of at λ = 0⁺;
+   a small load, λ = :data:`START_LOAD`, and its slips solved again at once
+   at the first load step :data:`LOAD_STEP`;
 2. λ rises to 1 (:func:`~fem_grasp.contact.tracking.run` with
    :attr:`~fem_grasp.contact.tracking.Parameter.LOAD`, the fingertips far
    away: they never touch).  With the contact set and the sliding set ℙ
@@ -117,6 +118,11 @@ FORCE_TOL = 1e-10
 #: Largest increment of the gravity load factor λ in the ramp.  Events split increments; the increment itself
 #: matters only where the tracker takes return mappings (large contact sets, friction limits).
 LOAD_STEP = 0.1
+#: A flat base's stick/slip/release configuration is found at this load factor (module notes, step 1) and its slips
+#: are solved again at once at LOAD_STEP.  (Kept, the slips of the cascade at LOAD_STEP, one node at a time in an
+#: order round-off chooses between mirror images, left a mirror-symmetric box resting asymmetric by 1e-8 of its
+#: size, and its squeeze's mirror events apart.)
+START_LOAD = 1e-8
 #: The fingertips of the rest's tracker sit this many mesh diameters above the body: they never touch.
 FAR_AWAY = 1e3
 
@@ -306,6 +312,7 @@ def _tracked_rest(posed: Body, table: TablePlane, triangle: np.ndarray, mu: floa
                                   sliding=np.zeros(m, dtype=bool))
 
     state = held(np.asarray(triangle, dtype=np.int64), 1.0)
+    first = np.inf
     if load_ramp:
         # Gravity rises on the support triangle alone, held, until the first free node touches the table (event
         # A, at λ₁; at λ₁ = 0 for a flat base, whose nodes on the table sink as soon as gravity acts): heights
@@ -342,9 +349,9 @@ def _tracked_rest(posed: Body, table: TablePlane, triangle: np.ndarray, mu: floa
                 keep = np.arange(state.n_contacts) != j
                 before, state = state, held(state.nodes[keep], 0.0)
                 history.events(before, state, [ContactEvent("rest", "B", int(before.nodes[j]), "table", 0.0, 0.0)], 0)
-            # The stick/slip state is proportional to λ too until the next event: it is settled at the first load
-            # step rather than at λ = 0⁺, where every force is as small as the tracker's force floor.
-            state = held(state.nodes, min(LOAD_STEP, 1.0))
+            # The stick/slip state is proportional to λ too until the next event: it is settled at a small load
+            # (at λ = 0 every force is zero; the tracker's thresholds are relative to the forces of the state).
+            state = held(state.nodes, START_LOAD)
     last = [state, 0]
 
     def on_event(st: ContactState, ev: list[ContactEvent]) -> None:
@@ -356,8 +363,22 @@ def _tracked_rest(posed: Body, table: TablePlane, triangle: np.ndarray, mu: floa
 
     with one_blas_thread():
         settled, ev = tracker.settle(state, still, phase="rest", param=Parameter.LOAD)
-    on_event(settled, ev)
-    after_step(settled, ev)
+        on_event(settled, ev)
+        after_step(settled, ev)
+        if load_ramp and first == 0.0 and settled.load < LOAD_STEP < 1.0:
+            # Proportional loading up to the next event: the stick/slip/release configuration found at START_LOAD
+            # is that of the first load step too (the tracker's first increment would otherwise be 1e7 times its
+            # base).  Its slips are solved there at once, from every contact held where it touched: the cascade
+            # at START_LOAD slid the nodes one at a time, in an order round-off chose between mirror images.
+            # Events the step passed over fire there.
+            start = dict(zip(state.nodes.tolist(), state.disp))
+            base = np.array([start.get(n, d) for n, d in zip(settled.nodes.tolist(), settled.disp)]).reshape(-1, 3)
+            scaled = tracker.make_state(phase="rest", squeeze_depth=0.0, lift_height=0.0, load=LOAD_STEP,
+                                        centers=centers, nodes=settled.nodes, owner=settled.owner, disp=base,
+                                        sliding=settled.sliding)
+            settled, ev = tracker.settle(scaled, still, phase="rest", param=Parameter.LOAD)
+            on_event(settled, ev)
+            after_step(settled, ev)
     final = settled
     if load_ramp:
         final, _, _ = run(tracker, settled, still, stop=1.0, step=LOAD_STEP, param=Parameter.LOAD, phase="rest",
