@@ -12,8 +12,8 @@ one engine the squeeze, the lift and the lift test use,
 
 1. the support triangle is the contact set 𝕂, held, while λ rises from 0 to
    λ₁, where the first free node touches 𝒫 (heights are affine in λ); that
-   node joins 𝕂 there (event A).  Three point supports of a soft body carry
-   tangential loads their cones need not hold, and a slip system of two or
+   node joins 𝕂 there (event A).  The tangential forces of three point
+   supports often leave their cones at once, and a slip system of two or
    three sliding supports is singular, so the stick/slip state is settled
    from λ₁ on.  On a flat base λ₁ = 0: the nodes lying on 𝒫 that gravity
    pushes into it join at once, those it would pull off are released one at
@@ -119,9 +119,9 @@ FORCE_TOL = 1e-10
 #: matters only where the tracker takes return mappings (large contact sets, friction limits).
 LOAD_STEP = 0.1
 #: A flat base's stick/slip/release configuration is found at this load factor (module notes, step 1) and its slips
-#: are solved again at once at LOAD_STEP.  (Kept, the slips of the cascade at LOAD_STEP, one node at a time in an
-#: order round-off chooses between mirror images, left a mirror-symmetric box resting asymmetric by 1e-8 of its
-#: size, and its squeeze's mirror events apart.)
+#: are solved again at once at LOAD_STEP.  Settled at LOAD_STEP directly, the cascade slides the base's nodes one at
+#: a time, in an order round-off chooses between mirror images, and a mirror-symmetric box would rest asymmetric by
+#: 1e-8 of its size (and its squeeze's mirror events fall apart).
 START_LOAD = 1e-8
 #: The fingertips of the rest's tracker sit this many mesh diameters above the body: they never touch.
 FAR_AWAY = 1e3
@@ -316,9 +316,9 @@ def _tracked_rest(posed: Body, table: TablePlane, triangle: np.ndarray, mu: floa
     if load_ramp:
         # Gravity rises on the support triangle alone, held, until the first free node touches the table (event
         # A, at λ₁; at λ₁ = 0 for a flat base, whose nodes on the table sink as soon as gravity acts): heights
-        # are affine in λ, h(λ) = h(0) + λ ∂h/∂λ.  The stick/slip state is settled from there on, as the
-        # contact set is no longer the bare triangle (three point supports of a soft body can carry no
-        # tangential load that their cones do not hold, and the tracker's slip systems are singular there).
+        # are affine in λ, h(λ) = h(0) + λ ∂h/∂λ.  The stick/slip state is settled from there on, where the
+        # contact set is more than the bare triangle: the tangential forces of three point supports often leave
+        # their cones at once, and a slip system of two or three sliding supports is singular.
         surface = posed.mesh.surface_nodes
         height = np.maximum(table.signed_distance(posed.mesh.surface_points), 0.0)
         height[height <= tol] = 0.0
