@@ -216,28 +216,33 @@ def test_the_tracker_section_compares_this_checkout_with_a_switch_set(tmp_path):
 def test_a_switched_constant_imported_by_value_elsewhere_is_named(monkeypatch, caplog):
     """--against module.ATTRIBUTE sets the attribute in that module only: the modules that imported the constant by
     value keep the old one, and the worker warns naming them (the batch size PREFETCH_NODES is imported by the
-    tracker and the rest) unless the switches name them too."""
+    tracker) unless the switches name them too."""
     import importlib
     import logging
 
     from bench.tracker import _apply_switches, by_value_copies
 
-    # (by importlib: the packages export functions named compliance and rest)
-    compliance, tracker, rest = (importlib.import_module(f"fem_grasp.{name}") for name in
-                                 ("elastic.compliance", "contact.tracking", "grasp.rest"))
-    assert by_value_copies(compliance, "PREFETCH_NODES") == ["fem_grasp.contact.tracking", "fem_grasp.grasp.rest"]
-    for module in (compliance, tracker, rest):
+    # (by importlib: the package exports a function named compliance)
+    compliance, tracker = (importlib.import_module(f"fem_grasp.{name}") for name in
+                           ("elastic.compliance", "contact.tracking"))
+    assert by_value_copies(compliance, "PREFETCH_NODES") == ["fem_grasp.contact.tracking"]
+    for module in (compliance, tracker):
         monkeypatch.setattr(module, "PREFETCH_NODES", module.PREFETCH_NODES)  # restored after the test
     old = compliance.PREFETCH_NODES
-    monkeypatch.setenv("BENCH_SWITCHES", json.dumps([["fem_grasp.elastic.compliance.PREFETCH_NODES", "7"],
-                                                     ["fem_grasp.grasp.rest.PREFETCH_NODES", "7"]]))
+    monkeypatch.setenv("BENCH_SWITCHES", json.dumps([["fem_grasp.elastic.compliance.PREFETCH_NODES", "7"]]))
     with caplog.at_level(logging.WARNING, logger="bench"):
         _apply_switches()
-    assert compliance.PREFETCH_NODES == 7 and rest.PREFETCH_NODES == 7
+    assert compliance.PREFETCH_NODES == 7
     assert tracker.PREFETCH_NODES == old  # not named: it keeps its copy ...
     warned = [r.getMessage() for r in caplog.records if r.name == "bench"]
     assert len(warned) == 1 and "fem_grasp.contact.tracking" in warned[0]  # ... and the worker says so
-    assert "fem_grasp.grasp.rest" not in warned[0]  # named, so not warned about
+    caplog.clear()
+    monkeypatch.setenv("BENCH_SWITCHES", json.dumps([["fem_grasp.elastic.compliance.PREFETCH_NODES", "8"],
+                                                     ["fem_grasp.contact.tracking.PREFETCH_NODES", "8"]]))
+    with caplog.at_level(logging.WARNING, logger="bench"):
+        _apply_switches()
+    assert compliance.PREFETCH_NODES == 8 and tracker.PREFETCH_NODES == 8
+    assert not [r for r in caplog.records if r.name == "bench"]  # every copy named, so no warning
 
 
 def test_two_placement_searches_are_compared_placement_by_placement():
