@@ -662,10 +662,7 @@ class Tracker:
         return gaps
 
     def force_scale(self, state: ContactState) -> float:
-        """F_s = λ mg + max |f_k| (module notes, "Tolerances"); mg for a state that carries no force at all (the
-        rest before gravity is applied, λ = 0), so that the relative event tests stay defined."""
-        scale = self.body.weight * max(state.load, 0.0) + float(np.abs(state.forces).max(initial=0.0))
-        return scale if scale > 0 else self.body.weight
+        return self.body.weight * max(state.load, 0.0) + float(np.abs(state.forces).max(initial=0.0))
 
     def event_values(self, trial: _Trial, fscale: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
         """Normalised event functions (> 0: the event fires) with their ids.
