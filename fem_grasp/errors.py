@@ -17,8 +17,8 @@ Bad input (``ValueError`` subclasses):
   whose size or density says it is in another length unit);
 * :class:`CollinearContactError` — contact sets that leave a rotation free (Theorem 3).
 
-Computations that cannot go on (``RuntimeError`` subclasses): :class:`FrictionError` (the resting
-iteration's table slip, eq. 6), :class:`RelaxationFailure` (no static stick/slip state: gross slip),
+Computations that cannot go on (``RuntimeError`` subclasses): :class:`FrictionError` (a slip system
+with no admissible solution), :class:`RelaxationFailure` (no static stick/slip state: gross slip),
 :class:`TrackingError` (the event tracking), :class:`RestConvergenceError` (the object does not come to
 rest on the table), :class:`MainGuardError` (a script that starts worker processes outside
 ``if __name__ == "__main__":``).

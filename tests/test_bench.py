@@ -1,6 +1,7 @@
 """The benchmarks' own commands (bench/profile.py, bench/replay.py, bench/tracker.py) run and measure what they say."""
 
 import json
+import sys
 
 import pytest
 
@@ -214,33 +215,39 @@ def test_the_tracker_section_compares_this_checkout_with_a_switch_set(tmp_path):
 
 def test_a_switched_constant_imported_by_value_elsewhere_is_named(monkeypatch, caplog):
     """--against module.ATTRIBUTE sets the attribute in that module only: the modules that imported the constant by
-    value keep the old one, and the worker warns naming them (the batch size PREFETCH_NODES is imported by the
-    rest) unless the switches name them too.  The trackers read their own settings, not the constant."""
+    value keep the old one, and the worker warns naming them unless the switches name them too.  No module of the
+    package copies the batch size PREFETCH_NODES any more (the trackers read their settings), so a stand-in module
+    copies it here."""
     import importlib
     import logging
+    import types
 
     from bench.tracker import _apply_switches, by_value_copies
 
-    # (by importlib: the packages export functions named compliance and rest)
-    compliance, rest = (importlib.import_module(f"fem_grasp.{name}") for name in ("elastic.compliance", "grasp.rest"))
+    # (by importlib: the package exports a function named compliance)
+    compliance = importlib.import_module("fem_grasp.elastic.compliance")
     importlib.import_module("fem_grasp.contact.tracking")
-    assert by_value_copies(compliance, "PREFETCH_NODES") == ["fem_grasp.grasp.rest"]
-    for module in (compliance, rest):
-        monkeypatch.setattr(module, "PREFETCH_NODES", module.PREFETCH_NODES)  # restored after the test
+    assert by_value_copies(compliance, "PREFETCH_NODES") == []  # the engine reads its settings, not the constant
+    copy = types.ModuleType("fem_grasp.by_value_copy")
+    copy.PREFETCH_NODES = compliance.PREFETCH_NODES  # what `from ..elastic.compliance import PREFETCH_NODES` does
+    monkeypatch.setitem(sys.modules, copy.__name__, copy)
+    assert by_value_copies(compliance, "PREFETCH_NODES") == [copy.__name__]
+    monkeypatch.setattr(compliance, "PREFETCH_NODES", compliance.PREFETCH_NODES)  # restored after the test
     old = compliance.PREFETCH_NODES
     monkeypatch.setenv("BENCH_SWITCHES", json.dumps([["fem_grasp.elastic.compliance.PREFETCH_NODES", "7"]]))
     with caplog.at_level(logging.WARNING, logger="bench"):
         _apply_switches()
     assert compliance.PREFETCH_NODES == 7
-    assert rest.PREFETCH_NODES == old  # not named: it keeps its copy ...
+    assert copy.PREFETCH_NODES == old  # not named: it keeps its copy ...
     warned = [r.getMessage() for r in caplog.records if r.name == "bench"]
-    assert len(warned) == 1 and "fem_grasp.grasp.rest" in warned[0]  # ... and the worker says so
+    assert len(warned) == 1 and copy.__name__ in warned[0]  # ... and the worker says so
     caplog.clear()
-    monkeypatch.setenv("BENCH_SWITCHES", json.dumps([["fem_grasp.elastic.compliance.PREFETCH_NODES", "7"],
-                                                     ["fem_grasp.grasp.rest.PREFETCH_NODES", "7"]]))
+    monkeypatch.setenv("BENCH_SWITCHES", json.dumps([["fem_grasp.elastic.compliance.PREFETCH_NODES", "8"],
+                                                     [f"{copy.__name__}.PREFETCH_NODES", "8"]]))
     with caplog.at_level(logging.WARNING, logger="bench"):
         _apply_switches()
-    assert rest.PREFETCH_NODES == 7 and not [r for r in caplog.records if r.name == "bench"]  # named: no warning
+    assert compliance.PREFETCH_NODES == 8 and copy.PREFETCH_NODES == 8
+    assert not [r for r in caplog.records if r.name == "bench"]  # every copy named, so no warning
 
 
 def test_an_engine_setting_switched_by_the_bench_reaches_every_tracker_of_the_worker(monkeypatch):

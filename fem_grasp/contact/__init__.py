@@ -22,7 +22,8 @@ followed as a parameter t (squeeze depth, lift height, gravity load) grows, by t
    contact sets), the increment is a return mapping instead: the static stick / slide / release state of
    all contacts at once (:mod:`~fem_grasp.contact.relaxation`, projected Gauss–Seidel finished by Newton).
 
-The resting iteration's table slip of §III-A is :mod:`~fem_grasp.contact.plane_slip`.  The inner loops are
+The resting iteration of §III-A is the same tracking with the gravity load factor as parameter
+(:func:`fem_grasp.grasp.rest.rest`).  The inner loops are
 compiled by numba when it is installed (:mod:`~fem_grasp.contact.kernels`, :func:`warm_up`): the return
 mapping's sweeps and polish, and each trial state's held prediction, slip system (assembly, Newton, homotopy,
 read-out) and event functions, with the numpy versions kept as the reference the tests compare.

@@ -11,10 +11,9 @@ event C, slip).  A sliding node sits on the cone boundary
 and moves opposite to its tangential force (:func:`slip_directions`).
 
 The slip systems that put sliding nodes back on their cones are elsewhere:
-the resting iteration's table slip of eq. (6) in
-:mod:`~fem_grasp.contact.plane_slip`, the mixed table and fingertip slip of
-eqs. (6)–(8) in :mod:`~fem_grasp.contact.slip_system`, and the static return
-mapping in :mod:`~fem_grasp.contact.relaxation`.
+the mixed table and fingertip slip of eqs. (6)–(8) in
+:mod:`~fem_grasp.contact.slip_system`, and the static return mapping in
+:mod:`~fem_grasp.contact.relaxation`.
 """
 
 from __future__ import annotations

@@ -2,62 +2,80 @@
 
 The object is first placed rigidly on a stable support triangle △p_q p_r p_s
 (:mod:`fem_grasp.grasp.pose`), then sags under gravity while its contact region
-with the table 𝒫 grows.  :func:`rest` follows the paper's iteration:
+with the table 𝒫 grows.  The paper's iteration for this — hold every contact,
+solve eqs. (3)–(5), land the node furthest below 𝒫 (event A), release tensile
+contacts (event B), slide the contacts outside their cones onto them by the
+quadratic system (6) (event C) — is the event-driven tracking of §III-C with
+the gravity load factor λ as its parameter, and :func:`rest` runs it on the
+one engine the squeeze, the lift and the lift test use,
+:class:`~fem_grasp.contact.tracking.Tracker`:
 
-1. P ← ∅ (no sliding node yet in this iteration).
-2. Solve the deformation with every contact node held where it is
-   (eqs. 3–5, :class:`~fem_grasp.elastic.response.ContactResponse`), and
-3. update the displacements and the contact forces.
-4. Stop if no node lies below 𝒫, every contact force is compressive and
-   inside its friction cone.
-5. New contact (event A): the node furthest below 𝒫 joins the contact set.
-   Because the model is affine we do not scale the step as the paper does;
-   the node's displacement is prescribed so that it lands on 𝒫 (its vertical
-   displacement) and keeps its horizontal displacement.  Contacts whose
-   normal force is tensile are released (event B), the most tensile first,
-   until a node comes below the table (then the next iteration lands it
-   first: the object rocks onto a new support).
-6. Contacts whose force lies outside the friction cone form the sliding set P.
-7. Their slip distances d_k solve the quadratic system (6) (node k moves by
-   −d_k t̂_k, t̂_k its tangential force direction at the start of the slip);
-   see :func:`fem_grasp.contact.plane_slip.settle_plane_slip`.
+1. the support triangle is the contact set 𝕂, held, while λ rises from 0 to
+   λ₁, where the first free node touches 𝒫 (heights are affine in λ); that
+   node joins 𝕂 there (event A).  The tangential forces of three point
+   supports often leave their cones at once, and a slip system of two or
+   three sliding supports is singular, so the stick/slip state is settled
+   from λ₁ on.  On a flat base λ₁ = 0: the nodes lying on 𝒫 that gravity
+   pushes into it join at once, those it would pull off are released one at
+   a time, the most tensile first (event B), and as every force is then
+   proportional to λ until the next event, the configuration is settled at
+   a small load, λ = :data:`START_LOAD`, and its slips solved again at once
+   at the first load step :data:`LOAD_STEP`;
+2. λ rises to 1 (:func:`~fem_grasp.contact.tracking.run` with
+   :attr:`~fem_grasp.contact.tracking.Parameter.LOAD`, the fingertips far
+   away: they never touch).  With the contact set and the sliding set ℙ
+   fixed the forces are affine in λ, ``F̄(λ) = C Δ̄ + λ F̄₀`` (eq. 5), so each
+   event is located at the λ where it fires: a free node touches 𝒫 (A, it
+   becomes a contact where it touches), a normal force turns tensile (B), a
+   force leaves its cone (C: the node slides in the plane by −d_k t̂_k,
+   eq. 6), a slip rate reaches zero (D); cascades are settled at the same λ;
+3. where the stick/slip rate problem has no solution, or the contact set is
+   large (a flat base), the tracker takes the increment as a return mapping
+   (:meth:`~fem_grasp.contact.tracking.Tracker.implicit_step`), exactly as in
+   the squeeze (see :mod:`fem_grasp.contact.tracking`);
+4. the state at λ = 1 is the resting state: :class:`RestState` holds its
+   contacts, Δ̄, F̄ and the field Δ (eq. 4) solved at full gravity.
 
-The state is kept as total contact displacements, so "holding" a contact
-means keeping its prescribed displacement; step 2 of a later iteration then
-reproduces the state left by step 7.
+The history holds one :class:`RestIteration` per event, then one for the
+settled state.
 
-Gravity ramp (event-driven loading)
------------------------------------
+Gravity ramp
+------------
 The paper applies the whole weight at once to the support triangle.  For the
 stiff objects of Table I that is harmless, but a soft object on a small hull
 facet then sags far through the table (centimetres at E = 1e4 Pa: a point
 support has no continuum limit) before the second contact is found, and the
 linearised rigid rotation of that first state is meaningless.  By default
-(``load_ramp=True``) gravity is therefore scaled by a load factor λ that
-rises from 0 to 1 in the event-driven manner of the paper's §I: with the
-contact set and displacements fixed, every quantity is affine in λ
-(``F̄(λ) = F̄(Δ̄, 0) + λ F̄_g``), so λ is advanced exactly to the next value at
-which a free node touches 𝒫; that node (with any that touch at the same λ)
-becomes a contact there, and events B and C are settled at that λ as in
-steps 5–7.  With ``load_ramp=False`` the iteration starts at λ = 1, the
-paper's literal procedure.
+(``load_ramp=True``) gravity therefore rises event by event as above, in
+increments of at most :data:`LOAD_STEP` (the increment matters only where the
+tracker takes return mappings).  With ``load_ramp=False`` the full weight is
+applied at once and the configuration settled at λ = 1 by the tracker
+(:meth:`~fem_grasp.contact.tracking.Tracker.settle`): the nodes below 𝒫 land,
+tensile contacts are released and the stick/slip state is found at that λ,
+the paper's literal procedure.
 
 Frictionless table (μ = 0)
 --------------------------
-Every contact then slides freely and the cone is its axis: each iteration
-sets the tangential contact displacements so that every friction force
-vanishes (:func:`fem_grasp.contact.plane_slip.frictionless_tangential_displacements`).
-The horizontal rigid motion (two translations and the spin about the
-vertical) is then undetermined; it is fixed by holding the centre of mass's
-horizontal position and the body's mean spin about the vertical axis through
-it (mass-weighted least squares over all nodes) at zero.
+Every contact then slides freely and the cone is its axis, which the
+tracker's slip systems (a slip direction from the friction force) cannot
+represent.  The resting state is then the classical roller support, unique
+whatever the loading path: at full gravity, every contact's tangential
+displacement is set so that its friction force vanishes, nodes below 𝒫 land
+(A) and the most tensile contact is released (B) until neither is left.  The
+horizontal rigid motion (two translations and the spin about the vertical)
+is then undetermined; it is fixed by holding the centre of mass's horizontal
+position and the body's mean spin about the vertical axis through it
+(mass-weighted least squares over all nodes) at zero.
 
 Tolerances
 ----------
-* a node is below the plane when it is deeper than ``penetration_tol ×
-  diameter`` (default 1e-9 × diameter);
-* a contact force is outside its cone when ``|f_t| − μ f·n̂ > cone_rtol ·
-  f·n̂`` (default 1e-9);
+* with friction, the tracker's event thresholds (:mod:`fem_grasp.contact.tracking`,
+  "Tolerances": a node deeper than 1e-10 × diameter touches, a normal force
+  below −1e-11 F_s is tensile, …); a node within ``penetration_tol ×
+  diameter`` (default 1e-9 × diameter) of 𝒫 in the rigid pose lies on it;
+* on a frictionless table, a node is below the plane when it is deeper than
+  ``penetration_tol × diameter`` and a contact is tensile below
+  ``−FORCE_TOL × mg``;
 * :meth:`RestState.check` holds the result to the one contact-law table of
   :mod:`fem_grasp.grasp.checks`, as every pickup snapshot.
 """
@@ -71,11 +89,11 @@ from typing import Any
 
 import numpy as np
 
-from ..contact import friction, plane_slip
-from ..contact.obstacles import TABLE, TablePlane
+from ..contact import friction
+from ..contact.obstacles import TABLE, TablePlane, tangent_basis
+from ..contact.tracking import ContactEvent, ContactState, Parameter, Tracker, run
 from ..contact.warm_up import prepare_kernels
 from ..elastic.body import Body
-from ..elastic.compliance import PREFETCH_NODES
 from ..elastic.response import (
     CollinearContactError,
     ContactResponse,
@@ -84,7 +102,8 @@ from ..elastic.response import (
     contact_dofs,
     contact_response,
 )
-from ..errors import RestCheckError, RestConvergenceError
+from ..errors import RestCheckError, RestConvergenceError, TrackingError
+from ..threads import one_blas_thread
 from .checks import contact_law_figures
 from .pose import RestingPose, resting_pose
 
@@ -92,28 +111,38 @@ __all__ = ["RestState", "RestIteration", "RestConvergenceError", "RestCheckError
 
 log = logging.getLogger(__name__)
 
-#: Node penetration tolerance, relative to the mesh diameter.
+#: Frictionless table: node penetration tolerance, relative to the mesh diameter.
 PENETRATION_TOL = 1e-9
-#: Force round-off tolerance, relative to the weight (see ``_Solver.force_tol``).
+#: Frictionless table: a contact is tensile below −FORCE_TOL × mg (round-off of a node that only touches).
 FORCE_TOL = 1e-10
+#: Largest increment of the gravity load factor λ in the ramp.  Events split increments; the increment itself
+#: matters only where the tracker takes return mappings (large contact sets, friction limits).
+LOAD_STEP = 0.1
+#: A flat base's stick/slip/release configuration is found at this load factor (module notes, step 1) and its slips
+#: are solved again at once at LOAD_STEP.  Settled at LOAD_STEP directly, the cascade slides the base's nodes one at
+#: a time, in an order round-off chooses between mirror images, and a mirror-symmetric box would rest asymmetric by
+#: 1e-8 of its size (and its squeeze's mirror events fall apart).
+START_LOAD = 1e-8
+#: The fingertips of the rest's tracker sit this many mesh diameters above the body: they never touch.
+FAR_AWAY = 1e3
 
 
 @dataclass(frozen=True)
 class RestIteration:
-    """One iteration of the resting procedure (paper §III-A).
+    """One entry of the resting procedure's history (paper §III-A): an event, or the settled state.
 
     Attributes
     ----------
-    iteration : 1-based iteration number
-    contacts : contact nodes at the start of the iteration
-    max_penetration : deepest node below the plane at the start (m, 0 if none)
-    new_nodes : nodes added as contacts (event A): the deepest one, or those
-        touching the table at the new load factor
-    load_factor : gravity load factor λ at the end of the iteration
-    released : nodes released because their normal force was tensile (event B)
-    sliding : number of nodes that slid in this iteration (event C)
-    max_slip : largest slip distance in this iteration (m)
-    slip_rounds : slip systems (6) solved in this iteration
+    iteration : 1-based entry number
+    contacts : contact nodes before the event
+    max_penetration : deepest free surface node below the plane in the state the event's step started from
+        (m, 0 if none); in the last entry, in the settled state
+    new_nodes : the node that became a contact (event A), or ()
+    released : the node released because its normal force was tensile (event B), or ()
+    sliding : 1 if the event made a contact slide (event C), else 0
+    max_slip : the slip of the event's node in the step that ended in the event (m)
+    slip_rounds : trial solves of that step (each a slip system, eqs. 6–8; 0 on a frictionless table)
+    load_factor : gravity load factor λ at the event
     """
 
     iteration: int
@@ -128,7 +157,7 @@ class RestIteration:
 
     @property
     def new_node(self) -> int | None:
-        """The (first) node added in this iteration, or None."""
+        """The node added by this event, or None."""
         return self.new_nodes[0] if self.new_nodes else None
 
 
@@ -227,242 +256,230 @@ class RestState:
         return figures
 
 
-@dataclass(frozen=True)
-class _State:
-    """Contact forces and the displacement field on the surface (``mesh.surface_nodes`` order) at the solver's
-    load factor: the events of the resting iteration look at surface nodes only."""
+class _History:
+    """The rest's history: one :class:`RestIteration` per event, within an iteration budget."""
 
-    forces: np.ndarray
-    displacements: np.ndarray  # (s, 3)
-    positions: np.ndarray  # (s, 3)
-    gravity_displacements: np.ndarray | None  # (s, 3) ∂Δ/∂λ: full gravity with the contacts held at zero
-
-
-class _Solver:
-    """The state of the resting iteration: contact set, prescribed displacements, sliding flags, load factor."""
-
-    def __init__(self, body: Body, table: TablePlane, mu: float, backend: str, cone_rtol: float,
-                 penetration_tol: float, load_factor: float) -> None:
+    def __init__(self, body: Body, table: TablePlane, max_iterations: int) -> None:
+        self.entries: list[RestIteration] = []
         self.body = body
         self.table = table
-        self.mu = mu
-        self.backend = backend
-        self.cone_rtol = cone_rtol
-        self.penetration_tol = penetration_tol
-        self.lam = load_factor
-        #: Normal forces within ± this of zero are neither tensile nor tested against their cone while λ < 1:
-        #: a node that has just touched the table carries zero force up to round-off.
-        self.force_tol = FORCE_TOL * body.weight
-        self.points = body.mesh.points
-        self.surface = body.mesh.surface_nodes
-        self._surface_points = body.mesh.surface_points
-        self.contacts: list[int] = []
-        self.disp: dict[int, np.ndarray] = {}
-        self.sliding: set[int] = set()
-        self._responses: dict[tuple[int, ...], ContactResponse] = {}
-        self._gravity_field: np.ndarray | None = None
-        mass = -body.gravity_loads.reshape(-1, 3)[:, 2]
-        self._mass = mass / mass.sum()
+        self.max_iterations = int(max_iterations)
 
-    # ---------------------------------------------------------------- helpers
-    def response(self) -> ContactResponse:
-        key = tuple(self.contacts)
-        if key not in self._responses:
-            # derived from the last set (a node or two away) where that pays
-            self._responses = {key: contact_response(self.body, np.array(key), backend=self.backend,
-                                                     cached=self._responses.values())}
-            self._gravity_field = None
-        return self._responses[key]
+    def depth(self, nodes: np.ndarray, surface_positions: np.ndarray) -> float:
+        """The deepest free surface node's depth below the table (m, 0 if none is below)."""
+        height = self.table.signed_distance(surface_positions)
+        height[self.body.mesh.surface_index[np.asarray(nodes, dtype=np.int64)]] = np.inf
+        return float(max(-height.min(initial=np.inf), 0.0))
 
-    def gravity_field(self, resp: ContactResponse) -> np.ndarray:
-        """The surface displacements of gravity alone, contacts held at zero (once per contact set)."""
-        if self._gravity_field is None:
-            self._gravity_field = resp.surface_displacements(np.zeros((resp.n_contacts, 3)))
-        return self._gravity_field
+    def add(self, entry: RestIteration) -> None:
+        self.entries.append(entry)
+        if len(self.entries) >= self.max_iterations:
+            raise RestConvergenceError(
+                f"the resting iteration did not settle in {self.max_iterations} iterations (load factor "
+                f"{entry.load_factor:.4g}, {entry.contacts} contacts, last penetration {entry.max_penetration:.3g} m); "
+                "raise max_iterations or check the mesh")
 
-    def prescribed(self) -> np.ndarray:
-        return np.array([self.disp[k] for k in self.contacts])
+    def events(self, before: ContactState, after: ContactState, events: list[ContactEvent], trials: int) -> None:
+        """Record the events of one step of the tracker, from state ``before`` to ``after``."""
+        depth = self.depth(before.nodes, before.surface_positions)
+        slip0 = dict(zip(before.nodes.tolist(), before.slip.tolist()))
+        slip1 = dict(zip(after.nodes.tolist(), after.slip.tolist()))
+        count = before.n_contacts
+        for e in events:
+            slid = slip1.get(e.node, 0.0) - slip0[e.node] if e.node in slip0 else 0.0
+            self.add(RestIteration(len(self.entries) + 1, count, depth, (e.node,) if e.kind == "A" else (),
+                                   (e.node,) if e.kind == "B" else (), int(e.kind == "C"), max(slid, 0.0), trials,
+                                   float(after.load)))
+            trials = 0
+            count += {"A": 1, "B": -1}.get(e.kind, 0)
+            log.debug("rest: event %s, node %d at λ = %.6g", e.kind, e.node, after.load)
 
-    def prefetch_columns(self, nodes: np.ndarray, surface_positions: np.ndarray) -> None:
-        """With the sparse backend, when new contact ``nodes`` lack their compliance columns, compute them
-        together with those of the lowest uncached free surface nodes (the likely next contacts):
-        PREFETCH_NODES in one solve."""
-        nodes = np.asarray(nodes, dtype=np.int64)
-        comp = self.body.compliance
-        if self.backend != "sparse" or all(comp.is_cached(k) for k in nodes):
-            return
-        free_at = ~np.isin(self.surface, np.concatenate([self.contacts, nodes]))
-        height = self.table.signed_distance(surface_positions[free_at])
-        comp.prefetch(nodes, likely=self.surface[free_at][np.argsort(height, kind="stable")], count=PREFETCH_NODES)
 
-    def add(self, node: int, displacement: np.ndarray) -> None:
-        d = np.array(displacement, dtype=float)
-        # Land on the plane: move along the normal only.
-        d += -self.table.signed_distance(self.points[node] + d) * self.table.up
-        self.contacts.append(int(node))
-        self.disp[int(node)] = d
+def _tracked_rest(posed: Body, table: TablePlane, triangle: np.ndarray, mu: float, backend: str, load_ramp: bool,
+                  tol: float, history: _History) -> tuple[np.ndarray, np.ndarray, np.ndarray, ContactResponse]:
+    """The rest on a table with friction, by the event tracking with the load factor as parameter (module notes):
+    the final contact nodes, their displacements Δ̄, sliding flags and contact response.  Raises
+    :class:`TrackingError` where the tracker finds no quasi-static state."""
+    tracker = Tracker(posed, radius=posed.mesh.diameter, mu_finger=mu, mu_table=mu, table=table, backend=backend)
+    far = posed.center_of_mass + FAR_AWAY * posed.mesh.diameter * table.up
+    centers = np.stack([far, far + 3.0 * posed.mesh.diameter * tangent_basis(table.up)[0]])
+    still = np.zeros((2, 3))
 
-    def remove(self, node: int) -> None:
-        self.contacts.remove(node)
-        self.disp.pop(node)
-        self.sliding.discard(node)
+    def held(nodes: np.ndarray, load: float, disp: np.ndarray | None = None) -> ContactState:
+        m = len(nodes)
+        return tracker.make_state(phase="rest", squeeze_depth=0.0, lift_height=0.0, load=load, centers=centers,
+                                  nodes=nodes, owner=np.full(m, TABLE), disp=np.zeros((m, 3)) if disp is None else disp,
+                                  sliding=np.zeros(m, dtype=bool))
 
-    def _forces(self, resp: ContactResponse, d: np.ndarray) -> np.ndarray:
-        """F̄(Δ̄, λ) = F̄(Δ̄) − (1 − λ) F̄₀: eq. (5) with gravity scaled by λ."""
-        f = resp.forces(d)
-        return f if self.lam == 1.0 else f - (1.0 - self.lam) * resp.gravity_forces
+    state = held(np.asarray(triangle, dtype=np.int64), 1.0)
+    first = np.inf
+    if load_ramp:
+        # Gravity rises on the support triangle alone, held, until the first free node touches the table (event
+        # A, at λ₁; at λ₁ = 0 for a flat base, whose nodes on the table sink as soon as gravity acts): heights
+        # are affine in λ, h(λ) = h(0) + λ ∂h/∂λ.  The stick/slip state is settled from there on, where the
+        # contact set is more than the bare triangle: the tangential forces of three point supports often leave
+        # their cones at once, and a slip system of two or three sliding supports is singular.
+        surface = posed.mesh.surface_nodes
+        height = np.maximum(table.signed_distance(posed.mesh.surface_points), 0.0)
+        height[height <= tol] = 0.0
+        rate = (state.surface_positions - posed.mesh.surface_points) @ table.up
+        free = (rate < 0) & ~np.isin(surface, state.nodes)
+        lam = np.full(len(surface), np.inf)
+        lam[free] = height[free] / -rate[free]
+        first = float(lam.min(initial=np.inf))
+        if first < 1.0:
+            at = lam <= first + 1e-12 * max(first, 1.0)
+            touching = surface[at]
+            # where they touch: their displacement at λ₁, onto the plane
+            d = first * (state.surface_positions[at] - posed.mesh.surface_points[at])
+            d -= table.signed_distance(posed.mesh.points[touching] + d)[:, None] * table.up
+            before = held(state.nodes, first)
+            state = held(np.concatenate([state.nodes, touching]), first, np.vstack([before.disp, d]))
+            history.events(before, state, [ContactEvent("rest", "A", int(k), "table", 0.0, 0.0) for k in touching],
+                           0)
+        if first == 0.0:
+            # A flat base: with every contact held, all forces grow in proportion to λ from zero, so that every
+            # contact whose force gravity makes tensile would break at λ = 0⁺ together.  They are released one at
+            # a time, the most tensile first (as in the paper's iteration), before the load is raised.
+            while True:
+                fn = friction.normal_component(tracker.response(state.nodes).gravity_forces, table.up)
+                j = int(np.argmin(fn))
+                if fn[j] >= 0:
+                    break
+                keep = np.arange(state.n_contacts) != j
+                before, state = state, held(state.nodes[keep], 0.0)
+                history.events(before, state, [ContactEvent("rest", "B", int(before.nodes[j]), "table", 0.0, 0.0)], 0)
+            # The stick/slip state is proportional to λ too until the next event: it is settled at a small load
+            # (at λ = 0 every force is zero; the tracker's thresholds are relative to the forces of the state).
+            state = held(state.nodes, START_LOAD)
+    last = [state, 0]
 
-    def solve(self) -> _State:
-        """Eqs. (3)–(5) at load factor λ for the held contacts; with μ = 0 first free every tangential force."""
-        resp = self.response()
-        if self.mu == 0.0:
-            self._frictionless(resp)
-        d = self.prescribed()
-        forces, field = resp.forces(d), resp.surface_displacements(d)
-        if self.lam == 1.0:
-            return _State(forces, field, self._surface_points + field, None)
-        grav = self.gravity_field(resp)
-        field = field - (1.0 - self.lam) * grav
-        return _State(forces - (1.0 - self.lam) * resp.gravity_forces, field, self._surface_points + field, grav)
+    def on_event(st: ContactState, ev: list[ContactEvent]) -> None:
+        history.events(last[0], st, ev, tracker.solves - last[1])
 
-    def solution(self) -> ContactSolution:
-        """The final :class:`ContactSolution` (λ = 1)."""
-        return self.response().solve(self.prescribed())
+    def after_step(st: ContactState, ev: list[ContactEvent]) -> bool:
+        last[0], last[1] = st, tracker.solves
+        return False
 
-    def _frictionless(self, resp: ContactResponse) -> None:
-        d = self.prescribed()
-        nodes = np.array(self.contacts)
-        dofs = contact_dofs(nodes)
-        gauge = self.body.rigid_modes[dofs][:, [0, 1, 5]]  # t_x, t_y, r_z at the contacts
-        d = d + plane_slip.frictionless_tangential_displacements(resp.reduced_stiffness, self._forces(resp, d),
-                                                               self.table.up, gauge)
-        # Hold the centre of mass horizontally and the mean spin about the vertical at zero.
-        field = resp.solve(d).displacements
-        if self.lam != 1.0:
-            field = field - (1.0 - self.lam) * resp.solve(np.zeros_like(d)).displacements
-        rel = self.points - self.body.center_of_mass
-        w = self._mass
-        tx, ty = w @ field[:, 0], w @ field[:, 1]
-        spin = (w @ (rel[:, 0] * field[:, 1] - rel[:, 1] * field[:, 0])) / (w @ (rel[:, 0] ** 2 + rel[:, 1] ** 2))
-        r = rel[nodes]
-        d[:, 0] -= tx - spin * r[:, 1]
-        d[:, 1] -= ty + spin * r[:, 0]
-        for k, dk in zip(self.contacts, d):
-            self.disp[k] = dk
+    with one_blas_thread():
+        settled, ev = tracker.settle(state, still, phase="rest", param=Parameter.LOAD)
+        on_event(settled, ev)
+        after_step(settled, ev)
+        if load_ramp and first == 0.0 and settled.load < LOAD_STEP < 1.0:
+            # Proportional loading up to the next event: the stick/slip/release configuration found at START_LOAD
+            # is that of the first load step too (the tracker's first increment would otherwise be 1e7 times its
+            # base).  Its slips are solved there at once, from every contact held where it touched: the cascade
+            # at START_LOAD slid the nodes one at a time, in an order round-off chose between mirror images.
+            # Events the step passed over fire there.
+            start = dict(zip(state.nodes.tolist(), state.disp))
+            base = np.array([start.get(n, d) for n, d in zip(settled.nodes.tolist(), settled.disp)]).reshape(-1, 3)
+            scaled = tracker.make_state(phase="rest", squeeze_depth=0.0, lift_height=0.0, load=LOAD_STEP,
+                                        centers=centers, nodes=settled.nodes, owner=settled.owner, disp=base,
+                                        sliding=settled.sliding)
+            settled, ev = tracker.settle(scaled, still, phase="rest", param=Parameter.LOAD)
+            on_event(settled, ev)
+            after_step(settled, ev)
+    final = settled
+    if load_ramp:
+        final, _, _ = run(tracker, settled, still, stop=1.0, step=LOAD_STEP, param=Parameter.LOAD, phase="rest",
+                          after_step=after_step, on_event=on_event, max_events=history.max_iterations)
+    return final.nodes, final.disp, final.sliding, tracker.response(final.nodes)
 
-    def normal_forces(self, forces: np.ndarray) -> np.ndarray:
-        return friction.normal_component(forces, self.table.up)
 
-    def _zero_force(self) -> float:
-        return self.force_tol if self.lam < 1.0 else 0.0
+def _frictionless_tangential_displacements(stiffness: np.ndarray, held_forces: np.ndarray, normal: np.ndarray,
+                                           gauge: np.ndarray) -> np.ndarray:
+    """Tangential contact displacements that remove every friction force (μ = 0).
 
-    def tensile(self, forces: np.ndarray) -> np.ndarray:
-        """Mask of contacts whose normal force is tensile (event B)."""
-        return self.normal_forces(forces) < (-self._zero_force() if self.lam < 1.0 else np.finfo(float).tiny)
+    With μ = 0 the cone degenerates to its axis and every contact slides
+    freely in the plane.  Solve ``(C u)_t = −(F̄_held)_t`` for tangential
+    increments u (m, 3), u·n̂ = 0.  The tangential block of C is singular: the
+    in-plane rigid motions (two translations and the spin about n̂) change no
+    force.  They are fixed by the gauge condition ``gaugeᵀ u = 0``, where
+    ``gauge`` (3m, g) holds those rigid motions at the contact DOFs; the
+    caller may add any rigid in-plane motion afterwards.
 
-    def outside_cone(self, forces: np.ndarray) -> np.ndarray:
-        """Positions of contacts whose force lies outside the friction cone (event C)."""
-        if self.mu == 0.0:
-            return np.zeros(0, dtype=np.int64)
-        fn = self.normal_forces(forces)
-        viol = friction.cone_violation(forces, self.table.up, self.mu)
-        return np.flatnonzero((fn > self._zero_force()) & (viol > self.cone_rtol * fn))
+    Returns
+    -------
+    (m, 3) displacement increments; the forces ``F̄_held + C u`` are normal.
+    """
+    f0 = np.asarray(held_forces, dtype=float)
+    m = len(f0)
+    c = np.asarray(stiffness, dtype=float)
+    normal = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    basis = tangent_basis(normal)  # (2, 3)
+    # Tangential block of C and of the loads, in the (e1, e2) coordinates of every node.
+    ctt = np.einsum("pa,kalb,qb->kplq", basis, c.reshape(m, 3, m, 3), basis, optimize=True).reshape(2 * m, 2 * m)
+    rhs = -(f0 @ basis.T).reshape(-1)
+    g = np.einsum("pa,kag->kpg", basis, np.asarray(gauge, dtype=float).reshape(m, 3, -1)).reshape(2 * m, -1)
+    q, _ = np.linalg.qr(g)
+    # Scale the border like the block it borders.
+    s = max(float(np.abs(np.diag(ctt)).max()), np.finfo(float).tiny)
+    ng = q.shape[1]
+    mat = np.block([[ctt, s * q], [s * q.T, np.zeros((ng, ng))]])
+    sol = np.linalg.solve(mat, np.concatenate([rhs, np.zeros(ng)]))
+    return sol[:2 * m].reshape(m, 2) @ basis
 
-    def update_stick(self, forces: np.ndarray) -> None:
-        """Event D: a sliding contact whose force moved strictly inside its cone sticks again."""
-        if self.mu == 0.0:
-            self.sliding = set(self.contacts)
-            return
-        fn = self.normal_forces(forces)
-        viol = friction.cone_violation(forces, self.table.up, self.mu)
-        for j, k in enumerate(self.contacts):
-            if k in self.sliding and viol[j] < -self.cone_rtol * fn[j]:
-                self.sliding.discard(k)
 
-    def deepest(self, state: _State) -> tuple[int, float]:
-        """The non-contact surface node furthest below the table and its depth (0 if none is below)."""
-        in_contact = np.isin(self.surface, self.contacts)
-        height = self.table.signed_distance(state.positions)
-        height[in_contact] = np.inf
-        j = int(np.argmin(height))
-        return int(self.surface[j]), float(max(-height[j], 0.0))
+def _roller_solution(body: Body, table: TablePlane, resp: ContactResponse, held: np.ndarray) -> ContactSolution:
+    """Eqs. (3)–(5) at full gravity with every contact on the plane and free in it (μ = 0): the contact
+    displacements ``held`` keep their normal parts; their tangential parts remove every friction force, with
+    the centre of mass's horizontal position and the mean spin about the vertical held at zero."""
+    nodes = resp.nodes
+    d = held + _frictionless_tangential_displacements(resp.reduced_stiffness, resp.forces(held), table.up,
+                                                      body.rigid_modes[contact_dofs(nodes)][:, [0, 1, 5]])
+    field = resp.solve(d).displacements
+    mass = -body.gravity_loads.reshape(-1, 3)[:, 2]
+    w = mass / mass.sum()
+    rel = body.mesh.points - body.center_of_mass
+    tx, ty = w @ field[:, 0], w @ field[:, 1]
+    spin = (w @ (rel[:, 0] * field[:, 1] - rel[:, 1] * field[:, 0])) / (w @ (rel[:, 0] ** 2 + rel[:, 1] ** 2))
+    r = rel[nodes]
+    d[:, 0] -= tx - spin * r[:, 1]
+    d[:, 1] -= ty + spin * r[:, 0]
+    return resp.solve(d)
 
-    def next_touch(self, state: _State) -> tuple[float, np.ndarray]:
-        """The next load factor λ' ≥ λ at which free surface nodes touch the table, and those nodes.
 
-        Heights are affine in λ, ``h(λ') = h(λ) + (λ' − λ) ∂h/∂λ``; a node on
-        the table that moves down as λ grows touches at λ' = λ.  Nodes whose
-        touching values agree to 1e-12 touch together.  Returns (inf, []) when
-        no node would touch.
-        """
-        free_at = ~np.isin(self.surface, self.contacts)
-        free = self.surface[free_at]
-        h = self.table.signed_distance(state.positions[free_at])
-        rate = state.gravity_displacements[free_at] @ self.table.up
-        down = rate < 0
-        if not down.any():
-            return np.inf, np.zeros(0, dtype=np.int64)
-        lam = self.lam + np.maximum(h[down], 0.0) / -rate[down]
-        first = float(lam.min())
-        return first, free[down][lam <= first + 1e-12 * max(first, 1.0)]
-
-    def release_tensile(self) -> tuple[_State, list[int]]:
-        """Event B: release tensile contacts, the most tensile first.
-
-        Releasing stops early when a node has come below the table (event A
-        comes first in the next iteration), and a contact whose release would
-        leave fewer than three or collinear contacts is kept while some node
-        is below the table (the object is rocking onto a new support);
-        otherwise the object would tip and :class:`RestConvergenceError` is
-        raised.
-        """
-        released: list[int] = []
-        state = self.solve()
-        while True:
-            fn = self.normal_forces(state.forces)
-            if not self.tensile(state.forces).any():
-                return state, released
-            below = self.deepest(state)[1] > self.penetration_tol
-            if released and below:
-                return state, released
-            j = int(np.argmin(fn))
-            node = self.contacts[j]
-            remaining = [k for k in self.contacts if k != node]
-            try:
-                check_contact_set(self.points, np.array(remaining))
-            except CollinearContactError:
-                if below:
-                    return state, released
-                raise RestConvergenceError(
-                    f"contact node {node} pulls on the table (normal force {fn[j]:.3g} N) and releasing it would "
-                    f"leave {len(remaining)} collinear or too few contacts: the object would tip off its support") from None
-            self.remove(node)
-            released.append(node)
-            log.debug("event B: released node %d (normal force %.3g N, λ = %.4g)", node, fn[j], self.lam)
-            state = self.solve()
-
-    def slip(self, state: _State) -> tuple[_State, int, float, int]:
-        """Steps 6–7: slide the contacts outside their cones back onto them (eq. 6).
-
-        Returns the new state, the number of nodes that slid, the largest slip
-        (m) and the number of slip systems solved.
-        """
-        if not len(self.outside_cone(state.forces)):
-            return state, 0, 0.0, 0
-        resp = self.response()
-        held = self.prescribed()
-        result = plane_slip.settle_plane_slip(resp.reduced_stiffness, state.forces, self.table.up, self.mu,
-                                            rtol=self.cone_rtol, min_normal_force=self._zero_force())
-        if not len(result.slid):
-            return state, 0, 0.0, result.rounds
-        for j, k in enumerate(self.contacts):
-            self.disp[k] = held[j] + result.displacements[j]
-        for j in result.slid:
-            self.sliding.add(self.contacts[int(j)])
-        slips = np.linalg.norm(result.displacements[result.slid], axis=1)
-        log.debug("event C: %d node(s) slid in %d round(s) (%d fallback), max slip %.3g m", len(result.slid),
-                  result.rounds, result.fallbacks, slips.max())
-        return self.solve(), len(result.slid), float(slips.max()), result.rounds
+def _frictionless_rest(posed: Body, table: TablePlane, triangle: np.ndarray, backend: str, tol: float,
+                       history: _History) -> tuple[np.ndarray, np.ndarray, np.ndarray, ContactResponse]:
+    """The rest on a frictionless table (module notes): the roller support's contact set, by landing the nodes
+    below the table (A) and releasing the most tensile contact (B) until neither is left; the final contact
+    nodes, their displacements Δ̄, sliding flags (all set) and contact response."""
+    points = posed.mesh.points
+    surface = posed.mesh.surface_nodes
+    nodes = np.asarray(triangle, dtype=np.int64)
+    held = np.zeros((len(nodes), 3))
+    force_tol = FORCE_TOL * posed.weight
+    resp: ContactResponse | None = None
+    while True:
+        resp = contact_response(posed, nodes, backend=backend, cached=() if resp is None else (resp,))
+        sol = _roller_solution(posed, table, resp, held)
+        held = sol.displacements[nodes]
+        height = table.signed_distance(sol.positions[surface])
+        height[np.isin(surface, nodes)] = np.inf
+        depth = float(max(-height.min(), 0.0))
+        deep = np.flatnonzero(-height > tol)
+        if deep.size:  # event A: every node below the table lands on it, deepest first
+            for j in deep[np.argsort(height[deep], kind="stable")]:
+                history.add(RestIteration(len(history.entries) + 1, len(nodes), depth, (int(surface[j]),), (), 0,
+                                          0.0, 0, 1.0))
+                d = sol.displacements[surface[j]].copy()
+                d -= table.signed_distance(points[surface[j]] + d) * table.up
+                nodes = np.append(nodes, surface[j])
+                held = np.vstack([held, d])
+            continue
+        fn = friction.normal_component(sol.forces, table.up)
+        j = int(np.argmin(fn))
+        if fn[j] >= -force_tol:
+            return nodes, held, np.ones(len(nodes), dtype=bool), resp
+        keep = np.arange(len(nodes)) != j  # event B: the most tensile contact is released
+        try:
+            check_contact_set(points, nodes[keep])
+        except CollinearContactError:
+            raise RestConvergenceError(
+                f"contact node {nodes[j]} pulls on the table (normal force {fn[j]:.3g} N) and releasing it would "
+                f"leave {int(keep.sum())} collinear or too few contacts: the object would tip off its support") from None
+        history.add(RestIteration(len(history.entries) + 1, len(nodes), depth, (), (int(nodes[j]),), 0, 0.0, 0, 1.0))
+        nodes, held = nodes[keep], held[keep]
 
 
 def rest(body: Body, mu_table: float, *, down: np.ndarray | None = None, table_z: float = 0.0,
@@ -488,16 +505,20 @@ def rest(body: Body, mu_table: float, *, down: np.ndarray | None = None, table_z
     backend : {"sparse", "spectral"}
         Backend of :class:`~fem_grasp.elastic.response.ContactResponse`.
     max_iterations : int, optional
-        Iteration budget; default three times the number of surface nodes
-        (an iteration adds contacts, and a node may be released and land again).
+        Budget of history entries (events, and the settled state); default
+        three times the number of surface nodes (a node may be released and
+        land again).
     load_ramp : bool
         Raise gravity from 0 to 1 event by event (default), or apply it at once
-        as the paper does (module notes, "Gravity ramp").
+        as the paper does (module notes, "Gravity ramp").  A frictionless
+        table's resting state does not depend on the path.
     penetration_tol : float
-        A node deeper than ``penetration_tol × diameter`` below the table is
-        a new contact.
+        Frictionless table: a node deeper than ``penetration_tol × diameter``
+        below the table is a new contact.  With friction, a node that close to
+        the table in the rigid pose lies on it, and the tracker's event
+        thresholds apply (module notes, "Tolerances").
     cone_rtol : float
-        A contact is outside its cone when ``|f_t| − μ f·n̂ > cone_rtol f·n̂``.
+        Not used: the cone test is the tracker's event C (module notes, "Tolerances").
 
     Returns
     -------
@@ -509,11 +530,9 @@ def rest(body: Body, mu_table: float, *, down: np.ndarray | None = None, table_z
     ValueError
         Bad arguments, or a named support triangle on which the object would tip.
     RestConvergenceError
-        If the iteration does not settle within ``max_iterations`` or loses
-        its support (tensile contacts leaving fewer than three or collinear
-        contacts).
-    fem_grasp.errors.FrictionError
-        If a slip system (6) has no admissible solution.
+        If the iteration does not settle within ``max_iterations``, or the
+        object finds no quasi-static state on the table (it loses its support
+        and would tip, or slides off).
     """
     prepare_kernels()  # once per process: compile or load the kernels, or say they run as plain Python
     start = time.perf_counter()
@@ -526,65 +545,22 @@ def rest(body: Body, mu_table: float, *, down: np.ndarray | None = None, table_z
     pose = resting_pose(body, down=down, table_z=table_z, support=support)
     posed = pose.body
     table = TablePlane(table_z)
-    tol = penetration_tol * posed.mesh.diameter
-    solver = _Solver(posed, table, float(mu_table), backend, cone_rtol, tol, 0.0 if load_ramp else 1.0)
-    for k in pose.triangle:
-        solver.add(int(k), np.zeros(3))
-    history: list[RestIteration] = []
-    state = solver.solve()
-    converged = False
-    for it in range(1, int(max_iterations) + 1):
-        # Steps 2-3: the state with every contact held, then the event tests of step 4 (at λ > 0).
-        loaded = solver.lam > 0
-        if loaded:
-            solver.update_stick(state.forces)
-        deepest, depth = solver.deepest(state)
-        unsettled = loaded and (solver.tensile(state.forces).any() or len(solver.outside_cone(state.forces)) > 0)
-        contacts_before = len(solver.contacts)
-        if solver.lam == 1.0 and depth <= tol and not unsettled:
-            history.append(RestIteration(it, contacts_before, depth, (), (), 0, 0.0, 0, 1.0))
-            converged = True
-            break
-        new: list[int] = []
-        if depth > tol:  # step 5, event A: the deepest node lands on the table
-            new = [deepest]
-            solver.prefetch_columns([deepest], state.positions)
-            solver.add(deepest, state.displacements[posed.mesh.surface_index[deepest]])
-            log.debug("event A: node %d was %.3g m below the table (λ = %.4g)", deepest, depth, solver.lam)
-        elif not unsettled:  # raise the load to the next touch (event A at the new λ) or to 1
-            lam_next, touching = solver.next_touch(state)
-            if lam_next > 1.0:
-                lam_next, touching = 1.0, touching[:0]
-            solver.lam = lam_next
-            if len(touching):
-                moved = solver.solve()
-                solver.prefetch_columns(touching, moved.positions)
-                for k in touching:
-                    solver.add(int(k), moved.displacements[posed.mesh.surface_index[k]])
-                new = [int(k) for k in touching]
-                log.debug("event A: %d node(s) touch the table at λ = %.6g", len(new), lam_next)
-        released: list[int] = []
-        n_slid, max_slip, rounds = 0, 0.0, 0
-        if solver.lam > 0:
-            state, released = solver.release_tensile()  # event B
-            state, n_slid, max_slip, rounds = solver.slip(state)  # steps 6-7, event C
-        else:
-            state = solver.solve()
-        history.append(RestIteration(it, contacts_before, depth, tuple(new), tuple(released), n_slid, max_slip,
-                                     rounds, solver.lam))
-        log.debug("iteration %d: λ = %.4g, %d contacts, penetration %.3g m, %d sliding", it, solver.lam,
-                  len(solver.contacts), depth, n_slid)
-    if not converged:
-        raise RestConvergenceError(
-            f"the resting iteration did not settle in {max_iterations} iterations (load factor {solver.lam:.4g}, "
-            f"{len(solver.contacts)} contacts, last penetration {history[-1].max_penetration:.3g} m); raise "
-            "max_iterations or check the mesh")
-    sol = solver.solution()
-    solver.update_stick(sol.forces)
-    nodes = np.array(solver.contacts, dtype=np.int64)
-    sliding = np.array([k in solver.sliding for k in solver.contacts], dtype=bool)
+    history = _History(posed, table, int(max_iterations))
+    if mu_table == 0:
+        nodes, disp, sliding, resp = _frictionless_rest(posed, table, pose.triangle, backend,
+                                                  penetration_tol * posed.mesh.diameter, history)
+    else:
+        try:
+            nodes, disp, sliding, resp = _tracked_rest(posed, table, pose.triangle, float(mu_table), backend,
+                                                       load_ramp, penetration_tol * posed.mesh.diameter, history)
+        except TrackingError as exc:
+            raise RestConvergenceError(f"the object does not come to rest on the table: {exc}") from None
+    sol = resp.solve(disp)  # at full gravity (λ = 1)
+    history.entries.append(RestIteration(len(history.entries) + 1, len(nodes),
+                                         history.depth(nodes, sol.positions[posed.mesh.surface_nodes]), (), (), 0,
+                                         0.0, 0, 1.0))
     wall = time.perf_counter() - start
-    log.info("resting state: %d contacts (%d sliding) after %d iterations, max sag %.3g m, %.2f s",
-             len(nodes), sliding.sum(), len(history), -sol.displacements[:, 2].min(), wall)
+    log.info("resting state: %d contacts (%d sliding) after %d events, max sag %.3g m, %.2f s",
+             len(nodes), sliding.sum(), len(history.entries) - 1, -sol.displacements[:, 2].min(), wall)
     return RestState(posed, float(table_z), float(mu_table), sol.positions, sol.displacements, nodes, sol.forces,
-                     solver.prescribed(), sliding, pose.triangle.copy(), history, len(history), wall, pose, sol)
+                     disp, sliding, pose.triangle.copy(), history.entries, len(history.entries), wall, pose, sol)

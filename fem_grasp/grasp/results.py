@@ -42,7 +42,7 @@ __all__ = ["OUTCOMES", "LiftAttempt", "PickupCheckError", "PickupResult", "Snaps
 
 #: How a pickup can end (:attr:`PickupResult.outcome`); ``reason`` says why in words.  docs/limits.md lists
 #: each with its message.  Every valid scene ends in one of these (or the object does not come to rest:
-#: ``FrictionError``, ``RestConvergenceError``).
+#: ``RestConvergenceError``).
 OUTCOMES: dict[str, str] = {
     "picked up": "the object left the table (Algorithm 1 step 5)",
     "lift not run": "the lift test passed; the lift was not simulated (lift=False)",

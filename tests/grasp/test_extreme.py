@@ -210,9 +210,7 @@ def _linear_volume_change(mesh: TetMesh, u: np.ndarray) -> float:
 def test_nearly_incompressible_box_is_picked_up_with_a_locking_warning():
     """ν = 0.4999 (λ/G = 5000): P1 tetrahedra lock but the pickup completes and obeys the contact laws.
 
-    μ = 1 on the fingers and the table, squeeze increment 0.12 mm.  With μ_table = 0.5 the resting
-    state itself does not settle: 200 slip rounds of the rest iteration (45 s) end in FrictionError
-    (docs/limits.md).
+    μ = 1 on the fingers and the table, squeeze increment 0.12 mm.
     """
     with pytest.warns(LockingWarning, match="lock"):
         res = pick_up_box(pickup_box(poisson=0.4999), mu=1.0, step=1.2e-4)

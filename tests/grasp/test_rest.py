@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from fem_grasp import Body, TetMesh, box_mesh
+from fem_grasp.errors import LockingWarning
 from fem_grasp.grasp import objects
 from fem_grasp.grasp.pose import (
     _polygon_margin,
@@ -336,10 +337,11 @@ def test_paper_literal_iteration_without_load_ramp(box, mu):
 
 
 def test_soft_objects_in_random_orientations_rock_onto_a_new_support(rng):
-    """Small hull facets of a soft tomato: the support rocks (contacts released, event B) as it settles."""
+    """Small hull facets of a soft tomato: the support rocks (contacts released, event B) as it settles, in some
+    of the orientations."""
     body = paper_body("tomato").with_material(young=1e4)
     released = 0
-    for _ in range(3):
+    for _ in range(6):
         q = np.linalg.qr(rng.normal(size=(3, 3)))[0]
         for mu in (0.32, 0.05):
             state = rest(body.transformed(q * np.sign(np.linalg.det(q))), mu)
@@ -374,3 +376,29 @@ def test_rest_table_script_reports_the_tomato():
     assert float(tomato[7]) == pytest.approx(rows[0]["sag_mm"], rel=2e-3)
     replaced = module.replace_block(f"a\n{module.BEGIN}\nold\n{module.END}\nb", "new")
     assert replaced == f"a\n{module.BEGIN}\nnew\n{module.END}\nb"
+
+
+def test_a_nearly_incompressible_box_comes_to_rest_on_a_table_of_friction_one_half():
+    """ν = 0.4999: each table contact's slip pushes its neighbours' forces out of their cones again; the rest
+    still settles, most of its base sliding on the cone boundary, and obeys every contact law."""
+    with pytest.warns(LockingWarning, match="lock"):
+        body = Body(box_mesh((-0.015, -0.02, 0.0), (0.015, 0.02, 0.03), (3, 3, 3)), 2e4, 0.4999, weight=0.3)
+        state = rest(body, 0.5)
+    figures = state.check()
+    assert figures["ok"] and figures["force_residual"] < 1e-10
+    np.testing.assert_allclose(state.normal_forces.sum(), body.weight, rtol=1e-10)
+    assert state.n_contacts >= 3 and state.sliding.sum() > state.n_contacts / 2
+
+
+def test_a_rest_the_tracker_cannot_settle_is_a_rest_convergence_error(box, monkeypatch):
+    """Where the event engine finds no quasi-static state on the table the object does not come to rest: a named
+    RestConvergenceError carrying the engine's reason, not a tracking error from inside the engine."""
+    from fem_grasp.contact.tracking import Tracker
+    from fem_grasp.errors import TrackingError
+
+    def fail(*args, **kwargs):
+        raise TrackingError("no quasi-static equilibrium at gravity load λ = 0.5: gross slip")
+
+    monkeypatch.setattr(Tracker, "settle", fail)
+    with pytest.raises(RestConvergenceError, match="does not come to rest on the table: no quasi-static"):
+        rest(box, 0.3)

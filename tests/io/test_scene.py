@@ -169,7 +169,7 @@ def test_the_rest_cache_key_covers_every_module_the_rest_depends_on():
 
     names = {f"{f.parent.name}/{f.name}" for f in rest_code_files()}
     for needed in ("elastic/response.py", "elastic/compliance.py", "elastic/body.py", "mesh/tetmesh.py",
-                   "grasp/rest.py", "grasp/pose.py", "contact/plane_slip.py", "contact/friction.py",
+                   "grasp/rest.py", "grasp/pose.py", "contact/tracking.py", "contact/friction.py",
                    "contact/homotopy.py", "elastic/fem.py", "contact/obstacles.py", "fem_grasp/errors.py"):
         assert needed in names, needed
     assert not any(f.parent.name == "io" for f in rest_code_files())  # its own floor: a cache, not physics
