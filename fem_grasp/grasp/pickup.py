@@ -158,7 +158,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
         level's) carries the estimated error in ``result.accuracy``
     geometry : what to remesh for ``accuracy`` (:class:`fem_grasp.mesh.remesh.Geometry`); default: the body's
         boundary surface (:func:`fem_grasp.mesh.remesh.geometry_of_mesh`)
-    settings : the engine's numerical settings for the squeeze, lift test and lift trackers
+    settings : the engine's numerical settings for the rest, squeeze, lift test and lift trackers
         (:class:`~fem_grasp.settings.EngineSettings`; default: the engine's defaults); the same at every level of
         an ``accuracy`` refinement
 
@@ -190,7 +190,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
 
     # Step 2 (computed first: step 1 needs the resting shape).
     t0 = time.perf_counter()
-    rs = rest_state if rest_state is not None else rest(body, mu_t, backend=backend)
+    rs = rest_state if rest_state is not None else rest(body, mu_t, backend=backend, settings=settings)
     timings["rest"] = time.perf_counter() - t0
     posed = rs.body
     table = rs.table

@@ -103,6 +103,7 @@ from ..elastic.response import (
     contact_response,
 )
 from ..errors import RestCheckError, RestConvergenceError, TrackingError
+from ..settings import EngineSettings
 from ..threads import one_blas_thread
 from .checks import contact_law_figures
 from .pose import RestingPose, resting_pose
@@ -296,11 +297,13 @@ class _History:
 
 
 def _tracked_rest(posed: Body, table: TablePlane, triangle: np.ndarray, mu: float, backend: str, load_ramp: bool,
-                  tol: float, history: _History) -> tuple[np.ndarray, np.ndarray, np.ndarray, ContactResponse]:
+                  tol: float, history: _History, settings: EngineSettings | None = None
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, ContactResponse]:
     """The rest on a table with friction, by the event tracking with the load factor as parameter (module notes):
     the final contact nodes, their displacements Δ̄, sliding flags and contact response.  Raises
     :class:`TrackingError` where the tracker finds no quasi-static state."""
-    tracker = Tracker(posed, radius=posed.mesh.diameter, mu_finger=mu, mu_table=mu, table=table, backend=backend)
+    tracker = Tracker(posed, radius=posed.mesh.diameter, mu_finger=mu, mu_table=mu, table=table, backend=backend,
+                      settings=settings)
     far = posed.center_of_mass + FAR_AWAY * posed.mesh.diameter * table.up
     centers = np.stack([far, far + 3.0 * posed.mesh.diameter * tangent_basis(table.up)[0]])
     still = np.zeros((2, 3))
@@ -485,7 +488,7 @@ def _frictionless_rest(posed: Body, table: TablePlane, triangle: np.ndarray, bac
 def rest(body: Body, mu_table: float, *, down: np.ndarray | None = None, table_z: float = 0.0,
          support: np.ndarray | None = None, backend: str = "sparse", max_iterations: int | None = None,
          load_ramp: bool = True, penetration_tol: float = PENETRATION_TOL,
-         cone_rtol: float = friction.CONE_RTOL) -> RestState:
+         cone_rtol: float = friction.CONE_RTOL, settings: EngineSettings | None = None) -> RestState:
     """Compute the object's initial resting configuration on the table (paper §III-A).
 
     Parameters
@@ -519,6 +522,9 @@ def rest(body: Body, mu_table: float, *, down: np.ndarray | None = None, table_z
         thresholds apply (module notes, "Tolerances").
     cone_rtol : float
         Not used: the cone test is the tracker's event C (module notes, "Tolerances").
+    settings : EngineSettings, optional
+        The event tracking's numerical settings (:class:`~fem_grasp.settings.EngineSettings`; default: the
+        engine's defaults).
 
     Returns
     -------
@@ -552,7 +558,8 @@ def rest(body: Body, mu_table: float, *, down: np.ndarray | None = None, table_z
     else:
         try:
             nodes, disp, sliding, resp = _tracked_rest(posed, table, pose.triangle, float(mu_table), backend,
-                                                       load_ramp, penetration_tol * posed.mesh.diameter, history)
+                                                       load_ramp, penetration_tol * posed.mesh.diameter, history,
+                                                       settings)
         except TrackingError as exc:
             raise RestConvergenceError(f"the object does not come to rest on the table: {exc}") from None
     sol = resp.solve(disp)  # at full gravity (λ = 1)
