@@ -25,7 +25,7 @@ import scipy.linalg as la
 
 from .kernels import slip_homotopy
 
-__all__ = ["SLIP_INITIAL_STEP", "SLIP_MAX_STEP", "HomotopyResult", "HomotopyError", "newton", "track", "solve"]
+__all__ = ["SLIP_INITIAL_STEP", "SLIP_MAX_STEP", "HomotopyResult", "HomotopyError", "newton", "track"]
 
 log = logging.getLogger(__name__)
 
@@ -54,7 +54,7 @@ TRACK_MAX_ITER = 50
 
 @dataclass(frozen=True)
 class HomotopyResult:
-    """Outcome of :func:`track` / :func:`solve` (paper footnote 2).
+    """Outcome of :func:`track` (paper footnote 2).
 
     Attributes
     ----------
@@ -339,20 +339,3 @@ def track(fun: Fun, jac: Fun, x0: np.ndarray, *, start: Optional[Fun] = None,
     log.debug("homotopy: %d steps (%d rejected), %d Newton iterations, |P| = %.3g",
               steps, rejected, iters + it, res)
     return HomotopyResult(x, res, steps, iters + it, 1.0, rejected, "homotopy")
-
-
-def solve(fun: Fun, jac: Fun, x0: np.ndarray, *, tol: float = 1e-12, scale: float = 1.0,
-          max_iter: int = 50, divergence: float = 1e8, **track_kw) -> HomotopyResult:
-    """Solve ``P(x) = 0``: plain Newton from ``x0`` first, :func:`track` if that fails.
-
-    See paper footnote 2.  Parameters as in :func:`newton`; extra keywords go to
-    :func:`track`.  Raises :class:`HomotopyError` if the homotopy also fails.
-    """
-    x, limit = _vector(x0, divergence)
-    try:
-        x, it, res = _newton(fun, jac, x, tol * scale, max_iter, limit)
-        return HomotopyResult(x, res, 0, it, 0.0, 0, "newton")
-    except HomotopyError as exc:
-        log.debug("plain Newton failed (%s); falling back to homotopy tracking", exc)
-    return track(fun, jac, x0, tol=tol, scale=scale, max_iter=max_iter,
-                 divergence=divergence, **track_kw)

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fem_grasp.contact.homotopy import HomotopyError, HomotopyResult, _Homotopy, newton, solve, track
+from fem_grasp.contact.homotopy import HomotopyError, HomotopyResult, _Homotopy, newton, track
 
 SQRT2 = np.sqrt(2.0)
 CUBIC_ROOT = -1.7692923542386314  # the only real root of x^3 - 2x + 2
@@ -190,13 +190,8 @@ def test_homotopy_derivatives_finite_difference(gamma):
     assert hom.jac_x(x, t) == pytest.approx(fd_x, rel=1e-8, abs=1e-9)
 
 
-def test_solve_newton_first_then_homotopy():
-    res = solve(*SQUARE, [0.1], tol=1e-12)
-    assert res.method == "newton" and res.steps == 0 and res.residual <= 1e-12
-    res = solve(*CUBIC, [0.0], tol=1e-12)
-    assert res.method == "homotopy" and res.residual <= 1e-12
-    assert res.x == pytest.approx([CUBIC_ROOT], abs=1e-12)
-    # large-magnitude system: tolerance relative to the caller's scale
+def test_track_tolerance_is_relative_to_the_callers_scale():
+    """A large-magnitude system: the residual tolerance is relative to the caller's scale."""
     big = (lambda d: 1e6 * cone6(d), lambda d: 1e6 * cone6_jac(d))
-    res = solve(*big, np.zeros(2), tol=1e-12, scale=1e6)
+    res = track(*big, np.zeros(2), tol=1e-12, scale=1e6)
     assert res.residual <= 1e-6 and res.x == pytest.approx(D_STAR, abs=1e-12)
