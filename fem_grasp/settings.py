@@ -122,10 +122,11 @@ class EngineSettings:
         ... and the motion per sweep has not fallen below this fraction of its value ``drift_sweeps`` sweeps
         before (0.5).
     growth_sweeps : int
-        A motion per sweep that has not decayed at all over this many sweeps (whatever the statuses did) is gross
-        slip: the sweeps of a problem with no static state drift or grow, those of one with a static state
-        contract (20; replayed on 2,200 return mappings of the shipped scenes, the graded tomato and the 10k
-        orange, no outcome changed and failures ended 2–5× sooner than at the slip bound).
+        A motion per sweep that has decayed over neither half of this many sweeps (whatever the statuses did) is
+        gross slip: the sweeps of a problem with no static state drift or grow, those of one with a static state
+        contract, after a transient bump on an ill-conditioned body (20; replayed on 2,200 return mappings of
+        the shipped scenes, the graded tomato and the 10k orange, no outcome changed and failures ended 2–5×
+        sooner than at the slip bound).
     stuck_sweeps : int
         Consecutive sweeps in which some contact has no local solution before the relaxation gives up (50).
     stall_sweeps : int
