@@ -72,7 +72,7 @@ def render_candidates(out: Path, result: Any, size: tuple[int, int] = (900, 700)
            "pi": table[["xi", "yi", "zi"]].to_numpy(float), "pj": table[["xj", "yj", "zj"]].to_numpy(float),
            "colours": _point_colours(table), "size": tuple(size), "rho_range": (lo, hi),
            "any_ok": bool(table["grasped"].any()), "title": f"{result.setup.name}: {len(table)} candidates, "
-           f"{int(table['grasped'].sum())} {_word(result.setup.lift)} (coloured by rho* in mm), grey: not"}
+           f"{int(table['grasped'].sum())} {_word(result.setup.options.lift)} (coloured by rho* in mm), grey: not"}
     jobs = [{**job, "path": str(out / "candidates.png"), "view": "oblique"},
             {**job, "path": str(out / "candidates_top.png"), "view": "top"}]
     if pool is not None:
@@ -298,7 +298,7 @@ def _best_html(out: Path, result: Any) -> str:
         parts.append(
             f"<figure>{pic}<figcaption><b>Grasp {rank}</b>{near} (candidate {int(r['candidate'])}): nodes "
             f"{int(r['node_i'])} and {int(r['node_j'])}, azimuth {r['azimuth_deg']:.1f}°, tilt {r['tilt_deg']:.1f}°, "
-            f"s = {r['ratio']:g}, {1e3 * r['height']:.3g} mm above the table. {_word(result.setup.lift).capitalize()} at ρ* = "
+            f"s = {r['ratio']:g}, {1e3 * r['height']:.3g} mm above the table. {_word(result.setup.options.lift).capitalize()} at ρ* = "
             f"{1e3 * r['rho_star']:.3g} mm; grip {r['grip1']:.3g} and {r['grip2']:.3g} N, Σ f·n̂ "
             f"{r['finger_normal_force']:.3g} N (rigid object: {_g(r['rigid_normal_force'])} N), {int(r['contacts'])} "
             f"contact nodes, {int(r['events'])} events. Full results: {link} (ParaView: "
@@ -377,7 +377,7 @@ def write_search_report(out: str | Path, result: Any, pool: Any = None) -> Path:
         except ImportError:
             log.warning("pyvista is not installed (the 'report' extra: pip install \"fem_grasp[report]\"): the search "
                         "report has no pictures of the object")
-        plot_search(result.table, out / "search_plots.png", result.setup.lift)
+        plot_search(result.table, out / "search_plots.png", result.setup.options.lift)
         pictures.append("search_plots.png")
     path = atomic_write_text(out / "report.html", _html(out, result, pictures))
     if (out / MARKER).exists():
