@@ -1,4 +1,4 @@
-"""Checks of numbers that no later stage can repair: materials, friction, positive quantities, vectors.
+"""Checks of numbers that no later stage can repair: materials, friction, positive quantities, vectors, names.
 
 Each check raises a specific exception (a ``ValueError`` subclass from :mod:`fem_grasp.errors`) whose
 message names the offending quantity and value, so that bad input never surfaces as a traceback from
@@ -8,9 +8,12 @@ return the cleaned values.
 Where they are called
 ---------------------
 * :func:`check_material`, :func:`check_positive` — by :class:`fem_grasp.elastic.Body` (and the assembly);
-* :func:`check_friction` — at the top of :func:`fem_grasp.grasp.pickup.pickup` and :func:`~fem_grasp.grasp.rest.rest`;
-* :func:`check_finger_friction` — μ_F > 0, by :func:`~fem_grasp.grasp.pickup.pickup`, the scene files and
-  :meth:`fem_grasp.io.scene.Scene.with_`, and the placement search.
+* :func:`check_friction` — by :class:`fem_grasp.grasp.options.PickupOptions` (what
+  :func:`~fem_grasp.grasp.pickup.pickup` runs with) and :func:`~fem_grasp.grasp.rest.rest`;
+* :func:`check_finger_friction` — μ_F > 0, by :class:`~fem_grasp.grasp.options.PickupOptions`, the scene files and
+  :meth:`fem_grasp.io.scene.Scene.with_`;
+* :func:`check_names` — the names of :class:`~fem_grasp.settings.EngineSettings` and
+  :class:`~fem_grasp.grasp.options.PickupOptions` overrides.
 
 The checks of a finger placement (directions, contact nodes, fingertip spheres) are in
 :mod:`fem_grasp.grasp.placement`; mesh validity (shapes, NaN, zero volume, folds, pieces, non-manifold

@@ -317,11 +317,11 @@ def _html(out: Path, result: Any, pictures: list[str]) -> str:
     per = per[np.isfinite(per)]
     rows = [
         ("object", f"{s.name}: {len(s.points)} nodes, weight {_g(float(t['weight'].max()) if len(t) else math.nan)} N, "
-                   f"E = {_g(s.young)} Pa, ν = {s.poisson:g}; μ_F = {s.mu_finger:g}, μ_P = {s.mu_table:g}; fingertip "
-                   f"radius {_g(s.finger_radius, 1e3)} mm"),
+                   f"E = {_g(s.young)} Pa, ν = {s.poisson:g}; μ_F = {s.options.mu_finger:g}, "
+                   f"μ_P = {s.options.mu_table:g}; fingertip radius {_g(s.options.finger_radius, 1e3)} mm"),
         ("candidates", f"{len(t)} evaluated of {cs.valid} valid grid points (seed {cs.seed}); grid points rejected: "
                        f"{rejected}"),
-        ("verdicts", f"{n_ok} {_word(s.lift)}, {len(t) - n_ok - n_err} not, {n_err} errors"),
+        ("verdicts", f"{n_ok} {_word(s.options.lift)}, {len(t) - n_ok - n_err} not, {n_err} errors"),
         ("engine", f"{result.engine}; {result.resumed} candidates from an earlier run"),
         ("time", f"{times}; per candidate: median {_g(np.median(per) if len(per) else math.nan)} s"),
     ]
@@ -349,11 +349,11 @@ squeeze along (d̂₁, s d̂₂) from the initial contacts p_i, p_j, with the li
 <a href="search.json">search.json</a> (the scene, the grid, the candidates, the engine).</p>
 {figs}
 <h2>Map: azimuth × height (hover a point)</h2>
-{_svg_map(t, s.lift)}
+{_svg_map(t, s.options.lift)}
 <h2>The best grasps</h2>
 {_best_html(out, result)}
 <h2>Every candidate, ranked</h2>
-<p>Grasps ({html.escape(_word(s.lift))}) first, ranked by {html.escape(result.rank_by)}; then the others by how close the
+<p>Grasps ({html.escape(_word(s.options.lift))}) first, ranked by {html.escape(result.rank_by)}; then the others by how close the
 lift test came (w/mg), with their reason; errors last. {_error_note(result)} Lengths in mm, forces in N (the result
 files name each column with its unit: <code>height_mm</code>, <code>rho_star_mm</code>, <code>grip1_N</code>, …).</p>
 {_table_html(result.ranked)}
