@@ -29,7 +29,7 @@ apart: the resting state (``pickup(..., rest_state=)``, a state of the object) a
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from typing import Any, Mapping
 
 import numpy as np
@@ -109,7 +109,8 @@ class PickupOptions:
         (:func:`~fem_grasp.grasp.accuracy.converged_pickup`).
     geometry : Geometry or None
         What the ``accuracy`` loop remeshes (:class:`fem_grasp.mesh.remesh.Geometry`).  None: the body's boundary
-        surface (:func:`fem_grasp.mesh.remesh.geometry_of_mesh`).
+        surface (:func:`fem_grasp.mesh.remesh.geometry_of_mesh`).  Not compared: two records that differ only
+        here are equal (a surface geometry holds arrays).
     """
 
     mu_finger: float = DEFAULT_FRICTION
@@ -127,7 +128,7 @@ class PickupOptions:
     placement_rule: str = DEFAULT_PLACEMENT_RULE
     backend: str = "sparse"
     accuracy: float | None = None
-    geometry: Any = None
+    geometry: Any = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
         put = object.__setattr__
@@ -195,7 +196,12 @@ class PickupOptions:
     def changed(self) -> dict[str, Any]:
         """The fields that differ from the defaults, by name (for logs and labels)."""
         default = PickupOptions()
-        return {f.name: getattr(self, f.name) for f in fields(self) if getattr(self, f.name) != getattr(default, f.name)}
+
+        def differs(name: str, compare: bool) -> bool:
+            mine, theirs = getattr(self, name), getattr(default, name)
+            return mine != theirs if compare else mine is not theirs
+
+        return {f.name: getattr(self, f.name) for f in fields(self) if differs(f.name, f.compare)}
 
 
 def _directions(directions: Any, ratio: float) -> tuple[tuple[float, ...], tuple[float, ...]]:
