@@ -37,6 +37,7 @@ from .errors import (
 )
 from .grasp import (
     ClosureResult,
+    PickupOptions,
     PickupResult,
     RestingPose,
     RestState,
@@ -62,8 +63,8 @@ _LAZY = {"objects": "fem_grasp.grasp.objects", "placement": "fem_grasp.grasp.pla
 
 __all__ = ["Body", "ClosureResult", "CollinearContactError", "ContactEvent", "ContactNodeError", "ContactResponse",
            "ContactSolution", "ContactState", "DirectionError", "EngineSettings", "Fingertip", "FrictionError", "LockingWarning",
-           "MaterialError", "MeshError", "PickupResult", "PlacementError", "RestCheckError", "RestConvergenceError",
-           "RestState", "RestingPose", "RigidGrasp", "Scene", "SceneError", "Snapshot", "TablePlane", "TetMesh",
+           "MaterialError", "MeshError", "PickupOptions", "PickupResult", "PlacementError", "RestCheckError",
+           "RestConvergenceError", "RestState", "RestingPose", "RigidGrasp", "Scene", "SceneError", "Snapshot", "TablePlane", "TetMesh",
            "TrackingError", "box_mesh", "contact", "elastic", "errors", "force_closure", "grasp", "io", "mesh",
            "pickup", "rest", "resting_pose", "rigid_grasp", "run_scene", "search", "solve_contact", *_LAZY]
 

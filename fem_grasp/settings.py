@@ -23,9 +23,10 @@ itself (the contact-law checks of :mod:`fem_grasp.grasp.checks`) are not setting
 from __future__ import annotations
 
 import dataclasses
-import difflib
 from dataclasses import dataclass, fields
 from typing import Any, Mapping
+
+from .validation import check_names
 
 __all__ = ["DEFAULT_SETTINGS", "EngineSettings"]
 
@@ -222,15 +223,7 @@ class EngineSettings:
             Naming each unknown field, with the nearest known name where one is close, or a value of the wrong
             kind.
         """
-        known = [f.name for f in fields(cls)]
-        unknown = [name for name in overrides if name not in known]
-        if unknown:
-            parts = []
-            for name in unknown:
-                near = difflib.get_close_matches(str(name).lower(), known, n=1)
-                parts.append(f"{name!r}" + (f" (did you mean {near[0]!r}?)" if near else ""))
-            raise ValueError(f"unknown engine setting{'s' if len(unknown) > 1 else ''} {', '.join(parts)}; "
-                             f"the settings are {', '.join(known)}")
+        check_names(overrides, [f.name for f in fields(cls)], "engine setting", "settings")
         return dataclasses.replace(cls() if base is None else base, **dict(overrides))
 
     def changed(self) -> dict[str, Any]:

@@ -1,4 +1,4 @@
-"""Checks of numbers that no later stage can repair: materials, friction, positive quantities, vectors.
+"""Checks of numbers that no later stage can repair: materials, friction, positive quantities, vectors, names.
 
 Each check raises a specific exception (a ``ValueError`` subclass from :mod:`fem_grasp.errors`) whose
 message names the offending quantity and value, so that bad input never surfaces as a traceback from
@@ -8,9 +8,12 @@ return the cleaned values.
 Where they are called
 ---------------------
 * :func:`check_material`, :func:`check_positive` — by :class:`fem_grasp.elastic.Body` (and the assembly);
-* :func:`check_friction` — at the top of :func:`fem_grasp.grasp.pickup.pickup` and :func:`~fem_grasp.grasp.rest.rest`;
-* :func:`check_finger_friction` — μ_F > 0, by :func:`~fem_grasp.grasp.pickup.pickup`, the scene files and
-  :meth:`fem_grasp.io.scene.Scene.with_`, and the placement search.
+* :func:`check_friction` — by :class:`fem_grasp.grasp.options.PickupOptions` (what
+  :func:`~fem_grasp.grasp.pickup.pickup` runs with) and :func:`~fem_grasp.grasp.rest.rest`;
+* :func:`check_finger_friction` — μ_F > 0, by :class:`~fem_grasp.grasp.options.PickupOptions`, the scene files and
+  :meth:`fem_grasp.io.scene.Scene.with_`;
+* :func:`check_names` — the names of :class:`~fem_grasp.settings.EngineSettings` and
+  :class:`~fem_grasp.grasp.options.PickupOptions` overrides.
 
 The checks of a finger placement (directions, contact nodes, fingertip spheres) are in
 :mod:`fem_grasp.grasp.placement`; mesh validity (shapes, NaN, zero volume, folds, pieces, non-manifold
@@ -19,14 +22,16 @@ surfaces) is checked where meshes are made, :class:`fem_grasp.mesh.TetMesh`.
 
 from __future__ import annotations
 
+import difflib
 import warnings
-from typing import Any
+from typing import Any, Iterable, Sequence
 
 import numpy as np
 
 from .errors import LockingWarning, MaterialError, SceneError
 
-__all__ = ["LOCKING_POISSON", "check_finger_friction", "check_friction", "check_material", "check_positive", "check_real", "check_vector"]
+__all__ = ["LOCKING_POISSON", "check_finger_friction", "check_friction", "check_material", "check_names", "check_positive",
+           "check_real", "check_vector"]
 
 #: ν above which :class:`fem_grasp.elastic.body.Body` warns that P1 tetrahedra lock (docs/verification.md: a coarse
 #: cantilever's P1 deflection is 0.32 of P2's at ν = 0.45, 0.14 at 0.49, 0.053 at 0.4999).
@@ -111,3 +116,33 @@ def check_vector(v: Any, what: str, error: type[ValueError]) -> np.ndarray:
     if not np.isfinite(a).all():
         raise error(f"{what} has NaN or infinite components: {a.tolist()}")
     return a
+
+
+# ------------------------------------------------------------------ names
+def check_names(names: Iterable[Any], known: Sequence[str], what: str, listing: str) -> None:
+    """Refuse the ``names`` that are not ``known``, each named with the nearest known name where one is close.
+
+    For records built from keyword overrides (:meth:`fem_grasp.settings.EngineSettings.from_overrides`,
+    :meth:`fem_grasp.grasp.options.PickupOptions.from_overrides`): a misspelt name is an error, never ignored.
+
+    Parameters
+    ----------
+    names : the names given
+    known : the names accepted, in the order the message lists them
+    what : what one name is called in the message ("engine setting")
+    listing : what the known names are called in the message ("settings")
+
+    Raises
+    ------
+    ValueError
+        "unknown engine setting 'implicit_contact' (did you mean 'implicit_contacts'?); the settings are …".
+    """
+    unknown = [name for name in names if name not in known]
+    if not unknown:
+        return
+    parts = []
+    for name in unknown:
+        near = difflib.get_close_matches(str(name).lower(), known, n=1)
+        parts.append(f"{name!r}" + (f" (did you mean {near[0]!r}?)" if near else ""))
+    raise ValueError(f"unknown {what}{'s' if len(unknown) > 1 else ''} {', '.join(parts)}; "
+                     f"the {listing} are {', '.join(known)}")

@@ -41,15 +41,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterator, Sequence
 
-from ..contact.obstacles import DEFAULT_RADIUS
 from ..elastic.body import Body
 from ..errors import SceneError, require
 from ..grasp.candidates import Candidate, CandidateSet, placement_candidates
 from ..grasp.evaluation import SearchSetup, error_row, evaluate, evaluator_for
-from ..grasp.pickup import DEFAULT_FRICTION
+from ..grasp.options import PickupOptions
 from ..io.cache import cached_rest, rest_code_digest
 from ..io.output import MARKER, add_to_marker, atomic_write_text, json_safe, package_version, prepare_out_dir
-from ..validation import check_finger_friction
 from .store import CSV_FILE, FILE_COLUMNS, PARQUET_FILE, ResultStore, read_results
 
 __all__ = ["MANIFEST", "RANKINGS", "SCHEMA", "SchedulerError", "SearchError", "SearchResult", "rank_table",
@@ -123,7 +121,7 @@ class SearchResult:
     @property
     def lifts(self) -> bool:
         """Whether the lift is simulated (else a grasp is one whose lift test passes)."""
-        return bool(self.setup.lift)
+        return self.setup.options.lift
 
     @property
     def n_errors(self) -> int:
@@ -169,39 +167,34 @@ class _Object:
     name: str
     body: Body
     scene: Any
-    mu_finger: float
-    mu_table: float
-    finger_radius: float
+    options: PickupOptions
     down: Any
-    settings: dict[str, Any]
     expected_error: float | None = None
 
 
-_SETTINGS = ("step", "lift_test_step", "max_lift", "lift", "max_lift_attempts", "backend")
+#: The pickup options a search of a body takes as keywords (the rest are each candidate's, or not run per
+#: candidate: :data:`~fem_grasp.grasp.evaluation.SHARED_OPTIONS` and the candidates' maximum squeeze).
+_OPTIONS = ("mu_finger", "mu_table", "finger_radius", "max_squeeze", "step", "lift_test_step", "max_lift", "lift",
+            "max_lift_attempts", "backend")
 
 
 def _object(scene: Any, quick: bool, cache_dir: Path | None, kwargs: dict[str, Any]) -> _Object:
     from ..io.scene import Scene, load_scene, resolve_scene
 
     if isinstance(scene, Body):
-        unknown = set(kwargs) - {"mu_finger", "mu_table", "finger_radius", "max_squeeze", "down", "name",
-                                 "expected_error", *_SETTINGS}
+        unknown = set(kwargs) - {"down", "name", "expected_error", *_OPTIONS}
         if unknown:
             raise TypeError(f"search() got unexpected keyword arguments {sorted(unknown)}")
-        mu_f = check_finger_friction(kwargs.get("mu_finger", DEFAULT_FRICTION))
-        settings = {k: kwargs[k] for k in (*_SETTINGS, "max_squeeze") if k in kwargs}
+        options = PickupOptions.from_overrides({k: v for k, v in kwargs.items() if k in _OPTIONS and v is not None})
         error = kwargs.get("expected_error")
-        return _Object(str(kwargs.get("name", "object")), scene, None, mu_f, float(kwargs.get("mu_table", mu_f)),
-                       float(kwargs.get("finger_radius", DEFAULT_RADIUS)), kwargs.get("down"), settings,
+        return _Object(str(kwargs.get("name", "object")), scene, None, options, kwargs.get("down"),
                        None if error is None else float(error))
     if kwargs:
         raise TypeError(f"search() of a scene takes its settings from the scene; got {sorted(kwargs)}")
     if not isinstance(scene, Scene):
         scene = load_scene(resolve_scene(scene), quick=quick)
-    settings = {"step": scene.step, "lift_test_step": scene.lift_test_step, "max_lift": scene.max_lift,
-                "lift": scene.lift, "backend": scene.backend, "max_squeeze": scene.max_squeeze}
-    return _Object(scene.name + (" (quick)" if scene.quick else ""), scene.body(cache_dir), scene, scene.mu_finger,
-                   scene.mu_table, scene.finger_radius, scene.object.down, settings, scene.expected_error)
+    return _Object(scene.name + (" (quick)" if scene.quick else ""), scene.body(cache_dir), scene,
+                   scene.pickup_options(), scene.object.down, scene.expected_error)
 
 
 # ------------------------------------------------------------------ the engine
@@ -348,8 +341,8 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
     scene : a :class:`~fem_grasp.io.scene.Scene`, a scene file or shipped scene name, or a
         :class:`~fem_grasp.elastic.body.Body` (then ``settings`` give ``mu_finger``, ``mu_table``,
         ``finger_radius``, ``max_squeeze``, ``step``, ``lift_test_step``, ``max_lift``, ``lift``,
-        ``max_lift_attempts``, ``backend``, ``down`` and ``name``, as :func:`~fem_grasp.grasp.pickup` takes them,
-        and ``expected_error``, the relative error of one answer, as a scene's ``solver.expected_error``)
+        ``max_lift_attempts`` and ``backend``, fields of :class:`~fem_grasp.grasp.options.PickupOptions`
+        as :func:`~fem_grasp.grasp.pickup` takes them; ``down`` and ``name``; and ``expected_error``, the relative error of one answer, as a scene's ``solver.expected_error``)
     out : the search folder (results.parquet, results.csv, search.json, report.html, best/), or None
     candidates, heights, azimuths, tilts, ratios, seed, cone : the candidates
         (:func:`~fem_grasp.grasp.candidates.placement_candidates`; angles in degrees)
@@ -405,14 +398,13 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
     require_search_extra(dask=not (workers == 0 and client is None and not scheduler), files=out is not None,
                          report=report and out is not None)
     obj = _object(scene, quick, cache, dict(settings))
-    settings = obj.settings
+    options = obj.options
 
     t0 = time.perf_counter()
-    rest_state, _ = cached_rest(obj.body, obj.mu_table, backend=settings.get("backend", "sparse"), down=obj.down,
+    rest_state, _ = cached_rest(obj.body, options.table_friction, backend=options.backend, down=obj.down,
                                 cache_dir=cache)
     timings["rest"] = time.perf_counter() - t0
-    setup = SearchSetup.from_rest(rest_state, name=obj.name, mu_finger=obj.mu_finger, finger_radius=obj.finger_radius,
-                                  **{k: v for k, v in settings.items() if k in _SETTINGS and v is not None})
+    setup = SearchSetup.from_rest(rest_state, name=obj.name, options=options)
     identity = f"{setup.key}-{rest_code_digest()}"
     request = _request(candidates, heights, azimuths, tilts, ratios, seed, cone)
 
@@ -440,9 +432,9 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
         cset = CandidateSet([Candidate.from_dict(c) for c in manifest["candidates"]], int(manifest["valid"]),
                             manifest["grid"], manifest.get("rejected", {}), int(seed))
     else:
-        cset = placement_candidates(rest_state, mu_finger=obj.mu_finger, mu_table=obj.mu_table,
-                                    radius=obj.finger_radius, count=candidates, heights=heights, azimuths=azimuths,
-                                    tilts=tilts, ratios=ratios, seed=seed, max_squeeze=settings.get("max_squeeze"),
+        cset = placement_candidates(rest_state, mu_finger=options.mu_finger, mu_table=options.table_friction,
+                                    radius=options.finger_radius, count=candidates, heights=heights, azimuths=azimuths,
+                                    tilts=tilts, ratios=ratios, seed=seed, max_squeeze=options.max_squeeze,
                                     cone=cone)
     timings["candidates"] = time.perf_counter() - t0
     if not len(cset):
@@ -467,7 +459,8 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
            "candidates": [c.to_dict() for c in cset], "rank": rank, "expected_error": obj.expected_error,
            "column_units": {f: f.rsplit("_", 1)[1] if f != n or n.endswith("_deg") else ""
                             for n, (f, _) in FILE_COLUMNS.items()},
-           "setup": {"mu_finger": setup.mu_finger, "mu_table": setup.mu_table, "finger_radius": setup.finger_radius,
+           "setup": {"mu_finger": setup.options.mu_finger, "mu_table": setup.options.mu_table,
+                     "finger_radius": setup.options.finger_radius,
                      "weight": obj.body.weight, "young": setup.young, "poisson": setup.poisson,
                      "n_nodes": int(len(setup.points)), "rest_contacts": int(len(setup.rest_nodes))}}
     if outp is not None:

@@ -72,7 +72,7 @@ def render_candidates(out: Path, result: Any, size: tuple[int, int] = (900, 700)
            "pi": table[["xi", "yi", "zi"]].to_numpy(float), "pj": table[["xj", "yj", "zj"]].to_numpy(float),
            "colours": _point_colours(table), "size": tuple(size), "rho_range": (lo, hi),
            "any_ok": bool(table["grasped"].any()), "title": f"{result.setup.name}: {len(table)} candidates, "
-           f"{int(table['grasped'].sum())} {_word(result.setup.lift)} (coloured by rho* in mm), grey: not"}
+           f"{int(table['grasped'].sum())} {_word(result.setup.options.lift)} (coloured by rho* in mm), grey: not"}
     jobs = [{**job, "path": str(out / "candidates.png"), "view": "oblique"},
             {**job, "path": str(out / "candidates_top.png"), "view": "top"}]
     if pool is not None:
@@ -298,7 +298,7 @@ def _best_html(out: Path, result: Any) -> str:
         parts.append(
             f"<figure>{pic}<figcaption><b>Grasp {rank}</b>{near} (candidate {int(r['candidate'])}): nodes "
             f"{int(r['node_i'])} and {int(r['node_j'])}, azimuth {r['azimuth_deg']:.1f}°, tilt {r['tilt_deg']:.1f}°, "
-            f"s = {r['ratio']:g}, {1e3 * r['height']:.3g} mm above the table. {_word(result.setup.lift).capitalize()} at ρ* = "
+            f"s = {r['ratio']:g}, {1e3 * r['height']:.3g} mm above the table. {_word(result.setup.options.lift).capitalize()} at ρ* = "
             f"{1e3 * r['rho_star']:.3g} mm; grip {r['grip1']:.3g} and {r['grip2']:.3g} N, Σ f·n̂ "
             f"{r['finger_normal_force']:.3g} N (rigid object: {_g(r['rigid_normal_force'])} N), {int(r['contacts'])} "
             f"contact nodes, {int(r['events'])} events. Full results: {link} (ParaView: "
@@ -317,11 +317,11 @@ def _html(out: Path, result: Any, pictures: list[str]) -> str:
     per = per[np.isfinite(per)]
     rows = [
         ("object", f"{s.name}: {len(s.points)} nodes, weight {_g(float(t['weight'].max()) if len(t) else math.nan)} N, "
-                   f"E = {_g(s.young)} Pa, ν = {s.poisson:g}; μ_F = {s.mu_finger:g}, μ_P = {s.mu_table:g}; fingertip "
-                   f"radius {_g(s.finger_radius, 1e3)} mm"),
+                   f"E = {_g(s.young)} Pa, ν = {s.poisson:g}; μ_F = {s.options.mu_finger:g}, "
+                   f"μ_P = {s.options.mu_table:g}; fingertip radius {_g(s.options.finger_radius, 1e3)} mm"),
         ("candidates", f"{len(t)} evaluated of {cs.valid} valid grid points (seed {cs.seed}); grid points rejected: "
                        f"{rejected}"),
-        ("verdicts", f"{n_ok} {_word(s.lift)}, {len(t) - n_ok - n_err} not, {n_err} errors"),
+        ("verdicts", f"{n_ok} {_word(s.options.lift)}, {len(t) - n_ok - n_err} not, {n_err} errors"),
         ("engine", f"{result.engine}; {result.resumed} candidates from an earlier run"),
         ("time", f"{times}; per candidate: median {_g(np.median(per) if len(per) else math.nan)} s"),
     ]
@@ -349,11 +349,11 @@ squeeze along (d̂₁, s d̂₂) from the initial contacts p_i, p_j, with the li
 <a href="search.json">search.json</a> (the scene, the grid, the candidates, the engine).</p>
 {figs}
 <h2>Map: azimuth × height (hover a point)</h2>
-{_svg_map(t, s.lift)}
+{_svg_map(t, s.options.lift)}
 <h2>The best grasps</h2>
 {_best_html(out, result)}
 <h2>Every candidate, ranked</h2>
-<p>Grasps ({html.escape(_word(s.lift))}) first, ranked by {html.escape(result.rank_by)}; then the others by how close the
+<p>Grasps ({html.escape(_word(s.options.lift))}) first, ranked by {html.escape(result.rank_by)}; then the others by how close the
 lift test came (w/mg), with their reason; errors last. {_error_note(result)} Lengths in mm, forces in N (the result
 files name each column with its unit: <code>height_mm</code>, <code>rho_star_mm</code>, <code>grip1_N</code>, …).</p>
 {_table_html(result.ranked)}
@@ -377,7 +377,7 @@ def write_search_report(out: str | Path, result: Any, pool: Any = None) -> Path:
         except ImportError:
             log.warning("pyvista is not installed (the 'report' extra: pip install \"fem_grasp[report]\"): the search "
                         "report has no pictures of the object")
-        plot_search(result.table, out / "search_plots.png", result.setup.lift)
+        plot_search(result.table, out / "search_plots.png", result.setup.options.lift)
         pictures.append("search_plots.png")
     path = atomic_write_text(out / "report.html", _html(out, result, pictures))
     if (out / MARKER).exists():

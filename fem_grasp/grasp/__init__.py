@@ -13,7 +13,9 @@
    (:mod:`~fem_grasp.grasp.lift`);
 6. **failure** when the squeeze reaches its maximum depth, or a lift fails and the squeeze resumes.
 
-:func:`pickup` runs the whole algorithm and returns a :class:`PickupResult`; failures are results with
+:func:`pickup` runs the whole algorithm with the grasp's options (:class:`PickupOptions`: friction, fingertip
+radius, contacts, squeeze directions and ratio, maximum squeeze and its increment, lift-test step h, lift,
+backend, accuracy target) and returns a :class:`PickupResult`; failures are results with
 an :attr:`~PickupResult.outcome` (:data:`OUTCOMES`).  :mod:`~fem_grasp.grasp.rigid` is the rigid-body
 comparison of Table III, :mod:`~fem_grasp.grasp.objects` the four objects of Table I, and
 :mod:`~fem_grasp.grasp.checks` the one contact-law checker every result is held to.
@@ -28,11 +30,12 @@ from .closure import ClosureResult, force_closure
 from .evaluation import Evaluator, SearchSetup
 from .forces import FingerForce
 from .lift_test import LiftTest
+from .options import PickupOptions
 from .pickup import OUTCOMES, LiftAttempt, PickupResult, Snapshot, pickup
 from .pose import RestingPose, resting_pose
 from .rest import RestState, rest
 from .rigid import RigidGrasp, rigid_grasp
 
 __all__ = ["OUTCOMES", "Candidate", "CandidateSet", "ClosureResult", "Evaluator", "FingerForce", "LiftAttempt",
-           "LiftTest", "PickupResult", "RestState", "RestingPose", "RigidGrasp", "SearchSetup", "Snapshot",
-           "force_closure", "pickup", "placement_candidates", "rest", "resting_pose", "rigid_grasp"]
+           "LiftTest", "PickupOptions", "PickupResult", "RestState", "RestingPose", "RigidGrasp", "SearchSetup",
+           "Snapshot", "force_closure", "pickup", "placement_candidates", "rest", "resting_pose", "rigid_grasp"]

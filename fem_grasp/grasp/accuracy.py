@@ -55,6 +55,8 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from .options import PickupOptions
+
 __all__ = ["GraspAnswer", "AccuracyLevel", "AccuracyReport", "answer_of", "patch_points", "estimate",
            "single_run_report", "next_step", "estimated_error",
            "relative_change", "converged_pickup", "LEVEL_RATIO", "DEFAULT_ACCURACY", "MAX_LEVELS",
@@ -332,9 +334,8 @@ def _level_meshes(geometry: Any, fingers: np.ndarray, table: np.ndarray, inner: 
 
 def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = DEFAULT_ACCURACY, geometry: Any = None,
                      max_levels: int = MAX_LEVELS, max_seconds: float | None = None,
-                     max_finger_contacts: int = MAX_FINGER_CONTACTS, rest_state: Any = None,
-                     contacts: tuple[int, int] | None = None, step: float | None = None,
-                     lift_test_step: float | None = None, on_level: Any = None, **kwargs: Any) -> Any:
+                     max_finger_contacts: int = MAX_FINGER_CONTACTS, options: PickupOptions | None = None,
+                     rest_state: Any = None, settings: Any = None, on_level: Any = None, **overrides: Any) -> Any:
     """Algorithm 1 to a target accuracy of its answer (module notes); what ``pickup(..., accuracy=...)`` runs.
 
     Parameters
@@ -352,13 +353,16 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         level before: times the square of ``LEVEL_RATIO`` per halving of the spacing) is not run (:data:`MAX_FINGER_CONTACTS`)
     max_seconds : stop refining once the levels so far took this long (the answer is then reported
         unconverged, with the last difference as its estimated error)
+    options : the grasp's :class:`~fem_grasp.grasp.options.PickupOptions` (default: the defaults), of which
+        ``contacts`` are finger contact nodes of ``body`` (on finer levels the surface nodes at their positions,
+        embedded as nodes where the geometry allows, :meth:`~fem_grasp.mesh.remesh.Geometry.build`) and ``step``,
+        ``lift_test_step`` level 0's squeeze increment (m) and lift-test step h (N), default pickup's (each next
+        level takes :func:`next_step` and h in proportion); its ``accuracy`` and ``geometry`` are not read (the
+        arguments above are)
     rest_state : a resting state of ``body`` (level 0 only)
-    contacts : finger contact nodes of ``body``; on finer levels the surface nodes at their positions
-        (embedded as nodes where the geometry allows, :meth:`~fem_grasp.mesh.remesh.Geometry.build`)
-    step, lift_test_step : level 0's squeeze increment (m) and lift-test step h (N), default pickup's; each
-        next level takes :func:`next_step` and h in proportion
+    settings : the engine's :class:`~fem_grasp.settings.EngineSettings`, the same at every level
     on_level : called with the :class:`AccuracyReport` after every level (progress, partial records)
-    **kwargs : the other keywords of :func:`fem_grasp.grasp.pickup.pickup`
+    **overrides : fields of ``options`` changed by name (:meth:`PickupOptions.from_overrides`)
 
     Returns
     -------
@@ -371,8 +375,8 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
     if not (isinstance(accuracy, (int, float)) and 0.0 < float(accuracy) < 1.0):
         raise ValueError(f"accuracy must be a relative error in (0, 1), e.g. 0.05; got {accuracy!r}")
     accuracy = float(accuracy)
-    kwargs.pop("accuracy", None)
-    kwargs.pop("geometry", None)
+    opts = PickupOptions.from_overrides(overrides, base=options).replace(accuracy=None, geometry=None)
+    contacts = opts.contacts
     t_start = time.perf_counter()
     geo = geometry if geometry is not None else geometry_of_mesh(body.mesh)
     points0 = body.mesh.points
@@ -381,8 +385,7 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
                             geometry=geo.describe())
 
     t0 = time.perf_counter()
-    result = pickup(body, rest_state=rest_state, contacts=contacts, step=step, lift_test_step=lift_test_step,
-                    **kwargs)
+    result = pickup(body, opts, rest_state=rest_state, settings=settings)
     ans = answer_of(result, time.perf_counter() - t0)
     fin_nodes = _finger_nodes(result)
     inner = spacing(body.mesh, fin_nodes)
@@ -418,7 +421,8 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         before = report.levels[-1].answer
         step_l = next_step(step_l, before, accuracy)
         t0 = time.perf_counter()
-        result = pickup(lv_body, contacts=lv_contacts, step=step_l, lift_test_step=h0 * step_l / s0, **kwargs)
+        result = pickup(lv_body, opts.replace(contacts=lv_contacts, step=step_l, lift_test_step=h0 * step_l / s0),
+                        settings=settings)
         ans = answer_of(result, time.perf_counter() - t0)
         change = {"squeeze_depth": relative_change(before.squeeze_depth, ans.squeeze_depth),
                   "finger_force": relative_change(before.finger_force, ans.finger_force)}

@@ -17,7 +17,7 @@ process and kept:
 
 A factorised body does not pickle (the factor is a CHOLMOD or SuperLU object), so what travels between
 processes is a :class:`SearchSetup`: plain arrays (the posed mesh, the material, the resting contact set)
-and the pickup settings, a few hundred kilobytes for the paper's objects.  :func:`evaluator_for` builds the
+and the grasp's shared options (:class:`~fem_grasp.grasp.options.PickupOptions`), a few hundred kilobytes for the paper's objects.  :func:`evaluator_for` builds the
 :class:`Evaluator` of a setup the first time a process needs it and keeps it (a process keeps the last
 :data:`KEEP_EVALUATORS`).  Everything runs on one BLAS thread, in every process, so that a search gives
 the same numbers serially and on a cluster.
@@ -46,12 +46,13 @@ from ..elastic.body import FULL_COLUMNS_MAX_NODES, Body
 from ..elastic.response import ContactResponse
 from ..mesh.tetmesh import TetMesh
 from .candidates import Candidate
+from .options import PickupOptions
 from .pickup import PickupResult, pickup
 from .pose import RestingPose
 from .rest import RestState
 
 __all__ = ["COLUMN_BATCH", "Evaluator", "KEEP_EVALUATORS", "REST_RTOL", "ROW_COLUMNS", "SHARED_COLUMNS_BYTES",
-           "SearchSetup", "error_row", "evaluate", "evaluator_for", "one_thread", "result_row"]
+           "SHARED_OPTIONS", "SearchSetup", "error_row", "evaluate", "evaluator_for", "one_thread", "result_row"]
 
 #: Above this many bytes of compliance columns (every surface node's three, all kept rows) the columns are not
 #: shared: each pickup starts from an empty column cache on the shared factorisation.
@@ -63,6 +64,12 @@ COLUMN_BATCH = 200
 KEEP_EVALUATORS = 2
 #: The rebuilt resting state must reproduce the shipped contact forces to this, relative to mg + Σ|f|.
 REST_RTOL = 1e-8
+
+#: The options every candidate of a search shares (a :class:`SearchSetup`'s); the others are the candidate's
+#: (``contacts``, ``directions``, ``ratio``, ``max_squeeze``) or not run per candidate (the placement rule, the
+#: accuracy loop).
+SHARED_OPTIONS = ("mu_finger", "mu_table", "finger_radius", "step", "lift_test_step", "max_lift", "lift",
+                  "max_lift_attempts", "backend")
 
 #: The columns of a result row: name → (kind, description).  Lengths in metres, forces in newtons, angles in
 #: degrees.  Per-finger forces are those of the final snapshot (at lift-off when picked up), measured as in
@@ -151,8 +158,9 @@ class SearchSetup:
     name : the object's name (for messages)
     points, tets : the posed body's mesh (the node numbering of every candidate)
     young, poisson, density, gravity : its material
-    mu_finger, mu_table, finger_radius : friction coefficients and the fingertip radius
-    step, lift_test_step, max_lift, lift, max_lift_attempts, backend : :func:`~fem_grasp.grasp.pickup` settings
+    options : the :class:`~fem_grasp.grasp.options.PickupOptions` every candidate shares (:data:`SHARED_OPTIONS`;
+        ``mu_table`` is the resting state's); each candidate adds its contacts, directions, ratio and maximum
+        squeeze
     table_z, rest_nodes, rest_forces, rest_displacements, rest_sliding, support_triangle, pose_rotation,
     pose_translation, pose_margin, rest_iterations, rest_time : the resting state
     key : a digest of what the answers depend on (not the name, nor what is re-solved from the rest)
@@ -165,15 +173,7 @@ class SearchSetup:
     poisson: float
     density: float
     gravity: float
-    mu_finger: float
-    mu_table: float
-    finger_radius: float
-    step: float | None
-    lift_test_step: float | None
-    max_lift: float | None
-    lift: bool
-    max_lift_attempts: int
-    backend: str
+    options: PickupOptions
     table_z: float
     rest_nodes: np.ndarray
     rest_forces: np.ndarray
@@ -188,19 +188,19 @@ class SearchSetup:
     key: str = ""
 
     @classmethod
-    def from_rest(cls, rest_state: RestState, *, name: str = "object", mu_finger: float, finger_radius: float,
-                  step: float | None = None, lift_test_step: float | None = None, max_lift: float | None = None,
-                  lift: bool = True, max_lift_attempts: int = 4, backend: str = "sparse") -> "SearchSetup":
-        """The setup of a search on the object resting in ``rest_state``."""
+    def from_rest(cls, rest_state: RestState, *, name: str = "object", options: PickupOptions | None = None,
+                  **overrides: Any) -> "SearchSetup":
+        """The setup of a search on the object resting in ``rest_state``, with ``options`` (default: the defaults)
+        changed by ``overrides`` (:meth:`PickupOptions.from_overrides`); only :data:`SHARED_OPTIONS` are kept, and
+        ``mu_table`` is the resting state's."""
+        given = PickupOptions.from_overrides(overrides, base=options)
+        shared = PickupOptions(**{k: getattr(given, k) for k in SHARED_OPTIONS}).replace(
+            mu_table=float(rest_state.mu_table))
         body = rest_state.body
         fields = dict(
             name=str(name), points=np.array(body.mesh.points, dtype=float), tets=np.array(body.mesh.tets, dtype=np.int64),
             young=float(body.young), poisson=float(body.poisson), density=float(body.density),
-            gravity=float(body.gravity), mu_finger=float(mu_finger), mu_table=float(rest_state.mu_table),
-            finger_radius=float(finger_radius), step=None if step is None else float(step),
-            lift_test_step=None if lift_test_step is None else float(lift_test_step),
-            max_lift=None if max_lift is None else float(max_lift), lift=bool(lift),
-            max_lift_attempts=int(max_lift_attempts), backend=str(backend), table_z=float(rest_state.table_z),
+            gravity=float(body.gravity), table_z=float(rest_state.table_z),
             rest_nodes=np.array(rest_state.contact_nodes, dtype=np.int64),
             rest_forces=np.array(rest_state.contact_forces, dtype=float),
             rest_displacements=np.array(rest_state.contact_displacements, dtype=float),
@@ -211,9 +211,12 @@ class SearchSetup:
             pose_margin=float(rest_state.pose.margin), rest_iterations=int(rest_state.iterations),
             rest_time=float(rest_state.wall_time))
         # the key names what the answers depend on: not the name, the rest's timing, or what the worker re-solves
-        # (the forces and the margin, equal to round-off whether the rest was computed or read from a cache)
-        key = _digest(*(v for k, v in sorted(fields.items())
+        # (the forces and the margin, equal to round-off whether the rest was computed or read from a cache); the
+        # options enter by name, each as a plain value
+        named = {**fields, **{k: getattr(shared, k) for k in SHARED_OPTIONS}}
+        key = _digest(*(v for k, v in sorted(named.items())
                         if k not in ("name", "rest_time", "rest_iterations", "rest_forces", "pose_margin")))
+        fields["options"] = shared
         return cls(**fields, key=key)
 
 
@@ -240,28 +243,29 @@ class Evaluator:
             self.body = body
             surface = body.mesh.surface_nodes
             rows = 3 * (body.n_nodes if body.n_nodes <= FULL_COLUMNS_MAX_NODES else len(surface))
-            self.shared_columns = setup.backend == "sparse" and 3 * len(surface) * rows * 8 <= SHARED_COLUMNS_BYTES
-            if setup.backend == "sparse":
+            backend = setup.options.backend
+            self.shared_columns = backend == "sparse" and 3 * len(surface) * rows * 8 <= SHARED_COLUMNS_BYTES
+            if backend == "sparse":
                 body.gravity_compliance_field  # noqa: B018 - the factorisation and X G, once
                 if self.shared_columns:
                     for start in range(0, len(surface), COLUMN_BATCH):
                         body.compliance.prefetch(surface[start:start + COLUMN_BATCH])
             else:
                 body.spectral  # noqa: B018 - the eigendecomposition, once
-            self.rest = self._restore_rest(body) if self.shared_columns or setup.backend != "sparse" else None
+            self.rest = self._restore_rest(body) if self.shared_columns or backend != "sparse" else None
         self.setup_time = time.perf_counter() - t0
 
     def _restore_rest(self, body: Body) -> RestState:
         """The resting state on ``body`` from the setup's contact set (one solve), checked against the shipped forces."""
         s = self.setup
-        sol = ContactResponse(body, s.rest_nodes, backend=s.backend).solve(s.rest_displacements)
+        sol = ContactResponse(body, s.rest_nodes, backend=s.options.backend).solve(s.rest_displacements)
         scale = body.weight + float(np.abs(s.rest_forces).sum())
         apart = float(np.abs(sol.forces - s.rest_forces).max()) if len(s.rest_nodes) else 0.0
         if apart > REST_RTOL * scale:
             raise ValueError(f"the resting state of {s.name} does not re-solve to its forces ({apart:.3g} N apart); "
                              "the setup and this process's fem_grasp disagree")
         pose = RestingPose(body, s.support_triangle, s.pose_rotation, s.pose_translation, s.pose_margin, None)
-        state = RestState(body, s.table_z, s.mu_table, sol.positions, sol.displacements, s.rest_nodes, sol.forces,
+        state = RestState(body, s.table_z, s.options.table_friction, sol.positions, sol.displacements, s.rest_nodes, sol.forces,
                           s.rest_displacements, s.rest_sliding, s.support_triangle, [], s.rest_iterations,
                           s.rest_time, pose, sol)
         state.check()
@@ -276,12 +280,9 @@ class Evaluator:
             else:  # columns too large to share: a fresh column cache on the shared factor
                 body = self.body.transformed()
                 rest_state = self._restore_rest(body)
-            return pickup(body, mu_finger=s.mu_finger, mu_table=s.mu_table, finger_radius=s.finger_radius,
-                          contacts=candidate.finger_nodes, directions=candidate.directions, ratio=candidate.ratio,
-                          max_squeeze=candidate.max_squeeze, step=s.step, backend=s.backend, rest_state=rest_state,
-                          lift_test_step=s.lift_test_step, max_lift=s.max_lift, lift=s.lift,
-                          max_lift_attempts=s.max_lift_attempts)
-
+            options = s.options.replace(contacts=candidate.finger_nodes, directions=candidate.directions,
+                                        ratio=candidate.ratio, max_squeeze=candidate.max_squeeze)
+            return pickup(body, options, rest_state=rest_state)
 
 #: This process's evaluators, by setup key (oldest first).
 _EVALUATORS: "OrderedDict[str, Evaluator]" = OrderedDict()

@@ -66,37 +66,27 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from ..contact.obstacles import DEFAULT_RADIUS, FINGER1, FINGER2
+from ..contact.obstacles import FINGER1, FINGER2
 from ..contact.tracking import ContactEvent, ContactState, Tracker
 from ..contact.warm_up import prepare_kernels
 from ..elastic.body import Body
-from ..errors import ContactNodeError, PickupCheckError, SceneError, TrackingError
+from ..errors import ContactNodeError, PickupCheckError, TrackingError
 from ..settings import EngineSettings
-from ..validation import check_finger_friction, check_friction, check_positive
 from .closure import placement_closure
 from .default_contacts import default_finger_contacts, default_max_squeeze
 from .lift import lift as run_lift
 from .lift_test import LiftTest
-from .placement import (
-    DEFAULT_PLACEMENT_RULE,
-    PAPER_SQUEEZE_DIRECTIONS,
-    check_contact_nodes,
-    check_directions,
-    check_finger_placement,
-)
+from .options import DEFAULT_FRICTION, PickupOptions
+from .placement import check_contact_nodes, check_directions, check_finger_placement
 from .rest import RestState, rest
 from .results import OUTCOMES, LiftAttempt, PickupResult, Snapshot
 from .rigid import rigid_grasp
 from .squeeze import initial_state, squeeze
 
-__all__ = ["DEFAULT_FRICTION", "OUTCOMES", "LiftAttempt", "PickupCheckError", "PickupResult", "Snapshot",
-           "default_finger_contacts", "default_max_squeeze", "pickup"]
+__all__ = ["DEFAULT_FRICTION", "OUTCOMES", "LiftAttempt", "PickupCheckError", "PickupOptions", "PickupResult",
+           "Snapshot", "default_finger_contacts", "default_max_squeeze", "pickup"]
 
 log = logging.getLogger(__name__)
-
-#: Friction coefficient used when none is given.
-DEFAULT_FRICTION = 0.5
-
 
 def _initial_stiffness(tracker: Tracker, placed: ContactState, velocities: np.ndarray) -> float:
     """k₀: rate of the normal force at the initial contact of finger 1 per unit ρ, N/m.
@@ -119,14 +109,8 @@ def _initial_stiffness(tracker: Tracker, placed: ContactState, velocities: np.nd
 
 
 # =================================================================== pickup
-def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None = None,
-           finger_radius: float = DEFAULT_RADIUS, contacts: tuple[int, int] | None = None,
-           directions: tuple[np.ndarray, np.ndarray] = PAPER_SQUEEZE_DIRECTIONS, ratio: float = 1.0,
-           max_squeeze: float | None = None, step: float | None = None, backend: str = "sparse",
-           rest_state: RestState | None = None, lift_test_step: float | None = None,
-           max_lift: float | None = None, lift: bool = True, max_lift_attempts: int = 4,
-           placement_rule: str = DEFAULT_PLACEMENT_RULE, accuracy: float | None = None,
-           geometry: Any = None, settings: EngineSettings | None = None) -> PickupResult:
+def pickup(body: Body, options: PickupOptions | None = None, *, rest_state: RestState | None = None,
+           settings: EngineSettings | None = None, **overrides: Any) -> PickupResult:
     """Run Algorithm 1: will two hemispherical fingers pick ``body`` up from the table?
 
     Parameters
@@ -134,58 +118,48 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
     body : Body
         The object, in any orientation (it is posed on the table by
         :func:`fem_grasp.grasp.rest.rest`; ``result.body`` is the posed body).
-    mu_finger, mu_table : friction coefficients μ_ℱ, μ_𝒫 (module notes for defaults)
-    finger_radius : fingertip radius R, metres
-    contacts : (p_i, p_j), node indices of the posed body; default rule in the module notes
-    directions : squeeze directions (d̂₁, d̂₂)
-    ratio : s ≥ 0: ℱ₂ moves s ρ d̂₂ while ℱ₁ moves ρ d̂₁
-    max_squeeze, step : maximum squeeze depth and squeeze increment, metres (module notes)
-    backend : "sparse" or "spectral" (:class:`~fem_grasp.elastic.response.ContactResponse`)
-    rest_state : a resting state of ``body`` computed before (skips step 2)
-    lift_test_step : h of the lift test, newtons (default mg/20)
-    max_lift : maximum lift height, metres (default: the object's height)
-    lift : run step 5; with False the run stops when the lift test passes
-        (``success`` stays False and ``reason`` says the lift was not run)
-    placement_rule : how ``contacts`` are chosen when not given, "least-force" or
-        "centre-of-mass-height" (:func:`default_finger_contacts`)
-    max_lift_attempts : when a simulated lift fails (the object slides on a
-        finger, or friction cannot hold it), the squeeze resumes from the
-        lift-start state and the lift is tried again at the next passing lift
-        test (Algorithm 1 step 6, "go back to step 3"), up to this many lifts
-    accuracy : relative accuracy wanted of ρ* and the finger force (e.g. 0.05); None runs once on ``body``'s
-        mesh.  With a target, :func:`fem_grasp.grasp.accuracy.converged_pickup` refines the mesh at the contact
-        patches and the increments until two successive answers agree within it, and the result (the last
-        level's) carries the estimated error in ``result.accuracy``
-    geometry : what to remesh for ``accuracy`` (:class:`fem_grasp.mesh.remesh.Geometry`); default: the body's
-        boundary surface (:func:`fem_grasp.mesh.remesh.geometry_of_mesh`)
-    settings : the engine's numerical settings for the rest, squeeze, lift test and lift trackers
+    options : PickupOptions, optional
+        The grasp's options (:class:`~fem_grasp.grasp.options.PickupOptions`, which documents each with its
+        unit and default: friction μ_ℱ and μ_𝒫, fingertip radius R, contacts p_i, p_j, squeeze directions and
+        ratio s, maximum squeeze and its increment, lift-test step h, maximum lift, lift on or off, lift attempts,
+        placement rule, backend, accuracy target and its geometry).  Default: ``PickupOptions()``.
+    rest_state : RestState, optional
+        A resting state of ``body`` computed before (skips step 2; with ``accuracy``, level 0 only).
+    settings : EngineSettings, optional
+        The engine's numerical settings for the rest, squeeze, lift test and lift trackers
         (:class:`~fem_grasp.settings.EngineSettings`; default: the engine's defaults); the same at every level of
-        an ``accuracy`` refinement
+        an ``accuracy`` refinement.
+    **overrides
+        Fields of ``options`` changed by name, e.g. ``pickup(body, mu_finger=0.32, lift=False)``
+        (:meth:`PickupOptions.from_overrides`).  With ``accuracy`` set,
+        :func:`fem_grasp.grasp.accuracy.converged_pickup` refines the mesh at the contact patches and the
+        increments until two successive answers agree within it, and the result (the last level's) carries the
+        estimated error in ``result.accuracy``.
 
     Returns
     -------
     PickupResult
         ``success`` and ``reason``; see its attributes.  Failures are results.
+
+    Raises
+    ------
+    ValueError
+        An unknown option (naming it and the nearest known one) or a value out of range
+        (:class:`~fem_grasp.errors.SceneError` and its subclasses), before anything is solved; contact nodes
+        that are not surface nodes of the posed body (:class:`~fem_grasp.errors.ContactNodeError`).
     """
+    opts = PickupOptions.from_overrides(overrides, base=options)
     prepare_kernels()  # once per process: compile or load the kernels, or say they run as plain Python
-    if accuracy is not None:
+    if opts.accuracy is not None:
         from .accuracy import converged_pickup
 
-        return converged_pickup(body, solve=pickup, accuracy=accuracy, geometry=geometry, mu_finger=mu_finger, mu_table=mu_table,
-                                finger_radius=finger_radius, contacts=contacts, directions=directions, ratio=ratio,
-                                max_squeeze=max_squeeze, step=step, backend=backend, rest_state=rest_state,
-                                lift_test_step=lift_test_step, max_lift=max_lift, lift=lift,
-                                max_lift_attempts=max_lift_attempts, placement_rule=placement_rule,
-                                settings=settings)
+        return converged_pickup(body, solve=pickup, accuracy=opts.accuracy, geometry=opts.geometry, options=opts,
+                                rest_state=rest_state, settings=settings)
     t_start = time.perf_counter()
-    mu_f = check_finger_friction(DEFAULT_FRICTION if mu_finger is None else mu_finger, "mu_finger")
-    mu_t = mu_f if mu_table is None else check_friction(mu_table, "mu_table")
-    finger_radius = check_positive(finger_radius, "the fingertip radius R", "metres", SceneError)
-    if not ratio >= 0:
-        raise SceneError(f"the squeeze ratio s must be ≥ 0, got {ratio!r}")
-    if int(max_lift_attempts) < 1:
-        raise ValueError(f"max_lift_attempts must be ≥ 1, got {max_lift_attempts!r}")
-    d1, d2 = check_directions(*directions, ratio=ratio)
+    mu_f, mu_t = opts.mu_finger, opts.table_friction
+    finger_radius, ratio, backend = opts.finger_radius, opts.ratio, opts.backend
+    max_squeeze, step, max_lift = opts.max_squeeze, opts.step, opts.max_lift
+    d1, d2 = check_directions(*opts.directions, ratio=ratio)
     timings: dict[str, float] = {}
 
     # Step 2 (computed first: step 1 needs the resting shape).
@@ -202,10 +176,10 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
 
     # Step 1: force closure of p_i, p_j and the support-triangle centre.
     t0 = time.perf_counter()
-    if contacts is None:
+    if opts.contacts is None:
         try:
             ij, closure = default_finger_contacts(rs, d1, mu_f, mu_t, finger_radius, np.stack([d1, ratio * d2]),
-                                                  rule=placement_rule, max_squeeze=max_squeeze)
+                                                  rule=opts.placement_rule, max_squeeze=max_squeeze)
         except ValueError as exc:
             result.reason = str(exc) if str(exc).startswith("no finger placement") else \
                 f"no initial finger placement: {exc}"
@@ -214,7 +188,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
             timings["total"] = time.perf_counter() - t_start
             return result
     else:
-        ij = tuple(int(k) for k in check_contact_nodes(posed.mesh, rs.positions, contacts,
+        ij = tuple(int(k) for k in check_contact_nodes(posed.mesh, rs.positions, opts.contacts,
                                                           what="finger contact node"))
         if len(ij) != 2:
             raise ContactNodeError(f"give two finger contact nodes (p_i, p_j), got {len(ij)}")
@@ -264,7 +238,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
         step = min(0.02 * max_squeeze, max(rho_star / 20.0, 1e-3 * max_squeeze))
     result.max_squeeze = float(max_squeeze)
     result.step = float(step)
-    lt = LiftTest(hanging, posed.weight, lift_test_step)
+    lt = LiftTest(hanging, posed.weight, opts.lift_test_step)
     result.lift_test_step = float(lt.step)
     t_squeeze = t0
     timings["squeeze"] = timings["lift_test"] = timings["lift"] = 0.0
@@ -289,7 +263,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
         t0 = time.perf_counter()
         attempt = len(result.lift_attempts) + 1
         snap(sq.state, "lift start" if attempt == 1 else f"lift start (attempt {attempt})")
-        if not lift:
+        if not opts.lift:
             result.reason = "the lift test passed; the lift was not run (lift=False)"
             result.outcome = "lift not run"
             result.final = result.snapshots[-1]
@@ -304,7 +278,7 @@ def pickup(body: Body, *, mu_finger: float | None = None, mu_table: float | None
         result.events.extend(lf.events)
         result.lift_attempts.append(LiftAttempt(sq.state.squeeze_depth, lf.success, lf.reason,
                                                 lf.state.lift_height, len(lf.events)))
-        if lf.success or attempt >= max_lift_attempts or sq.state.squeeze_depth >= max_squeeze * (1 - 1e-9):
+        if lf.success or attempt >= opts.max_lift_attempts or sq.state.squeeze_depth >= max_squeeze * (1 - 1e-9):
             break
         # Algorithm 1 step 6, "otherwise go back to step 3": the simulated lift predicts a slip, so the
         # planner squeezes on from the lift-start state and tries again at the next passing lift test.

@@ -61,10 +61,9 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
 from ..elastic.fem import STANDARD_GRAVITY
 from ..errors import SceneError
+from ..grasp.options import PickupOptions
 from ..grasp.placement import DEFAULT_PLACEMENT_RULE
 from .quantities import check_quantity, parse_quantity
 from .quantities import parse_accuracy as parse_accuracy
@@ -82,13 +81,18 @@ from .scene_file import (
 from .scene_mesh import check_units, scene_mesh
 from .scene_run import pickup_scene
 
-__all__ = ["SCENE_DIR", "ObjectSpec", "Scene", "SceneError", "check_quantity", "load_scene", "parse_quantity",
-           "parse_scene", "pickup_scene", "resolve_scene", "run_scene", "shipped_scenes", "with_overrides"]
+__all__ = ["SCENE_DIR", "SCENE_PICKUP_OPTIONS", "ObjectSpec", "Scene", "SceneError", "check_quantity", "load_scene",
+           "parse_quantity", "parse_scene", "pickup_scene", "resolve_scene", "run_scene", "shipped_scenes", "with_overrides"]
 
 if TYPE_CHECKING:
     from ..elastic.body import Body
     from ..grasp.pickup import PickupResult
     from ..mesh.tetmesh import TetMesh
+
+#: The :class:`~fem_grasp.grasp.options.PickupOptions` fields a scene sets (:meth:`Scene.pickup_kwargs`): all but
+#: ``max_lift_attempts`` (the default), ``accuracy`` and ``geometry`` (added by a caller that refines).
+SCENE_PICKUP_OPTIONS = ("mu_finger", "mu_table", "finger_radius", "contacts", "directions", "ratio", "max_squeeze",
+                        "step", "backend", "lift_test_step", "max_lift", "lift", "placement_rule")
 
 
 # ------------------------------------------------------------------ model
@@ -184,17 +188,27 @@ class Scene:
 
         return remesh.geometry_of_scene(self)
 
-    def pickup_kwargs(self) -> dict[str, Any]:
-        """Keyword arguments of :func:`fem_grasp.grasp.pickup.pickup` (all but ``body`` and ``rest_state``).
+    def pickup_options(self) -> PickupOptions:
+        """The scene's options of :func:`fem_grasp.grasp.pickup.pickup`
+        (:class:`~fem_grasp.grasp.options.PickupOptions`: friction, fingers, solver): ``pickup(scene.body(),
+        scene.pickup_options())``.
 
-        ``accuracy`` is not among them: a caller that wants the converged answer passes
-        ``accuracy=scene.accuracy, geometry=scene.geometry()`` (the CLI does).
+        ``accuracy`` is not among them: a caller that wants the converged answer adds it,
+        ``scene.pickup_options().replace(accuracy=scene.accuracy, geometry=scene.geometry())`` (the CLI does,
+        except with ``--quick``).
         """
-        return {"mu_finger": self.mu_finger, "mu_table": self.mu_table, "finger_radius": self.finger_radius,
-                "contacts": self.contacts, "directions": tuple(np.array(d, float) for d in self.directions),
-                "ratio": self.ratio, "max_squeeze": self.max_squeeze, "step": self.step, "backend": self.backend,
-                "lift_test_step": self.lift_test_step, "max_lift": self.max_lift, "lift": self.lift,
-                "placement_rule": self.placement_rule}
+        return PickupOptions(mu_finger=self.mu_finger, mu_table=self.mu_table, finger_radius=self.finger_radius,
+                             contacts=self.contacts, directions=self.directions, ratio=self.ratio,
+                             max_squeeze=self.max_squeeze, step=self.step, lift_test_step=self.lift_test_step,
+                             max_lift=self.max_lift, lift=self.lift, placement_rule=self.placement_rule,
+                             backend=self.backend)
+
+    def pickup_kwargs(self) -> dict[str, Any]:
+        """:meth:`pickup_options` as keyword arguments of :func:`fem_grasp.grasp.pickup.pickup`, by name: the fields
+        a scene sets (all but ``max_lift_attempts``, ``accuracy`` and ``geometry``), for callers that change one
+        before the call (``pickup(body, **kw)``)."""
+        options = self.pickup_options()
+        return {name: getattr(options, name) for name in SCENE_PICKUP_OPTIONS}
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)

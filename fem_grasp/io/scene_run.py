@@ -45,11 +45,12 @@ def pickup_scene(scene: Scene, cache_dir: Path | None = None, phase: Any = None)
     refine = scene.accuracy is not None and not scene.quick
     with step("squeeze and lift, refining" if refine else "squeeze, lift test, lift"):
         try:
+            options = scene.pickup_options()
             if refine:
-                result = pickup(body, accuracy=scene.accuracy, geometry=scene.geometry(), rest_state=rs,
-                                **scene.pickup_kwargs())
+                result = pickup(body, options.replace(accuracy=scene.accuracy, geometry=scene.geometry()),
+                                rest_state=rs)
             else:
-                result = pickup(body, rest_state=rs, **scene.pickup_kwargs())
+                result = pickup(body, options, rest_state=rs)
                 from ..grasp.accuracy import single_run_report
 
                 # One run, always said so: not converged; the scene states how far such a run is from the converged

@@ -204,13 +204,11 @@ def test_a_unit_in_the_wrong_case_is_refused_with_the_intended_one(text, kind, w
 
 # ------------------------------------------------ the front door (issue 25, item 1)
 def test_one_default_placement_rule_for_python_and_the_scenes():
-    import inspect
-
-    from fem_grasp import pickup
+    from fem_grasp import PickupOptions
     from fem_grasp.grasp.placement import DEFAULT_PLACEMENT_RULE
 
     assert DEFAULT_PLACEMENT_RULE == objects.PAPER_PLACEMENT_RULE == "centre-of-mass-height"
-    assert inspect.signature(pickup).parameters["placement_rule"].default == DEFAULT_PLACEMENT_RULE
+    assert PickupOptions().placement_rule == DEFAULT_PLACEMENT_RULE  # what pickup(body) runs with
     scene = load_scene(_write_box_scene_without_contacts())
     assert scene.placement_rule == DEFAULT_PLACEMENT_RULE and scene.contacts is None
 
