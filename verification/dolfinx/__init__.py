@@ -183,12 +183,12 @@ def stage_refinement(cfg: dict, rng: np.random.Generator) -> list[dict]:
         mesh_seconds = time.perf_counter() - t0
         body = Body(mesh, young, nu, weight=weight)
         native = mesh.n_points <= cfg["sparse_contact_max_vertices"] or has_cholmod()
-        # Beyond SuperLU's reach, fem_grasp's sparse backend runs with its factorisation swapped for MUMPS.
+        # Beyond SuperLU's reach, fem_grasp's sparse backend factorises with MUMPS (its own solver setting).
         with contextlib.nullcontext() if native else fem_grasp_factorization_by_mumps():
             res = crosscheck.crosscheck_mesh(body, rng, eigen=mesh.n_points <= cfg["eigen_max_vertices"],
                                              spectral=mesh.n_points <= cfg["spectral_max_vertices"])
         results.append(_label(res, f"{name} h={size * 1e3:.3g} mm", mesh_seconds=mesh_seconds,
-                              sparse_factorization="fem_grasp default" if native else "MUMPS (patched in)"))
+                              sparse_factorization="fem_grasp default" if native else "MUMPS (FEM_GRASP_SOLVER=mumps)"))
         print(f"  {name} level {i}: {mesh.n_points} vertices, K {res['K_rel_diff']:.1e}, "
               f"energy {res['energy_rel_diff']:.1e}, null {res['null_fem_grasp']:.1e}", flush=True)
     return results
@@ -209,8 +209,8 @@ def run(quick: bool, out_dir: Path, stages: Stages) -> tuple[dict[str, Any], dic
     stages.run("paper objects", lambda: stage_paper(cfg, rng, out_dir, images),
                lambda v: cross.__setitem__("paper", v))
     cross["refinement_object"] = cfg["refinement_object"]
-    big = (f"above {cfg['sparse_contact_max_vertices']:,} vertices its SuperLU factorisation is swapped for MUMPS "
-           "(everything else is fem_grasp's own code): SuperLU needs minutes and gigabytes there and CHOLMOD is "
+    big = (f"above {cfg['sparse_contact_max_vertices']:,} vertices it factorises with MUMPS instead of SuperLU "
+           "(the package's solver setting FEM_GRASP_SOLVER; everything else as by default): SuperLU needs minutes and gigabytes there and CHOLMOD is "
            "absent" if not has_cholmod() else "natively (CHOLMOD present)")
     cross["refinement_note"] = (
         f"The sparse backend runs at every size; {big}. The spectral backend (dense O(n³)) runs up to "

@@ -10,12 +10,13 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
 from typing import Callable, Iterator
 
 import numpy as np
 import scipy.sparse as sp
 
-from fem_grasp.elastic.compliance import factorize as _package_factorize  # bound before any swap below
+from fem_grasp.elastic.compliance import factorize as _package_factorize
 
 log = logging.getLogger(__name__)
 
@@ -104,14 +105,24 @@ def fem_grasp_factorization_by_mumps() -> Iterator[None]:
 
     Everything else in the backend (grounding, compliance columns, the
     bordered system of eq. (3)) stays fem_grasp's own; only the sparse
-    factorisation is swapped, so that contact solves on meshes of 50 000+
-    vertices finish in seconds without CHOLMOD.
+    factorisation changes, so that contact solves on meshes of 50 000+
+    vertices finish in seconds without CHOLMOD.  The choice is the package's
+    own setting (``$FEM_GRASP_SOLVER``, read at each factorisation), not a
+    replaced function.
     """
-    import fem_grasp.elastic.compliance as compliance
+    from fem_grasp.elastic.compliance import SOLVER_ENV
 
-    original = compliance.factorize
-    compliance.factorize = factorized
+    try:
+        import petsc4py  # noqa: F401
+    except ImportError:  # pragma: no cover - dolfinx brings petsc4py
+        yield
+        return
+    before = os.environ.get(SOLVER_ENV)
+    os.environ[SOLVER_ENV] = "mumps"
     try:
         yield
     finally:
-        compliance.factorize = original
+        if before is None:
+            os.environ.pop(SOLVER_ENV, None)
+        else:
+            os.environ[SOLVER_ENV] = before
