@@ -9,7 +9,7 @@ Stages
   strain energies of random fields, the six rigid modes, the smallest eigenvalues and contact solves of both
   fem_grasp backends against a dolfinx/PETSc Dirichlet solve — on the test suite's small meshes, on the four
   paper objects (Table I's material and weight, with pictures) and on a refinement series up to 50,000
-  vertices (:mod:`.linalg` swaps fem_grasp's SuperLU for MUMPS where SuperLU is out of reach).
+  vertices (:mod:`.linalg` has fem_grasp factorise with MUMPS, its own solver setting, where SuperLU is out of reach).
 * **Manufactured solutions** (:mod:`.manufactured`, :mod:`.quadrature`): convergence rates of fem_grasp P1,
   dolfinx P1 and dolfinx P2 on the unit box.
 * **Locking**: a divergence-free manufactured field and a cantilever under gravity for ν → ½.
