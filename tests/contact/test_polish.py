@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 
 from fem_grasp.contact import relaxation
-from fem_grasp.contact.kernels import jit
 from fem_grasp.settings import DEFAULT_SETTINGS
 from tests.helpers import JITTER_SEEDS, assert_same_relaxation, relaxation_problems
 
@@ -23,7 +22,7 @@ POLISH_AGREEMENT = 1e-9
 
 def test_both_polishes_take_their_iteration_limits_from_the_settings(monkeypatch):
     """Each polish of the test problems that converges with the default limits converges in neither path with no
-    Newton iteration allowed; the default is the compiled kernel where numba is installed."""
+    Newton iteration allowed; the default (None) is the compiled kernel where numba is installed."""
     calls, _ = _polish_calls(monkeypatch, None)
     monkeypatch.undo()
     s = DEFAULT_SETTINGS
@@ -33,7 +32,7 @@ def test_both_polishes_take_their_iteration_limits_from_the_settings(monkeypatch
     for args in converging:
         assert relaxation._compiled_polish(*args, default) is not None
         assert relaxation._polish(*args, none) is None and relaxation._compiled_polish(*args, none) is None
-    assert DEFAULT_SETTINGS.compiled_polish is None and jit.ENABLED
+    assert DEFAULT_SETTINGS.compiled_polish is None  # compiled where numba is installed
 
 
 def _outcome(args, kwargs):
