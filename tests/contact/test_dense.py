@@ -73,3 +73,13 @@ def test_the_factors_are_scipys_and_the_solutions_agree(mode):
         ref = scipy.linalg.lu_solve((ref_lu, ref_piv), b)
         np.testing.assert_allclose(x, ref, rtol=0, atol=1e-12 * np.abs(ref).max())
     assert singular > 0  # an exactly zero pivot is reported (the callers stop before dividing by it)
+
+
+def test_an_empty_system_factorises_to_empty_factors():
+    """A polish with no unknowns left asks for the factors of a 0 × 0 matrix: empty factors and pivots, info 0, on
+    every path (older scipy's dgetrf refuses the empty matrix itself)."""
+    from fem_grasp.contact.kernels import dense
+
+    lu, piv, info = dense.lu_factor(np.zeros((0, 0)))
+    assert lu.shape == (0, 0) and piv.shape == (0,) and info == 0
+    assert dense.lu_solve(lu, piv, np.zeros(0)).shape == (0,)

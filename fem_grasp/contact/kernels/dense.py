@@ -28,6 +28,8 @@ ENTRY_POINTS = ("lu_solve",)
 def lu_factor(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
     """(LU factors, 0-based pivots, info) of a square matrix by LAPACK's dgetrf (info > 0: an exactly zero pivot
     U[info−1, info−1]; the factors are then incomplete)."""
+    if a.shape[0] == 0:  # older scipy's dgetrf refuses an empty matrix (its leading dimension 0)
+        return np.array(a, dtype=float), np.zeros(0, np.int64), 0
     lu, piv, info = scipy.linalg.lapack.dgetrf(a)
     return lu, piv.astype(np.int64), int(info)
 
