@@ -195,12 +195,12 @@ class EngineSettings:
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
-            kind = _KINDS[f.name]
-            if kind is bool:
-                optional = f.name in ("compiled_trials", "compiled_polish")
+            kind, _, rest = str(f.type).partition("|")  # the annotation says the kind: "int", "float", "bool | None"
+            kind, optional = kind.strip(), "None" in rest
+            if kind == "bool":
                 ok = isinstance(value, bool) or (value is None and optional)
                 want = "True or False" + (" or None" if optional else "")
-            elif kind is int:
+            elif kind == "int":
                 ok = isinstance(value, int) and not isinstance(value, bool) and value >= 0
                 want = "a whole number ≥ 0"
             else:
@@ -232,12 +232,6 @@ class EngineSettings:
         return {f.name: getattr(self, f.name) for f in fields(self) if getattr(self, f.name) != getattr(default, f.name)}
 
 
-_KINDS: dict[str, type] = {"compiled_trials": bool, "neighbour_updates": bool, "compiled_polish": bool, **{
-    name: int for name in ("increment_halvings", "implicit_contacts", "max_settle_toggles", "chatter_toggles",
-                           "crawl_toggles", "response_cache", "response_cache_bytes", "zero_field_cache",
-                           "latest_fields", "prefetch_nodes", "drift_sweeps", "growth_sweeps", "stuck_sweeps",
-                           "stall_sweeps", "polish_iterations", "polish_halvings", "load_halvings")}}
-_KINDS.update({f.name: float for f in fields(EngineSettings) if f.name not in _KINDS})
 
 #: The engine's defaults (what a :class:`~fem_grasp.contact.tracking.Tracker` built without settings uses).
 DEFAULT_SETTINGS = EngineSettings()
