@@ -364,10 +364,13 @@ def _tracked_rest(posed: Body, table: TablePlane, triangle: np.ndarray, mu: floa
         last[0], last[1] = st, tracker.solves
         return False
 
+    def settled_step(st: ContactState, ev: list[ContactEvent]) -> None:  # a settle: its events, then its end
+        on_event(st, ev)
+        after_step(st, ev)
+
     with one_blas_thread():
         settled, ev = tracker.settle(state, still, phase="rest", param=Parameter.LOAD)
-        on_event(settled, ev)
-        after_step(settled, ev)
+        settled_step(settled, ev)
         if load_ramp and first == 0.0 and settled.load < LOAD_STEP < 1.0:
             # Proportional loading up to the next event: the stick/slip/release configuration found at START_LOAD
             # is that of the first load step too (the tracker's first increment would otherwise be 1e7 times its
@@ -380,8 +383,7 @@ def _tracked_rest(posed: Body, table: TablePlane, triangle: np.ndarray, mu: floa
                                         centers=centers, nodes=settled.nodes, owner=settled.owner, disp=base,
                                         sliding=settled.sliding)
             settled, ev = tracker.settle(scaled, still, phase="rest", param=Parameter.LOAD)
-            on_event(settled, ev)
-            after_step(settled, ev)
+            settled_step(settled, ev)
     final = settled
     if load_ramp:
         final, _, _ = run(tracker, settled, still, stop=1.0, step=LOAD_STEP, param=Parameter.LOAD, phase="rest",
