@@ -57,7 +57,7 @@ def capture(scene_name: str, out: Path, quick: bool = False) -> list[tuple]:
 
 
 def _watch_polish(relaxation: Any) -> tuple[list[tuple[bool, list]], Any]:
-    """Wrap the relaxation's polish to record, per attempt, whether it converged and the step fractions
+    """Wrap the relaxation's polish to record, per attempt, whether it converged with its statuses holding and the step fractions
     its line search took (None: no decrease); returns the records and a function that unwraps."""
     polish, backtrack = relaxation._polish, relaxation._backtrack
     records: list[tuple[bool, list]] = []
@@ -71,7 +71,7 @@ def _watch_polish(relaxation: Any) -> tuple[list[tuple[bool, list]], Any]:
     def watched_polish(*args: Any, **kwargs: Any) -> Any:
         steps.clear()
         out = polish(*args, **kwargs)
-        records.append((out is not None, list(steps)))
+        records.append((out is not None and out.holds, list(steps)))
         return out
 
     relaxation._polish, relaxation._backtrack = watched_polish, watched_backtrack

@@ -142,6 +142,11 @@ class EngineSettings:
     compiled_polish : bool or None
         The polish runs as one compiled kernel (True) or as its numpy reference (False); None: compiled where
         numba is installed.  The two differ by round-off only.
+    polish_adoptions : int
+        Times per return mapping that the sweeps go on from a polish that converged to a state where some status
+        does not hold (a sticking contact just outside its cone, say), rather than from where they were: the
+        sweeps then put the few wrong statuses right and the next polish usually holds (4; 0: a polish whose
+        statuses do not hold is discarded).
     load_halvings : int
         Lift test (:mod:`~fem_grasp.grasp.lift_test`): halvings of a load step with no static state before the
         weight counts as not held (3, steps down to h/8: they resolve the load path near the weight a finger lets
@@ -189,6 +194,7 @@ class EngineSettings:
     polish_halvings: int = 4
     chord_contraction: float = 0.25
     compiled_polish: bool | None = None
+    polish_adoptions: int = 4
     # the lift test (grasp.lift_test)
     load_halvings: int = 3
 

@@ -26,12 +26,17 @@ from . import dense
 from . import gauss_seidel as gs
 from .jit import jit
 
-__all__ = ["ENTRY_POINTS", "polish"]
+__all__ = ["ENTRY_POINTS", "FAILED", "HOLDS", "VIOLATED", "polish"]
 
 #: The kernels called from Python (what a warm-up must reach).
 ENTRY_POINTS = ("polish",)
 
 _SLIDE, _RELEASE, _STICK = gs.SLIDE, gs.RELEASE, gs.STICK
+
+#: Outcomes of :func:`polish`: no root of the smooth system found; a root at which every status holds; a root at
+#: which some status does not hold (a sticking contact outside its cone, a sliding one pulling or turned back, a
+#: released one inside its obstacle): the sweeps go on from it.
+FAILED, HOLDS, VIOLATED = 0, 1, 2
 
 
 @jit
@@ -127,7 +132,9 @@ def polish(rec, c, f0, mu, status, d, u, tol, stick_tol, max_slip, iterations, h
 
     Returns
     -------
-    (converged and the statuses still hold, δ (m, 3), u (m, 2), forces (m, 3))
+    (outcome, δ (m, 3), u (m, 2), forces (m, 3)): outcome :data:`FAILED` (δ, u and the forces as given),
+    :data:`HOLDS` (converged, the statuses hold) or :data:`VIOLATED` (converged, but some status does not hold
+    at the polished state, which is returned)
     """
     m = f0.shape[0]
     q = 0
@@ -135,7 +142,7 @@ def polish(rec, c, f0, mu, status, d, u, tol, stick_tol, max_slip, iterations, h
         if status[k] != _STICK:
             q += 1
     if q == 0:
-        return False, d, u, f0
+        return FAILED, d, u, f0
     act = np.empty(q, np.int64)
     slide = np.zeros(q, np.bool_)
     offs = np.zeros(q + 1, np.int64)
@@ -167,11 +174,11 @@ def polish(rec, c, f0, mu, status, d, u, tol, stick_tol, max_slip, iterations, h
         if fresh_lu:
             lu, piv, info = dense.lu_factor(jac)  # LAPACK's factors, as scipy's lu_factor
             if info > 0:
-                return False, d, u, f0  # exactly singular
+                return FAILED, d, u, f0  # exactly singular
             have_lu = True
         step = -dense.lu_solve(lu, piv, r)
         if not np.isfinite(step).all():
-            return False, d, u, f0
+            return FAILED, d, u, f0
         # Armijo backtracking on |r| down to 1/8 (a shorter step means wrong statuses: the sweeps go on).
         lam = 1.0
         found = False
@@ -183,7 +190,7 @@ def polish(rec, c, f0, mu, status, d, u, tol, stick_tol, max_slip, iterations, h
             lam *= 0.5
         if not found:
             if fresh_lu:
-                return False, d, u, f0
+                return FAILED, d, u, f0
             have_lu = False  # an old Jacobian's step: retry from a new one
             r, f, dd, jac = _evaluate(x, rec, c, f0, mu, d, act, slide, offs, True)
             continue
@@ -193,9 +200,10 @@ def polish(rec, c, f0, mu, status, d, u, tol, stick_tol, max_slip, iterations, h
             have_lu = False
             r, f, dd, jac = _evaluate(x, rec, c, f0, mu, d, act, slide, offs, True)
     if not converged:
-        return False, d, u, f0
+        return FAILED, d, u, f0
     # The statuses must still hold at the polished state.
     u2 = u.copy()
+    violated = False
     for i in range(q):
         k = act[i]
         o = offs[i]
@@ -204,17 +212,17 @@ def polish(rec, c, f0, mu, status, d, u, tol, stick_tol, max_slip, iterations, h
             fn = f[k, 0] * motion[3] + f[k, 1] * motion[4] + f[k, 2] * motion[5]
             ul = math.sqrt(x[o] * x[o] + x[o + 1] * x[o + 1])
             if not (fn > 0.0 and 0.0 < ul <= max_slip):
-                return False, d, u, f0
+                violated = True
             u2[k, 0], u2[k, 1] = x[o], x[o + 1]
         else:
             along = x[o] * rec[k, gs.REC_N0] + x[o + 1] * rec[k, gs.REC_N0 + 1] + x[o + 2] * rec[k, gs.REC_N0 + 2]
             if along < 0.0 and not gs.outside_sphere(rec[k], x[o], x[o + 1], x[o + 2]):
-                return False, d, u, f0
+                violated = True
     for k in range(m):
         if status[k] == _STICK:
             n0, n1, n2 = rec[k, gs.REC_N0], rec[k, gs.REC_N0 + 1], rec[k, gs.REC_N0 + 2]
             fn = f[k, 0] * n0 + f[k, 1] * n1 + f[k, 2] * n2
             t0, t1, t2 = f[k, 0] - fn * n0, f[k, 1] - fn * n1, f[k, 2] - fn * n2
             if fn < 0.0 or math.sqrt(t0 * t0 + t1 * t1 + t2 * t2) > mu[k] * fn + stick_tol:
-                return False, d, u, f0
-    return True, dd, u2, f
+                violated = True
+    return (VIOLATED if violated else HOLDS), dd, u2, f
