@@ -86,6 +86,12 @@ Sections (``--only NAME``, repeatable; default all):
     references are read from the study's cache (``--converge-quick``: its
     quick study), and an object without one is skipped
     (``--accuracy-compute`` computes it: hours, minutes for the quick study).
+``divisions``
+    Per shipped scene, the pickup at its squeeze increment s, at s with the
+    increment in which the lift test passes divided in four
+    (``PickupOptions.step_divisions``) and at s/4 throughout: ρ*, Σ f·n̂, each
+    finger's resultant against the s/4 run, lift tests and time
+    (:mod:`bench.divisions`).
 
 Medians over ``--reps`` repetitions.  Prints tables and writes
 ``bench/out/bench.json`` (sections run earlier are kept when ``--only`` runs
@@ -117,7 +123,7 @@ log = logging.getLogger("bench")
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "bench" / "out" / "bench.json"
 SECTIONS = ("solve", "scaling", "objects", "spectral", "jit", "columns", "floor", "search", "converge", "tracker",
-            "accuracy")
+            "accuracy", "divisions")
 SOLVE_SIZES = (10000, 50000)
 #: The uniform oranges of the tracker section (10k: the target is ≥ 5× faster than the baseline; 100k reported).
 TRACKER_LARGE = (10000, 100000)
@@ -912,6 +918,12 @@ def _print_tracker(sec: dict[str, Any]) -> None:
     print_tracker(sec)
 
 
+def _print_divisions(sec: dict[str, Any]) -> None:
+    from bench.divisions import print_divisions
+
+    print_divisions(sec)
+
+
 def print_search(sec: dict[str, Any]) -> None:
     from bench.search import print_search as show
 
@@ -920,7 +932,8 @@ def print_search(sec: dict[str, Any]) -> None:
 
 PRINTERS = {"solve": print_solve, "scaling": print_scaling, "objects": print_objects, "spectral": print_spectral,
             "jit": print_jit, "columns": print_columns, "floor": print_floor, "search": print_search,
-            "converge": print_converge, "tracker": _print_tracker, "accuracy": print_accuracy}
+            "converge": print_converge, "tracker": _print_tracker, "accuracy": print_accuracy,
+            "divisions": _print_divisions}
 
 
 
@@ -1001,6 +1014,10 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         elif name == "accuracy":
             data["accuracy"] = section_accuracy(args.accuracy_cap, args.converge_quick, args.accuracy_compute,
                                                 tuple(args.accuracy_objects))
+        elif name == "divisions":
+            from bench.divisions import measure
+
+            data["divisions"] = measure(reps=args.reps)
         elif name == "floor":
             data["floor"] = section_floor([s for s in SCALING_SIZES if s <= args.max_vertices], args.reps,
                                           data.get("scaling"))

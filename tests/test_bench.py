@@ -388,3 +388,18 @@ def test_the_accuracy_section_runs_a_shipped_scene_in_a_subprocess_within_its_ca
     assert raw["vertices"] == scene.load_mesh().n_points and raw["levels"] == 1 and raw["seconds"] > 0
     assert raw["stated"] == {"squeeze_depth": scene.expected_error, "finger_force": scene.expected_error}
     assert bench.run_accuracy_worker("foam_block", "one_level", cap=0.5) == {"status": "cap", "cap_s": 0.5}
+
+
+def test_the_divisions_section_measures_the_three_increments_of_a_scene(capsys):
+    """One shipped scene, one repetition: the divided increment's ρ* lies within one sub-increment of the s/4 run's,
+    it runs fewer lift tests than s/4, and the table prints its distance in sub-increments."""
+    from bench import divisions
+
+    sec = divisions.measure(("football",), divisions=4, reps=1)
+    sc = sec["scenes"]["football"]
+    rows = sc["rows"]
+    assert set(rows) == {"s", "s divided", "s/4"}
+    assert abs(rows["s divided"]["squeeze_depth"] - rows["s/4"]["squeeze_depth"]) <= sc["step"] / 4 * (1 + 1e-9)
+    assert rows["s divided"]["lift_tests"] < rows["s/4"]["lift_tests"]
+    divisions.print_divisions(sec)
+    assert "sub-increments" in capsys.readouterr().out

@@ -59,7 +59,7 @@ from .options import PickupOptions
 
 __all__ = ["GraspAnswer", "AccuracyLevel", "AccuracyReport", "answer_of", "patch_points", "estimate",
            "single_run_report", "next_step", "estimated_error",
-           "relative_change", "converged_pickup", "LEVEL_RATIO", "DEFAULT_ACCURACY", "MAX_LEVELS",
+           "relative_change", "converged_pickup", "LEVEL_RATIO", "STEP_DIVISIONS", "DEFAULT_ACCURACY", "MAX_LEVELS",
            "MAX_FINGER_CONTACTS"]
 
 log = logging.getLogger(__name__)
@@ -97,6 +97,7 @@ class GraspAnswer:
     n_vertices : vertices of the mesh
     step, lift_test_step : squeeze increment (m) and lift-test step h (N) used
     seconds : wall time of the pickup (rest included)
+    step_divisions : sub-increments of the passing increment (``PickupOptions.step_divisions``)
     """
 
     success: bool
@@ -112,20 +113,28 @@ class GraspAnswer:
     step: float
     lift_test_step: float
     seconds: float
+    step_divisions: int = 1
+
+    @property
+    def resolution(self) -> float:
+        """The resolution of ρ*, metres: the increment in which the lift test passed, divided as it was."""
+        return self.step / self.step_divisions
 
     def to_dict(self) -> dict[str, Any]:
         return {"success": self.success, "reason": self.reason, "squeeze_depth": self.squeeze_depth,
                 "finger_force": self.finger_force, "fingers": [dict(f) for f in self.fingers],
                 "table_nodes": self.table_nodes, "max_liftable": self.max_liftable, "weight": self.weight,
                 "liftable": [list(x) for x in self.liftable], "n_vertices": self.n_vertices, "step": self.step,
-                "lift_test_step": self.lift_test_step, "seconds": self.seconds}
+                "lift_test_step": self.lift_test_step, "seconds": self.seconds,
+                "step_divisions": self.step_divisions}
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "GraspAnswer":
         return cls(bool(d["success"]), d.get("reason", ""), float(d["squeeze_depth"]), float(d["finger_force"]),
                    tuple(dict(f) for f in d["fingers"]), int(d["table_nodes"]), float(d["max_liftable"]),
                    float(d["weight"]), tuple(tuple(x) for x in d["liftable"]), int(d["n_vertices"]),
-                   float(d["step"]), float(d["lift_test_step"]), float(d["seconds"]))
+                   float(d["step"]), float(d["lift_test_step"]), float(d["seconds"]),
+                   int(d.get("step_divisions", 1)))
 
 
 def answer_of(result: Any, seconds: float | None = None) -> GraspAnswer:
@@ -153,7 +162,8 @@ def answer_of(result: Any, seconds: float | None = None) -> GraspAnswer:
                        float(max((w for _, w in result.liftable), default=0.0)), float(result.body.weight),
                        tuple((float(r), float(w)) for r, w in result.liftable), int(result.body.n_nodes),
                        float(result.step), lt,
-                       float(result.timings.get("total", 0.0) if seconds is None else seconds))
+                       float(result.timings.get("total", 0.0) if seconds is None else seconds),
+                       int(getattr(result, "step_divisions", 1)))
 
 
 def patch_points(result: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -266,7 +276,8 @@ class AccuracyLevel:
     def to_dict(self) -> dict[str, Any]:
         a = self.answer
         return {"level": self.level, "vertices": a.n_vertices, "inner_size": self.inner_size,
-                "outer_size": self.outer_size, "step": a.step, "lift_test_step": a.lift_test_step,
+                "outer_size": self.outer_size, "step": a.step, "step_divisions": a.step_divisions,
+                "resolution": a.resolution, "lift_test_step": a.lift_test_step,
                 "success": a.success, "squeeze_depth": a.squeeze_depth, "finger_force": a.finger_force,
                 "finger_nodes": [f["nodes"] for f in a.fingers], "table_nodes": a.table_nodes,
                 "max_liftable": a.max_liftable, "seconds": a.seconds, "mesh_seconds": self.mesh_seconds,
@@ -396,7 +407,7 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
     if on_level is not None:
         on_level(report)
     fingers, table = patch_points(result)
-    s0, h0 = result.step, result.lift_test_step
+    s0, h0 = ans.resolution, result.lift_test_step
     step_l = s0
     prev_inner = inner
     for level in range(1, max_levels + 1):
@@ -419,9 +430,10 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         lv_contacts = None if contact_points is None else tuple(int(k) for k in
                                                                 nearest_surface_nodes(mesh, contact_points))
         before = report.levels[-1].answer
-        step_l = next_step(step_l, before, accuracy)
+        step_l = next_step(step_l, before, accuracy)  # the resolution of ρ*; h in proportion
         t0 = time.perf_counter()
-        result = pickup(lv_body, opts.replace(contacts=lv_contacts, step=step_l, lift_test_step=h0 * step_l / s0),
+        result = pickup(lv_body, opts.replace(contacts=lv_contacts, step=STEP_DIVISIONS * step_l,
+                                              step_divisions=STEP_DIVISIONS, lift_test_step=h0 * step_l / s0),
                         settings=settings)
         ans = answer_of(result, time.perf_counter() - t0)
         change = {"squeeze_depth": relative_change(before.squeeze_depth, ans.squeeze_depth),
@@ -466,16 +478,22 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
     return result
 
 
-#: Share of the target the squeeze increment may take: the lift test runs once per increment, so ρ* is found
-#: up to one increment late (0 to 1 increment: the answer of 4,586-vertex orange moved by 2.3 % from
+#: Share of the target the resolution of ρ* may take: the lift test runs once per increment (or sub-increment),
+#: so ρ* is found up to one late (0 to 1 increment: the answer of 4,586-vertex orange moved by 2.3 % from
 #: increment ρ*/22 to ρ*/176, all but 0.6 % of it within the first increment's bracket).
 STEP_SHARE = 0.5
+#: Levels after the first squeeze in increments of this many times the resolution of ρ* and divide the one in
+#: which the lift test passes (``PickupOptions.step_divisions``): the same ρ* as the fine increment throughout,
+#: for a quarter of its lift tests (the shipped scenes at a quarter of their increment: ρ* within one
+#: sub-increment, the finger forces within 0.6 %, in 0.4–1× the time of the coarse increment).
+STEP_DIVISIONS = 4
 
 
 def next_step(step: float, before: GraspAnswer, accuracy: float) -> float:
-    """The next level's squeeze increment: at most ``STEP_SHARE × accuracy × ρ*`` of the level before (so the
-    quantisation of ρ* by the lift test, at most one increment, takes at most that share of the target), never
-    larger than the last; halved when the level before found no ρ* (its verdict: not lifted)."""
+    """The next level's resolution of ρ* (its squeeze increment over ``STEP_DIVISIONS``): at most
+    ``STEP_SHARE × accuracy × ρ*`` of the level before (so the quantisation of ρ* by the lift test, at most one
+    resolution, takes at most that share of the target), never larger than the last; halved when the level
+    before found no ρ* (its verdict: not lifted)."""
     if not _passed(before) or not before.squeeze_depth > 0:
         return step / LEVEL_RATIO
     return min(step, STEP_SHARE * accuracy * before.squeeze_depth)
@@ -483,9 +501,9 @@ def next_step(step: float, before: GraspAnswer, accuracy: float) -> float:
 
 def estimated_error(change: dict[str, float], ans: GraspAnswer) -> dict[str, float]:
     """Relative error of a level's answer: its change from the level before, plus, for a level that found ρ*,
-    one squeeze increment (ρ* is found up to one increment late, and the finger force grows with ρ*, about in
-    proportion near the lift-off)."""
-    q = ans.step / ans.squeeze_depth if _passed(ans) and ans.squeeze_depth > 0 else 0.0
+    its resolution (ρ* is found up to one increment, or sub-increment, late, and the finger force grows with ρ*,
+    about in proportion near the lift-off)."""
+    q = ans.resolution / ans.squeeze_depth if _passed(ans) and ans.squeeze_depth > 0 else 0.0
     out = {"squeeze_depth": change["squeeze_depth"] + q, "finger_force": change["finger_force"] + q}
     if "max_liftable" in change:
         out["max_liftable"] = change["max_liftable"]

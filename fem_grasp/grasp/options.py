@@ -87,6 +87,11 @@ class PickupOptions:
     lift_test_step : float or None
         h, the load step of the lift test (§III-B), newtons: the liftable weight w(ρ) is found to within it.
         None: mg/20.
+    step_divisions : int
+        The increment in which the lift test first passes is squeezed again from its start in this many
+        sub-increments with the lift test after each, stopping at the first that passes: ρ* is then found to
+        within ``step / step_divisions`` for a few more lift tests, the answer of that finer increment wherever
+        w(ρ) crosses mg once within the increment (≥ 1; default 1: Algorithm 1 as printed).
     max_lift : float or None
         The lift height at which a lift that has not left the table fails, metres.  None: the object's height.
     lift : bool
@@ -122,6 +127,7 @@ class PickupOptions:
     max_squeeze: float | None = None
     step: float | None = None
     lift_test_step: float | None = None
+    step_divisions: int = 1
     max_lift: float | None = None
     lift: bool = True
     max_lift_attempts: int = 4
@@ -154,6 +160,10 @@ class PickupOptions:
         if not isinstance(self.lift, (bool, np.bool_)):
             raise ValueError(f"lift must be True or False, got {self.lift!r}")
         put(self, "lift", bool(self.lift))
+        n = self.step_divisions
+        if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise ValueError(f"step_divisions must be a whole number ≥ 1, got {n!r}")
+        put(self, "step_divisions", int(n))
         n = self.max_lift_attempts
         if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < 1:
             raise ValueError(f"max_lift_attempts must be a whole number ≥ 1, got {n!r}")

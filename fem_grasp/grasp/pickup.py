@@ -238,12 +238,14 @@ def pickup(body: Body, options: PickupOptions | None = None, *, rest_state: Rest
         step = min(0.02 * max_squeeze, max(rho_star / 20.0, 1e-3 * max_squeeze))
     result.max_squeeze = float(max_squeeze)
     result.step = float(step)
+    result.step_divisions = opts.step_divisions
     lt = LiftTest(hanging, posed.weight, opts.lift_test_step)
     result.lift_test_step = float(lt.step)
     t_squeeze = t0
     timings["squeeze"] = timings["lift_test"] = timings["lift"] = 0.0
     while True:
         sq = squeeze(tracker, state, (d1, d2), ratio, lt, max_squeeze=max_squeeze, step=step,
+                     divisions=opts.step_divisions,
                      on_event=lambda st, ev: snap(st, "event", ev))
         result.events.extend(sq.events)
         result.liftable.extend(sq.liftable)

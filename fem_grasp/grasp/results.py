@@ -236,6 +236,8 @@ class PickupResult:
     timings : wall time per phase, seconds
     lift_attempts : every simulated lift, in order (more than one when a lift failed and the squeeze
         went on, Algorithm 1 step 6)
+    step_divisions : sub-increments of the increment in which the lift test first passed (ρ* is found to
+        within ``step / step_divisions``; :attr:`~fem_grasp.grasp.options.PickupOptions.step_divisions`)
     lift_test_step : the lift-test step h used, newtons
     accuracy : with ``pickup(..., accuracy=...)``, what the levels of :func:`fem_grasp.grasp.accuracy.converged_pickup`
         found (target, estimated errors, levels), as in result.json; else None
@@ -262,6 +264,7 @@ class PickupResult:
     timings: dict[str, float] = field(default_factory=dict)
     max_squeeze: float = 0.0
     step: float = 0.0
+    step_divisions: int = 1
     lift_attempts: list[LiftAttempt] = field(default_factory=list)
     outcome: str = ""
     lift_test_step: float = 0.0
@@ -311,6 +314,7 @@ class PickupResult:
             "directions": [np.asarray(d).tolist() for d in self.directions], "ratio": self.ratio,
             "weight": self.body.weight, "young": self.body.young, "poisson": self.body.poisson,
             "squeeze_depth": self.squeeze_depth, "max_squeeze": self.max_squeeze, "step": self.step,
+            "step_divisions": self.step_divisions,
             "closure": None if self.closure is None else {"closed": self.closure.closed,
                                                           "margin": self.closure.margin,
                                                           "quality": self.closure.quality,

@@ -80,7 +80,7 @@ class SqueezeOutcome:
 
 
 def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray, np.ndarray], ratio: float,
-            lift_test: LiftTest, *, max_squeeze: float, step: float,
+            lift_test: LiftTest, *, max_squeeze: float, step: float, divisions: int = 1,
             on_event: Callable[[ContactState, list[ContactEvent]], None] | None = None) -> SqueezeOutcome:
     """Squeeze from ``state`` (at ρ = 0) until the lift test passes or ρ = ``max_squeeze``.
 
@@ -94,20 +94,35 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
     lift_test : the liftable-weight tracker (§III-B)
     max_squeeze : ρ beyond which the pickup is abandoned (Algorithm 1 step 6)
     step : the increment in ρ between lift tests
-    on_event : called with the state after every event
+    divisions : (``PickupOptions.step_divisions``) the increment in which the lift test first passes is squeezed
+        again from its start in this many sub-increments, with the lift test after each, and the squeeze stops
+        at the first that passes: ρ* is found to within ``step / divisions`` at the cost of a few more lift
+        tests, as with that increment throughout wherever w(ρ) crosses mg once within the increment
+        (default 1: Algorithm 1 as printed)
+    on_event : called with the state after every event (of the increments kept: a passing increment squeezed
+        again reports its events once, from the second pass)
     """
     d1, d2 = (np.asarray(d, float) / np.linalg.norm(d) for d in directions)
     velocities = np.stack([d1, ratio * d2])
     out = SqueezeOutcome(state)
+    if not (isinstance(divisions, (int, np.integer)) and divisions >= 1):
+        raise ValueError(f"divisions must be a whole number >= 1, got {divisions!r}")
 
     next_test = [state.squeeze_depth + step]  # the squeeze may resume from an earlier lift start
+    # The events since the last lift test, reported once the increment is kept: an increment in which the test
+    # first passes is squeezed again in sub-increments when ``divisions`` > 1, and its first pass is dropped.
+    pending: list[tuple[ContactState, list[ContactEvent]]] = []
+    tested = [state]  # where the increment in which the test passes begins: the last failing test, or the start
+    again = [False]
 
-    def after_step(st: ContactState, events: list[ContactEvent]) -> bool:
-        # The lift test runs once per increment of ``step`` in ρ (events split increments; the test is
-        # not repeated after each of them).
-        if st.squeeze_depth < next_test[0] * (1.0 - 1e-9) and st.squeeze_depth < max_squeeze * (1.0 - 1e-9):
-            return False
-        next_test[0] = st.squeeze_depth + step
+    def keep() -> None:
+        for st, events in pending:
+            out.events.extend(events)
+            if on_event is not None:
+                on_event(st, events)
+        pending.clear()
+
+    def test(st: ContactState) -> bool:
         t0 = time.perf_counter()
         w = lift_test.update(st)
         out.lift_test_time += time.perf_counter() - t0
@@ -116,10 +131,23 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
                   int((st.owner != TABLE).sum()))
         return lift_test.passed
 
+    def after_step(st: ContactState, events: list[ContactEvent]) -> bool:
+        # The lift test runs once per increment of ``step`` in ρ (events split increments; the test is
+        # not repeated after each of them).
+        if st.squeeze_depth < next_test[0] * (1.0 - 1e-9) and st.squeeze_depth < max_squeeze * (1.0 - 1e-9):
+            return False
+        next_test[0] = st.squeeze_depth + step
+        passed = test(st)
+        if passed and divisions > 1 and not again[0]:
+            again[0] = True  # squeezed again from the failing test's state, below
+            return True
+        keep()
+        if not passed:
+            tested[0] = st
+        return passed
+
     def record(st: ContactState, events: list[ContactEvent]) -> None:
-        out.events.extend(events)
-        if on_event is not None:
-            on_event(st, events)
+        pending.append((st, events))
 
     last = [state]
 
@@ -130,7 +158,17 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
     try:
         final, _, stopped = run(tracker, state, velocities, stop=max_squeeze, step=step, param=Parameter.SQUEEZE_DEPTH,
                                 phase="squeeze", after_step=after, on_event=record)
+        if again[0]:
+            final, stopped = _divide(tracker, tested[0], final, velocities, step / divisions, test, out, on_event,
+                                     pending, last)
+            if not stopped:  # w(ρ) crossed mg and fell back within the increment: squeeze on, undivided
+                next_test[0] = final.squeeze_depth + step
+                final, _, stopped = run(tracker, final, velocities, stop=max_squeeze, step=step,
+                                        param=Parameter.SQUEEZE_DEPTH, phase="squeeze", after_step=after,
+                                        on_event=record)
+        keep()
     except TrackingError as exc:
+        keep()
         out.state = last[0]
         out.failed = True
         out.reason = (f"squeeze failed: {exc}" if "ρ = " in str(exc) else
@@ -142,3 +180,34 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
         out.reason = (f"the lift test did not pass by the maximum squeeze depth ρ = {1e3 * max_squeeze:.4g} mm "
                       f"(liftable weight {lift_test.liftable:.4g} N < weight {lift_test.weight:.4g} N)")
     return out
+
+
+def _divide(tracker: Tracker, start: ContactState, passing: ContactState, velocities: np.ndarray, sub: float,
+            test: Callable[[ContactState], bool], out: SqueezeOutcome,
+            on_event: Callable[[ContactState, list[ContactEvent]], None] | None,
+            pending: list, last: list) -> tuple[ContactState, bool]:
+    """The passing increment (``start`` → ``passing``) squeezed again in sub-increments ``sub`` with the lift test
+    after each, to the first that passes (the increment's own end at the latest, tested again)."""
+    pending.clear()  # the first pass through the increment is not kept
+    del out.liftable[-1]
+    end = passing.squeeze_depth
+    next_test = [start.squeeze_depth + sub]
+
+    def after(st: ContactState, events: list[ContactEvent]) -> bool:
+        last[0] = st
+        rho = st.squeeze_depth
+        if rho < next_test[0] * (1.0 - 1e-9) and rho < end * (1.0 - 1e-9):
+            return False
+        next_test[0] = rho + sub
+        return test(st)
+
+    def record(st: ContactState, events: list[ContactEvent]) -> None:
+        out.events.extend(events)
+        if on_event is not None:
+            on_event(st, events)
+
+    last[0] = start
+    final, _, stopped = run(tracker, start, velocities, stop=end, step=sub, param=Parameter.SQUEEZE_DEPTH,
+                            phase="squeeze", after_step=after, on_event=record)
+    return final, stopped
+

@@ -106,15 +106,16 @@ def test_each_level_halves_the_patch_spacing_and_resolves_rho_to_half_the_target
     for a, b in zip(lv, lv[1:]):
         assert b["inner_size"] == pytest.approx(a["inner_size"] / 2)
         assert b["vertices"] > a["vertices"] and sum(b["finger_nodes"]) > sum(a["finger_nodes"])
-        # the lift test finds ρ* up to one increment late: the increment takes at most half the target
-        assert b["step"] <= min(a["step"], 0.5 * TARGET * a["squeeze_depth"]) * (1 + 1e-12)
-        assert b["lift_test_step"] / b["step"] == pytest.approx(lv[0]["lift_test_step"] / lv[0]["step"])
+        # the lift test finds ρ* up to one (sub-)increment late: that resolution takes at most half the target
+        assert b["resolution"] <= min(a["resolution"], 0.5 * TARGET * a["squeeze_depth"]) * (1 + 1e-12)
+        assert b["resolution"] == pytest.approx(b["step"] / b["step_divisions"])
+        assert b["lift_test_step"] / b["resolution"] == pytest.approx(lv[0]["lift_test_step"] / lv[0]["resolution"])
 
 
 def test_two_agreeing_levels_stop_the_loop_and_report_their_difference(levels):
     acc, lv = levels.accuracy, levels.accuracy["levels"]
-    q = lv[2]["step"] / lv[2]["squeeze_depth"]  # one increment, relative
-    assert max(lv[1]["change"].values()) + lv[1]["step"] / lv[1]["squeeze_depth"] > TARGET
+    q = lv[2]["resolution"] / lv[2]["squeeze_depth"]  # one (sub-)increment, relative
+    assert max(lv[1]["change"].values()) + lv[1]["resolution"] / lv[1]["squeeze_depth"] > TARGET
     assert acc["converged"] and max(acc["estimated_error"].values()) <= TARGET
     assert acc["estimated_error"]["squeeze_depth"] == pytest.approx(lv[2]["change"]["squeeze_depth"] + q)
     assert levels.squeeze_depth == lv[2]["squeeze_depth"]  # the answer is the last level's
