@@ -37,6 +37,20 @@ def test_young_override_reaches_the_scene():
     assert scene_of(args).young == 20000.0  # the scene's own
 
 
+def test_the_refinements_contact_bound_reaches_the_pickup_options_without_dropping_the_stated_error():
+    from argparse import Namespace
+
+    from fem_grasp.cli.common import scene_of
+
+    args = Namespace(scene="orange", quick=False, backend=None, no_lift=False, young=None, accuracy="5%",
+                     max_finger_contacts=600)
+    scene = scene_of(args)
+    assert scene.pickup_options().max_finger_contacts == 600 and scene.accuracy == 0.05
+    assert scene.expected_error is not None  # the bound changes no single run's answer
+    args.max_finger_contacts = None
+    assert scene_of(args).pickup_options().max_finger_contacts == 300
+
+
 @pytest.mark.requires("gmsh")  # the quick scene remeshes its object
 def test_summary_printed_and_quiet_prints_nothing(capsys, tmp_path):
     args = ["run", "football", "--quick", "--cache", str(cache_dir()), "--no-lift"]
@@ -129,6 +143,9 @@ def test_bad_input_exits_2_with_a_message_that_names_it(capsys, tmp_path):
     _bad(capsys, ["run", "tomato", "--report"], "--report needs --out")
     _bad(capsys, ["run", "tomato", "--young", "3 mm"], "--young", "is a length, but a pressure is expected")
     _bad(capsys, ["run", "tomato", "--young", "-5"], "--young", "positive")
+    _bad(capsys, ["run", "tomato", "--accuracy", "5%", "--max-finger-contacts", "0"], "--max-finger-contacts", "≥ 1")
+    scene.write_text('[object]\npaper = "tomato"\n[solver]\nmax_finger_contacts = 0\n')
+    _bad(capsys, ["run", str(scene)], "solver.max_finger_contacts", "≥ 1")
     # Surfaces: not closed, self-intersecting.
     p, f = icosphere(0.03, 2)
     _bad(capsys, ["mesh", str(write_stl(tmp_path / "open.stl", p, f[1:])), "-o", str(tmp_path / "o.vtu")],

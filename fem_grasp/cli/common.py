@@ -75,6 +75,13 @@ def scene_of(args: argparse.Namespace) -> Any:
         from ..io.scene import parse_accuracy
 
         scene = replace(scene, accuracy=parse_accuracy(accuracy, "--accuracy"))
+    max_contacts = getattr(args, "max_finger_contacts", None)
+    if max_contacts is not None:
+        if max_contacts < 1:
+            raise BadInput(f"--max-finger-contacts must be a whole number ≥ 1, got {max_contacts}")
+        from dataclasses import replace
+
+        scene = replace(scene, max_finger_contacts=max_contacts)
     return scene
 
 

@@ -66,6 +66,10 @@ def build_parser() -> argparse.ArgumentParser:
                         "(0.05 or 5%%): refine at the contact patches until two successive answers agree within it; "
                         "'off' runs once on the scene's mesh (--quick always runs once, on its coarse mesh, and says "
                         "that its answer is not converged)")
+    p.add_argument("--max-finger-contacts", metavar="N", type=int,
+                   help="with --accuracy: do not run a level predicted to put more than N contacts on one fingertip "
+                        "(default 300; each level has about four times the contacts of the one before, and costs "
+                        "several times as much)")
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("rest", parents=[common, scene_opts], help="compute the resting state of a scene's object",

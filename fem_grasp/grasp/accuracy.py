@@ -55,6 +55,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from .options import MAX_FINGER_CONTACTS as _MAX_FINGER_CONTACTS
 from .options import PickupOptions
 
 __all__ = ["GraspAnswer", "AccuracyLevel", "AccuracyReport", "answer_of", "patch_points", "estimate",
@@ -70,12 +71,11 @@ LEVEL_RATIO = 2.0
 DEFAULT_ACCURACY = 0.05
 #: Levels tried after level 0 before the loop gives up and reports an unconverged answer.
 MAX_LEVELS = 4
-#: A level that would put more contacts than this on one fingertip is not run: each halving of the patch spacing
-#: quadruples the patch's contacts, and the contact algebra is dense in them (the (3m)² reduced stiffness, its
-#: factorisations, the hanging patch's return mappings).  Measured by the convergence study on the orange: 36
-#: contacts per finger (grading R/4) took 10 s, 141 (R/8) 112 s, and R/16 (about 560) did not finish in 40 min.
+#: A level that would put more contacts than this on one fingertip is not run (``PickupOptions.max_finger_contacts``,
+#: whose default this is): each halving of the patch spacing quadruples the patch's contacts, and the contact
+#: algebra is dense in them (the (3m)² reduced stiffness, its factorisations, the hanging patch's return mappings).
 #: The loop then stops with the last level's answer and its estimated error.
-MAX_FINGER_CONTACTS = 300
+MAX_FINGER_CONTACTS = _MAX_FINGER_CONTACTS
 
 
 # =============================================================== the answer
@@ -345,7 +345,7 @@ def _level_meshes(geometry: Any, fingers: np.ndarray, table: np.ndarray, inner: 
 
 def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = DEFAULT_ACCURACY, geometry: Any = None,
                      max_levels: int = MAX_LEVELS, max_seconds: float | None = None,
-                     max_finger_contacts: int = MAX_FINGER_CONTACTS, options: PickupOptions | None = None,
+                     max_finger_contacts: int | None = None, options: PickupOptions | None = None,
                      rest_state: Any = None, settings: Any = None, on_level: Any = None, **overrides: Any) -> Any:
     """Algorithm 1 to a target accuracy of its answer (module notes); what ``pickup(..., accuracy=...)`` runs.
 
@@ -361,7 +361,8 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         :class:`~fem_grasp.mesh.remesh.NoGeometryError` when that surface is not closed and manifold)
     max_levels : refinements tried after level 0
     max_finger_contacts : a level whose fingertip patches would hold more contacts than this (predicted from the
-        level before: times the square of ``LEVEL_RATIO`` per halving of the spacing) is not run (:data:`MAX_FINGER_CONTACTS`)
+        level before: times the square of ``LEVEL_RATIO`` per halving of the spacing) is not run (default: the
+        options' ``max_finger_contacts``, :data:`MAX_FINGER_CONTACTS` unless set)
     max_seconds : stop refining once the levels so far took this long (the answer is then reported
         unconverged, with the last difference as its estimated error)
     options : the grasp's :class:`~fem_grasp.grasp.options.PickupOptions` (default: the defaults), of which
@@ -387,6 +388,8 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         raise ValueError(f"accuracy must be a relative error in (0, 1), e.g. 0.05; got {accuracy!r}")
     accuracy = float(accuracy)
     opts = PickupOptions.from_overrides(overrides, base=options).replace(accuracy=None, geometry=None)
+    if max_finger_contacts is None:
+        max_finger_contacts = opts.max_finger_contacts
     contacts = opts.contacts
     t_start = time.perf_counter()
     geo = geometry if geometry is not None else geometry_of_mesh(body.mesh)
@@ -419,8 +422,9 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         if predicted > max_finger_contacts:
             report.note = (f"stopped before level {level}: it would put about {predicted:.0f} contacts on a fingertip "
                            f"(max_finger_contacts = {max_finger_contacts}; the contact algebra is dense in them, so "
-                           f"each level costs several times the last; to go on, call "
-                           f"fem_grasp.grasp.accuracy.converged_pickup with a larger max_finger_contacts)")
+                           f"each level costs several times the last; to go on, raise it: fem-grasp run "
+                           f"--max-finger-contacts N, the scene's [solver] max_finger_contacts, or "
+                           f"PickupOptions.max_finger_contacts)")
             break
         outer_l = max(outer / LEVEL_RATIO ** (0.5 * level), inner_l)
         t0 = time.perf_counter()
@@ -458,7 +462,7 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         elif max(report.estimated_error.values()) <= accuracy:
             report.converged = True
             report.note = (f"levels {level - 1} and {level} agree within {100 * accuracy:g} %: the estimated error is "
-                           "their difference plus one squeeze increment")
+                           "their difference plus the resolution of rho*")
             break
         f2, t2 = patch_points(result)
         fingers, table = np.vstack([fingers, f2]), np.vstack([table, t2])

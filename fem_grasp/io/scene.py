@@ -40,6 +40,7 @@ optional)::
     lift = true
     accuracy = 0.05           # relative accuracy of ρ* and the finger force: refine at the contact patches until
                               # two successive levels agree within it (fem_grasp.grasp.accuracy); omit for one run
+    max_finger_contacts = 300 # with accuracy: a level predicted to put more contacts on a fingertip is not run
     expected_error = 0.3      # how far a single run of this scene (no accuracy loop, e.g. its [quick] variant) is
                               # from the converged answer, as measured by `make converge`: printed with its answer
 
@@ -165,6 +166,7 @@ class Scene:
     placement_rule: str = DEFAULT_PLACEMENT_RULE
     accuracy: float | None = None
     expected_error: float | None = None
+    max_finger_contacts: int | None = None
 
     # ------------------------------------------------------------ building
     def load_mesh(self, cache_dir: Path | None = None) -> "TetMesh":
@@ -201,7 +203,8 @@ class Scene:
                              contacts=self.contacts, directions=self.directions, ratio=self.ratio,
                              max_squeeze=self.max_squeeze, step=self.step, lift_test_step=self.lift_test_step,
                              max_lift=self.max_lift, lift=self.lift, placement_rule=self.placement_rule,
-                             backend=self.backend)
+                             backend=self.backend, **({} if self.max_finger_contacts is None else
+                                                      {"max_finger_contacts": self.max_finger_contacts}))
 
     def pickup_kwargs(self) -> dict[str, Any]:
         """:meth:`pickup_options` as keyword arguments of :func:`fem_grasp.grasp.pickup.pickup`, by name: the fields
@@ -231,7 +234,8 @@ class Scene:
         coefficients), ``mu_finger``, ``mu_table``; ``finger_radius``; ``contacts`` ("auto", a placement rule
         or two node indices) or ``placement_rule``; ``directions``, ``ratio``; ``backend``, ``max_squeeze``,
         ``step``, ``lift_test_step``, ``max_lift``, ``lift``; ``vertices`` (remesh); ``accuracy`` (0.05, "5%" or
-        None: refine until ρ* and the finger force agree to it, :mod:`fem_grasp.grasp.accuracy`); for a mesh
+        None: refine until ρ* and the finger force agree to it, :mod:`fem_grasp.grasp.accuracy`) and
+        ``max_finger_contacts`` (the refinement's bound on one fingertip's contacts); for a mesh
         file ``units`` ("m", "cm", "mm") and ``allow_implausible_units`` (True: compute even when the object's
         size or density says its unit is wrong, with a warning, instead of refusing it).  Example:
         ``Scene.load("tomato").with_(young="15 kPa", mu=0.4)``.
@@ -403,6 +407,9 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
     accuracy = s.get("accuracy")
     if accuracy is not None and not 0.0 < accuracy < 1.0:
         raise SceneError(f"{s.where('accuracy')} is a relative error in (0, 1), e.g. 0.05 for 5 %; got {accuracy!r}")
+    max_contacts = s.get("max_finger_contacts")
+    if max_contacts is not None and not (isinstance(max_contacts, int) and max_contacts >= 1):
+        raise SceneError(f"{s.where('max_finger_contacts')} is a whole number of contacts ≥ 1; got {max_contacts!r}")
     expected_error = s.get("expected_error")
     if expected_error is not None and not expected_error > 0:
         raise SceneError(f"{s.where('expected_error')} is a relative error > 0 (inf: the verdict itself may be wrong); "
@@ -422,7 +429,8 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
                  max_lift=s.get("max_lift"), lift=s.get("lift", True), description=top.get("description", ""),
                  path=path, quick=quick, expect=expect, placement_rule=rule,
                  accuracy=None if accuracy is None else float(accuracy),
-                 expected_error=None if expected_error is None else float(expected_error))
+                 expected_error=None if expected_error is None else float(expected_error),
+                 max_finger_contacts=max_contacts)
 
 
 def load_scene(path: str | Path, quick: bool = False) -> Scene:

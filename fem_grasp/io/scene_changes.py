@@ -28,7 +28,7 @@ log = logging.getLogger(__name__)
 #: accuracy target and the lift's extent do not change ρ* or the forces at lift-off): a change of any other field
 #: makes the scene's stated error (``[solver] expected_error``, measured by the convergence study at the scene's
 #: own settings) no longer the run's.
-_ERROR_NEUTRAL = frozenset({"backend", "accuracy", "lift", "max_lift"})
+_ERROR_NEUTRAL = frozenset({"backend", "accuracy", "lift", "max_lift", "max_finger_contacts"})
 
 
 def _without_borrowed_error(scene: Scene, new: Scene, fields: Any) -> Scene:
@@ -59,6 +59,7 @@ CHANGES: dict[str, tuple[str, str]] = {
     "ratio": ("ratio", "ratio"), "backend": ("backend", "backend"), "max_squeeze": ("max_squeeze", "length"),
     "step": ("step", "length"), "lift_test_step": ("lift_test_step", "force"), "max_lift": ("max_lift", "length"),
     "lift": ("lift", "bool"), "vertices": ("vertices", "int"), "accuracy": ("accuracy", "accuracy"),
+    "max_finger_contacts": ("max_finger_contacts", "count"),
     "units": ("units", "units"), "allow_implausible_units": ("allow_implausible_units", "allow_units"),
 }
 
@@ -131,6 +132,10 @@ def with_changes(scene: Scene, changes: dict[str, Any]) -> Scene:
             new["lift"] = value
         elif kind == "accuracy":
             new["accuracy"] = parse_accuracy(value, w)
+        elif kind == "count":  # the accuracy loop's contacts per fingertip
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise SceneError(f"{w}: expected a whole number ≥ 1, got {value!r}")
+            new[field_name] = int(value)
         elif kind in ("units", "allow_units"):  # the mesh file's length unit, and whether to check it
             from ..mesh.units import LENGTH_UNITS
 

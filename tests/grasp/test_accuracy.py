@@ -151,13 +151,17 @@ def test_a_level_that_would_crowd_a_fingertip_with_contacts_is_not_run():
     contacts and a cap of 3, level 1 (about four times as many) is not run, and the answer is level 0's, not
     converged, with the reason in the note."""
     body = Body(BOX.grid((2, 2, 2)), 2e4, 0.3, weight=0.3)
-    res = converged_pickup(body, solve=pickup, accuracy=TARGET, geometry=BOX, max_finger_contacts=3,
-                           contacts=_centre_nodes(body.mesh), mu_finger=0.5, finger_radius=0.01, lift=False)
-    acc = res.accuracy
-    assert len(acc["levels"]) == 1 and not acc["converged"]
-    assert "contacts on a fingertip" in acc["note"] and math.isinf(max(acc["estimated_error"].values()))
-    assert "larger max_finger_contacts" in acc["note"]  # how to go on
-    assert res.body.n_nodes == body.n_nodes
+    # the bound as the loop's argument, and as the option pickup(accuracy=...) passes on
+    by_argument = converged_pickup(body, solve=pickup, accuracy=TARGET, geometry=BOX, max_finger_contacts=3,
+                                   contacts=_centre_nodes(body.mesh), mu_finger=0.5, finger_radius=0.01, lift=False)
+    by_option = pickup(body, accuracy=TARGET, geometry=BOX, max_finger_contacts=3, contacts=_centre_nodes(body.mesh),
+                       mu_finger=0.5, finger_radius=0.01, lift=False)
+    for res in (by_argument, by_option):
+        acc = res.accuracy
+        assert len(acc["levels"]) == 1 and not acc["converged"]
+        assert "contacts on a fingertip" in acc["note"] and math.isinf(max(acc["estimated_error"].values()))
+        assert "--max-finger-contacts" in acc["note"] and "max_finger_contacts = 3" in acc["note"]  # how to go on
+        assert res.body.n_nodes == body.n_nodes
 
 
 def test_accuracy_must_be_a_relative_error():
