@@ -31,7 +31,7 @@ from ._common.run import DEFAULT_OUT, Stages, print_checks, setup_logging, study
 
 #: The studies of the report, in the report's order: each a package with ``STAGES``, ``run``, ``checks`` and
 #: ``section`` (:mod:`verification._common.run`).
-STUDIES = ("dolfinx", "hertz", "roundoff", "random_scenes", "converge", "friction", "softness")
+STUDIES = ("dolfinx", "hertz", "roundoff", "random_scenes", "converge", "coverage", "friction", "softness")
 
 
 def environment() -> dict[str, Any]:
