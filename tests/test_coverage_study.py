@@ -185,3 +185,28 @@ def test_reanalyse_reads_a_saved_run_and_says_whether_it_passes(tmp_path, capsys
     assert main(["--reanalyse", str(path)]) == 1
     with pytest.raises(SystemExit):
         main(["--reanalyse", str(tmp_path / "missing.json")])
+
+
+def test_the_report_stage_keeps_the_summary_and_its_checks_can_fail(tmp_path, monkeypatch):
+    import verification.coverage as study
+    from verification._common.run import json_safe
+
+    rows = [_row(0), _row(1, ref=(False, 0.0100, 2.0)), _row(2, ref_status="too large")]
+    monkeypatch.setattr(study, "sweep", lambda cfg: {"config": cfg, "seed": 0, "summary": summarise(rows),
+                                                     "rows": rows})
+
+    class Stages:
+        def run(self, name, fn, store):
+            store(fn())
+
+    part, images = study.run(True, tmp_path, Stages())
+    assert images == {} and (tmp_path / "coverage_rows.json").exists()
+    assert [o["comparison"]["status"] for o in part["coverage"]["objects"]] == ["compared", "compared",
+                                                                                 "no reference"]
+    checks = study.checks(part)
+    assert [c["ok"] for c in checks] == [False, False]  # 1 of 2 covered; one verdict differs
+    assert checks[0]["value"] == pytest.approx(0.5) and checks[1]["value"] == 1
+    html = study.section(json_safe(part), {})
+    assert CoverageObject.of_seed(1).shape in html
+    assert "too large" in html
+    assert study.checks({}) == [] and study.section({}, {}) == ""
