@@ -108,15 +108,19 @@ def _pct(x: float | None) -> str:
     return "inf" if math.isinf(x) else f"{100 * x:.1f}%"
 
 
+def _s(x: float | None) -> str:
+    return "-" if x is None or math.isnan(x) else f"{x:.0f}"
+
+
 #: Columns of :func:`table_line`.
-HEADER = (f"{'seed':>5} {'shape':<13} {'E kPa':>6} {'kg/m3':>6} {'lvls':>4} {'answer':<8} {'est rho*':>8} "
+HEADER = (f"{'seed':>5} {'shape':<13} {'E kPa':>6} {'kg/m3':>6} {'lvls':>4} {'answer':<10} {'est rho*':>8} "
           f"{'est F':>8} {'reference':<12} {'act rho*':>8} {'act F':>8} {'covered':<9} {'ans s':>6} {'ref s':>6}")
 
 
 def _verdict(part: dict[str, Any]) -> str:
     if part.get("status") != "ok":
         return part.get("status", "-")
-    return "lifted" if part["success"] else "dropped" if "lift" in part.get("reason", "") else "not lifted"
+    return "lifted" if part["success"] else "not lifted"
 
 
 def table_line(row: dict[str, Any]) -> str:
@@ -136,7 +140,7 @@ def table_line(row: dict[str, Any]) -> str:
     ref_s = f"{ref['seconds']:.0f}" if ref.get("seconds") is not None else "-"
     ans_s = f"{ans['seconds']:.0f}" if ans.get("seconds") is not None else "-"
     return (f"{row['seed']:>5} {o['shape']:<13} {10 ** o['log10_young'] / 1e3:>6.1f} {o['density']:>6.0f} "
-            f"{levels!s:>4} {_verdict(ans):<8} {_pct(_estimate(est.get('squeeze_depth')) if est else None):>8} "
+            f"{levels!s:>4} {_verdict(ans):<10} {_pct(_estimate(est.get('squeeze_depth')) if est else None):>8} "
             f"{_pct(_estimate(est.get('finger_force')) if est else None):>8} {_verdict(ref):<12} {act[0]:>8} "
             f"{act[1]:>8} {cov:<9} {ans_s:>6} {ref_s:>6}")
 
@@ -153,8 +157,8 @@ def summary_lines(summary: dict[str, Any]) -> list[str]:
         f"verdicts agree on {s['verdicts_agree']} of {n}",
         f"estimated error >= actual: rho* {cnt['squeeze_depth']}/{n} ({_pct(cov['squeeze_depth'])}), finger force "
         f"{cnt['finger_force']}/{n} ({_pct(cov['finger_force'])}), both {cnt['both']}/{n} ({_pct(cov['both'])})",
-        f"answer seconds: median {s['answer_seconds']['median']:.0f}, max {s['answer_seconds']['max']:.0f}; "
-        f"reference seconds: median {s['reference_seconds']['median']:.0f}, max {s['reference_seconds']['max']:.0f}",
+        f"answer seconds: median {_s(s['answer_seconds']['median'])}, max {_s(s['answer_seconds']['max'])}; "
+        f"reference seconds: median {_s(s['reference_seconds']['median'])}, max {_s(s['reference_seconds']['max'])}",
         f"{'PASS' if ok_cov else 'FAIL'}  coverage of both quantities >= {100 * REQUIRED_COVERAGE:.0f} %",
         f"{'PASS' if ok_verdict else 'FAIL'}  every verdict agrees with its reference",
     ]
