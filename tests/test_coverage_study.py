@@ -161,6 +161,7 @@ def test_the_summary_counts_only_objects_with_a_reference():
     s = summarise(rows)
     assert s["objects"] == 7 and s["answered"] == 6 and s["with_reference"] == 4
     assert s["reference_status"] == {"ok": 4, "too large": 1, "timed out": 1}
+    assert s["answer_status"] == {"ok": 6, "timed out": 1}
     assert s["verdicts_agree"] == 2 and s["verdicts_differ"] == 2
     assert s["covered"] == {"squeeze_depth": 2, "finger_force": 3, "both": 2}
     assert s["coverage"]["both"] == pytest.approx(0.5)
@@ -171,6 +172,9 @@ def test_the_summary_counts_only_objects_with_a_reference():
     assert good["coverage"]["both"] == 1.0 and passed(good) == (True, True)
     nine = summarise([_row(k) for k in range(9)] + [_row(9, ref=(True, 0.0120, 2.05))])
     assert passed(nine) == (True, True)  # 90 % is enough
+    crashed = _row(7)
+    crashed["answer"] = {"status": "failed", "error": "ZeroDivisionError: float division by zero", "seconds": 1.0}
+    assert summarise(rows + [crashed])["errors"] == {"answer: ZeroDivisionError": 1}
     empty = summarise([_row(0, ref_status="too large")])
     assert math.isnan(empty["coverage"]["both"]) and passed(empty) == (False, False)
 

@@ -55,6 +55,9 @@ def section(part: dict[str, Any], images: dict[str, str]) -> str:
              f"({_pct(s['coverage']['both'])}). Answers: median {fmt(s['answer_seconds']['median'])} s, longest "
              f"{fmt(s['answer_seconds']['max'])} s; references: median {fmt(s['reference_seconds']['median'])} s, "
              f"longest {fmt(s['reference_seconds']['max'])} s.</p>"]
+    if s.get("errors"):
+        parts.append("<p>Runs that raised: " + html.escape(", ".join(f"{k} ({v})" for k, v in
+                                                                     sorted(s["errors"].items()))) + ".</p>")
     rows = []
     for r in cov["objects"]:
         a, ref, c, o = r["answer"], r["reference"], r["comparison"], r["object"]

@@ -73,6 +73,13 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     for r in rows:
         s = (r.get("answer") or {}).get("status", "missing")
         answer_status[s] = answer_status.get(s, 0) + 1
+    errors: dict[str, int] = {}
+    for r in rows:
+        for part in ("answer", "reference"):
+            p = r.get(part) or {}
+            if p.get("status") == "failed":
+                key = f"{part}: {str(p.get('error', '')).split(':')[0] or 'unknown'}"
+                errors[key] = errors.get(key, 0) + 1
     coverage = {q: (sum(e["covered"][q] for e in compared) / n if n else math.nan) for q in QUANTITIES}
     coverage["both"] = sum(e["covered_both"] for e in compared) / n if n else math.nan
     answered = [r for r in rows if (r.get("answer") or {}).get("status") == "ok"]
@@ -81,6 +88,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "answered": len(answered),
         "answer_status": answer_status,
         "reference_status": reference_status,
+        "errors": errors,
         "with_reference": n,
         "verdicts_agree": sum(e["verdicts_agree"] for e in compared),
         "verdicts_differ": sum(not e["verdicts_agree"] for e in compared),
@@ -154,6 +162,9 @@ def summary_lines(summary: dict[str, Any]) -> list[str]:
     return [
         f"{s['objects']} objects: {s['answered']} answered ({s['converged']} converged), {n} with a reference "
         f"(references: {', '.join(f'{k} {v}' for k, v in sorted(s['reference_status'].items())) or 'none'})",
+        f"answers: {', '.join(f'{k} {v}' for k, v in sorted(s['answer_status'].items()))}"
+        + (f"; errors: {', '.join(f'{k} {v}' for k, v in sorted(s.get('errors', {}).items()))}"
+           if s.get("errors") else ""),
         f"verdicts agree on {s['verdicts_agree']} of {n}",
         f"estimated error >= actual: rho* {cnt['squeeze_depth']}/{n} ({_pct(cov['squeeze_depth'])}), finger force "
         f"{cnt['finger_force']}/{n} ({_pct(cov['finger_force'])}), both {cnt['both']}/{n} ({_pct(cov['both'])})",
