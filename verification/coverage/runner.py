@@ -56,7 +56,9 @@ def run_object(seed: int, config: dict[str, Any], send: Callable[[tuple[str, Any
     """Object ``seed``: its answer at ``config["accuracy"]`` and its reference (module notes); the row.
 
     ``send(("answer", row))`` is called between the two, so that a supervisor keeps the answer when the reference
-    runs out of time.
+    runs out of time, and ``send(("level", report))`` after each level of the answer (the loop's
+    :class:`~fem_grasp.grasp.accuracy.AccuracyReport` as a dict), so that it keeps the levels run when the answer
+    does.
     """
     from fem_grasp import Body
     from fem_grasp.grasp.accuracy import _level_meshes, converged_pickup, patch_points
@@ -71,8 +73,9 @@ def run_object(seed: int, config: dict[str, Any], send: Callable[[tuple[str, Any
         geometry = geometry_of_mesh(mesh)
         body = obj.body(mesh)
         kw = obj.pickup_arguments(smallest)
+        on_level = None if send is None else (lambda report: send(("level", report.to_dict())))
         res = converged_pickup(body, solve=pickup, accuracy=config["accuracy"], geometry=geometry,
-                               max_seconds=config["answer_seconds"], **kw)
+                               max_seconds=config["answer_seconds"], on_level=on_level, **kw)
         row["answer"] = _answer_row(res, time.perf_counter() - t0)
         row["answer"]["accuracy"] = res.accuracy
     except Exception as exc:  # noqa: BLE001 - recorded: the object has no answer, the study goes on
@@ -121,7 +124,7 @@ def _child(seed: int, config: dict[str, Any], conn: Any) -> None:
 def supervised(seed: int, config: dict[str, Any], poll: float = 2.0) -> dict[str, Any]:
     """:func:`run_object` in a spawned process: the answer may take ``config["answer_cap"]`` seconds, the
     reference ``config["reference_seconds"]`` after it; a phase that overruns is recorded as ``timed out`` and
-    its process terminated."""
+    its process terminated (a timed-out answer keeps the loop's levels so far as ``levels_so_far``)."""
     ctx = multiprocessing.get_context("spawn")
     receive, send = ctx.Pipe(duplex=False)
     proc = ctx.Process(target=_child, args=(seed, config, send), daemon=True)
@@ -144,7 +147,9 @@ def supervised(seed: int, config: dict[str, Any], poll: float = 2.0) -> dict[str
                 continue
             else:
                 kind, value = "died", None
-            if kind == "answer":
+            if kind == "level":  # the answer's levels so far: kept if the answer runs out of time
+                row["answer"] = {"levels_so_far": value}
+            elif kind == "answer":
                 row, phase, started, cap = value, "reference", time.monotonic(), config["reference_seconds"]
                 row["reference"] = {}
             elif kind == "done":

@@ -137,7 +137,7 @@ def table_line(row: dict[str, Any]) -> str:
     ans, ref = row.get("answer") or {}, row.get("reference") or {}
     e = evaluate(row)
     est = (ans.get("accuracy") or {}).get("estimated_error", {})
-    levels = len((ans.get("accuracy") or {}).get("levels", [])) or "-"
+    levels = len((ans.get("accuracy") or ans.get("levels_so_far") or {}).get("levels", [])) or "-"
     if e["status"] == "compared":
         act = [_pct(e["actual"][q]) for q in QUANTITIES]
         cov = "+".join("y" if e["covered"][q] else "n" for q in QUANTITIES)
