@@ -9,6 +9,7 @@ study, each with a README.md (what it checks, against what, the command):
 ``roundoff``       the same answer under round-off perturbations
 ``random_scenes``  random valid scenes never crash
 ``converge``       convergence of the pickup answer under refinement
+``coverage``       the accuracy loop's stated error against a finer reference, on random objects
 ``friction``       frictional contact against an independent reference solver
 ``softness``       finger forces at lift-off against the rigid grasp (Table III of the paper)
 

@@ -17,6 +17,7 @@ STUDIES = {
     "roundoff": ("same answer under round-off perturbations", "verification.roundoff.__main__"),
     "random_scenes": ("random valid scenes never crash", "verification.random_scenes.__main__"),
     "converge": ("pickup answer under refinement (make converge)", "verification.converge.__main__"),
+    "coverage": ("the accuracy loop's stated error against a reference", "verification.coverage.__main__"),
     "friction": ("frictional contact against a reference solver", "verification.friction.__main__"),
     "softness": ("forces against the rigid grasp (Table III)", "verification.softness.__main__"),
 }
