@@ -104,6 +104,7 @@ def test_the_first_mesh_of_each_shape_has_about_500_vertices():
 # --------------------------------------------------------------- the reference
 def _accuracy(levels_nodes=(10, 20), step=1e-3, h=0.05, converged=True, est=(0.03, 0.04)):
     levels = [{"level": k, "inner_size": 0.004 / 2**k, "outer_size": 0.006 / 2 ** (0.5 * k), "step": step / 2**k,
+               "step_divisions": 4 if k else 1, "resolution": step / 2**k / (4 if k else 1),
                "lift_test_step": h / 2**k, "finger_nodes": [n, n - 2]} for k, n in enumerate(levels_nodes)]
     return {"target": 0.05, "converged": converged, "levels": levels,
             "estimated_error": {"squeeze_depth": est[0], "finger_force": est[1]}}
@@ -115,7 +116,8 @@ def test_the_reference_is_one_level_beyond_the_answers_last():
     last = acc["levels"][-1]
     assert plan["inner_size"] == pytest.approx(last["inner_size"] / 2)
     assert plan["outer_size"] == pytest.approx(0.006 / 2)  # the loop's level 2 outer spacing
-    assert plan["step"] == pytest.approx(last["step"] / 4)
+    # ρ* resolved to a quarter of the last level's resolution: its resolution, divided in four
+    assert plan["step"] / plan["step_divisions"] == pytest.approx(last["resolution"] / 4)
     assert plan["lift_test_step"] == pytest.approx(last["lift_test_step"] / 2)
     assert plan["predicted_contacts"] == pytest.approx(80) and not plan["too_large"]
     assert reference_plan(_accuracy(levels_nodes=(40, 160)), 600)["too_large"]  # 640 contacts predicted

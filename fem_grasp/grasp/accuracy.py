@@ -382,6 +382,7 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         The last level's result; ``result.accuracy`` holds :meth:`AccuracyReport.to_dict`.
     """
     from ..elastic.body import Body
+    from ..errors import FrictionError, RestConvergenceError
     from ..mesh.remesh import geometry_of_mesh, nearest_surface_nodes, spacing
     pickup = solve
     if not (isinstance(accuracy, (int, float)) and 0.0 < float(accuracy) < 1.0):
@@ -413,6 +414,9 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
     s0, h0 = ans.resolution, result.lift_test_step
     step_l = s0
     prev_inner = inner
+    if not s0 > 0:  # stopped before the squeeze (no placement, no force closure): no increment to refine from
+        report.note = f"level 0 stopped before the squeeze ({ans.reason}): there is no squeeze to refine"
+        max_levels = 0
     for level in range(1, max_levels + 1):
         if max_seconds is not None and time.perf_counter() - t_start > max_seconds:
             report.note = f"stopped after {time.perf_counter() - t_start:.0f} s (max_seconds = {max_seconds:g})"
@@ -436,9 +440,16 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         before = report.levels[-1].answer
         step_l = next_step(step_l, before, accuracy)  # the resolution of ρ*; h in proportion
         t0 = time.perf_counter()
-        result = pickup(lv_body, opts.replace(contacts=lv_contacts, step=STEP_DIVISIONS * step_l,
-                                              step_divisions=STEP_DIVISIONS, lift_test_step=h0 * step_l / s0),
-                        settings=settings)
+        try:
+            level_result = pickup(lv_body, opts.replace(contacts=lv_contacts, step=STEP_DIVISIONS * step_l,
+                                                        step_divisions=STEP_DIVISIONS,
+                                                        lift_test_step=h0 * step_l / s0), settings=settings)
+        except (RestConvergenceError, FrictionError) as exc:
+            # The finer body does not come to rest as the coarser one did: no answer to compare at this level.
+            report.note = (f"level {level} ({lv_body.n_nodes} vertices) found no resting state ({exc}): the answer "
+                           f"is level {level - 1}'s, its error not estimated by this level")
+            break
+        result = level_result
         ans = answer_of(result, time.perf_counter() - t0)
         change = {"squeeze_depth": relative_change(before.squeeze_depth, ans.squeeze_depth),
                   "finger_force": relative_change(before.finger_force, ans.finger_force)}

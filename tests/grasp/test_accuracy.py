@@ -211,3 +211,38 @@ def test_quick_says_its_answer_is_not_converged_and_by_how_much(capsys, tmp_path
     acc = json.loads((out / "result.json").read_text())["accuracy"]
     assert acc["converged"] is False and len(acc["levels"]) == 1 and acc["target"] == 0.05
     assert acc["estimated_error"] == {"squeeze_depth": 0.4, "finger_force": 0.4}
+
+
+def test_a_finer_level_that_finds_no_resting_state_ends_the_loop_with_the_answer_so_far():
+    """A refined body that does not come to rest (the solver raises) is no answer to compare: the loop keeps the
+    level before as its answer and says why it stopped, instead of raising."""
+    from fem_grasp.errors import RestConvergenceError
+
+    body = Body(BOX.grid((2, 2, 2)), 2e4, 0.3, weight=0.3)
+
+    def solve(b, *args, **kwargs):
+        if b.n_nodes != body.n_nodes:
+            raise RestConvergenceError("the rest did not converge")
+        return pickup(b, *args, **kwargs)
+
+    res = converged_pickup(body, solve=solve, accuracy=TARGET, geometry=BOX, contacts=_centre_nodes(body.mesh),
+                           mu_finger=0.5, finger_radius=0.01, lift=False)
+    acc = res.accuracy
+    assert len(acc["levels"]) == 1 and not acc["converged"] and res.body.n_nodes == body.n_nodes
+    assert "found no resting state" in acc["note"] and math.isinf(max(acc["estimated_error"].values()))
+
+
+def test_a_pickup_that_stops_before_the_squeeze_is_not_refined():
+    """Level 0 ends before any squeeze increment (no placement): the loop has no increment to refine from and
+    returns level 0's answer, saying so."""
+    body = Body(BOX.grid((2, 2, 2)), 2e4, 0.3, weight=0.3)
+
+    def solve(b, *args, **kwargs):
+        r = pickup(b, *args, **kwargs)
+        r.step, r.success, r.reason = 0.0, False, "no initial finger placement: a stand-in"
+        return r
+
+    res = converged_pickup(body, solve=solve, accuracy=TARGET, geometry=BOX, contacts=_centre_nodes(body.mesh),
+                           mu_finger=0.5, finger_radius=0.01, lift=False)
+    acc = res.accuracy
+    assert len(acc["levels"]) == 1 and "no squeeze to refine" in acc["note"] and not acc["converged"]

@@ -40,10 +40,10 @@ from .summary import REQUIRED_COVERAGE, evaluate, passed, summarise
 #: The full study and ``--quick``: objects, target accuracy, the answer's time budget (``max_seconds`` of the
 #: loop) and hard cap, the reference's time cap, and the largest reference run (contacts per fingertip).
 CONFIGS: dict[str, dict[str, Any]] = {
-    "full": {"objects": 10, "accuracy": 0.05, "answer_seconds": 600.0, "answer_cap": 1800.0,
-             "reference_seconds": 900.0, "max_reference_contacts": 600},
-    "quick": {"objects": 3, "accuracy": 0.10, "answer_seconds": 150.0, "answer_cap": 450.0,
-              "reference_seconds": 240.0, "max_reference_contacts": 600},
+    "full": {"objects": 10, "accuracy": 0.05, "answer_seconds": 600.0, "answer_cap": 1800.0, "answer_max_contacts": 80,
+             "reference_seconds": 900.0, "max_reference_contacts": 400},
+    "quick": {"objects": 3, "accuracy": 0.10, "answer_seconds": 150.0, "answer_cap": 450.0, "answer_max_contacts": 80,
+              "reference_seconds": 300.0, "max_reference_contacts": 400},
 }
 #: Stages of :func:`run`.
 STAGES = 1

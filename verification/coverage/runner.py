@@ -35,8 +35,9 @@ def _answer_row(res: Any, seconds: float) -> dict[str, Any]:
 
 def reference_plan(accuracy: dict[str, Any], max_contacts: float) -> dict[str, Any]:
     """The reference's resolution from the answer's levels (``result.accuracy``): one level beyond the last, as
-    the loop would make it — the patch spacing halved, the outer spacing the loop's next one, the squeeze
-    increment a quarter and the lift-test step h half the last level's — and whether it is too large to run
+    the loop would make it — the patch spacing halved, the outer spacing the loop's next one, ρ* resolved to a
+    quarter of the last level's resolution (its increment divided in four where the lift test passes, as the
+    loop's levels do) and the lift-test step h half the last level's — and whether it is too large to run
     (its predicted contacts per fingertip, the last level's times four, above ``max_contacts``)."""
     from fem_grasp.grasp.accuracy import LEVEL_RATIO, PATCH_RADIUS
 
@@ -46,7 +47,7 @@ def reference_plan(accuracy: dict[str, Any], max_contacts: float) -> dict[str, A
     predicted = max(last["finger_nodes"]) * LEVEL_RATIO**2
     return {"inner_size": inner, "radius": PATCH_RADIUS * last["inner_size"],
             "outer_size": max(levels[0]["outer_size"] / LEVEL_RATIO ** (0.5 * (last["level"] + 1)), inner),
-            "step": last["step"] / 4.0,
+            "step": last.get("resolution", last["step"]), "step_divisions": 4,
             "lift_test_step": last["lift_test_step"] / 2.0 if last["lift_test_step"] else None,
             "predicted_contacts": predicted, "too_large": predicted > max_contacts}
 
@@ -75,7 +76,8 @@ def run_object(seed: int, config: dict[str, Any], send: Callable[[tuple[str, Any
         kw = obj.pickup_arguments(smallest)
         on_level = None if send is None else (lambda report: send(("level", report.to_dict())))
         res = converged_pickup(body, solve=pickup, accuracy=config["accuracy"], geometry=geometry,
-                               max_seconds=config["answer_seconds"], on_level=on_level, **kw)
+                               max_seconds=config["answer_seconds"], on_level=on_level,
+                               max_finger_contacts=config["answer_max_contacts"], **kw)
         row["answer"] = _answer_row(res, time.perf_counter() - t0)
         row["answer"]["accuracy"] = res.accuracy
     except Exception as exc:  # noqa: BLE001 - recorded: the object has no answer, the study goes on
@@ -98,7 +100,7 @@ def run_object(seed: int, config: dict[str, Any], send: Callable[[tuple[str, Any
         ref_mesh = _level_meshes(geometry, fingers, table, plan["inner_size"], plan["radius"], plan["outer_size"],
                                  embed)
         ref_body = Body(ref_mesh, body.young, body.poisson, weight=body.weight, gravity=body.gravity)
-        ref_kw = dict(kw, step=plan["step"])
+        ref_kw = dict(kw, step=plan["step"], step_divisions=plan["step_divisions"])
         if embed is not None:  # the finger contacts mapped as the loop maps them
             ref_kw["contacts"] = tuple(int(k) for k in nearest_surface_nodes(ref_mesh, embed))
         if plan["lift_test_step"]:
