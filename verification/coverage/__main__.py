@@ -24,7 +24,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m verification coverage",
                                  description="Does pickup(..., accuracy=A)'s estimated error cover its actual error "
                                              "against a finer reference, on random objects?")
-    ap.add_argument("--quick", action="store_true", help="3 objects at 10 %%, the answer's budget 150 s, the reference's cap 240 s")
+    ap.add_argument("--quick", action="store_true", help="3 objects at 10 %%, the answer's budget 150 s, the reference's cap 300 s")
     ap.add_argument("--objects", type=int, help="objects to draw (default: 10; 3 with --quick)")
     ap.add_argument("--seed", type=int, default=0, help="object i is drawn from numpy's default_rng(seed + i)")
     ap.add_argument("--accuracy", type=float, help="the target accuracy A (default: 0.05; 0.10 with --quick)")

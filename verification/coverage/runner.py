@@ -89,6 +89,9 @@ def run_object(seed: int, config: dict[str, Any], send: Callable[[tuple[str, Any
 
     plan = reference_plan(res.accuracy, config["max_reference_contacts"])
     row["reference"] = {"plan": plan}
+    if not plan["step"] > 0:  # the answer stopped before the squeeze (no placement): nothing finer to compare
+        row["reference"]["status"] = "no squeeze"
+        return row
     if plan["too_large"]:
         row["reference"]["status"] = "too large"
         return row
