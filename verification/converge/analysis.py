@@ -100,8 +100,8 @@ def within(row: dict[str, Any], target: float, picked: bool) -> bool:
 def adaptive_at(acc: dict[str, Any], target: float) -> dict[str, Any] | None:
     """What ``pickup(..., accuracy=target)`` returns, read off a run of the loop at a finer target: the first level
     ≥ 1 with the verdict of the one before whose estimated error meets ``target`` by the loop's own rule
-    (:func:`fem_grasp.grasp.accuracy.estimated_error`: the change from the level before plus one squeeze
-    increment, relative), and its cumulative time.  The finer target's run took finer increments, so the time is
+    (:func:`fem_grasp.grasp.accuracy.estimated_error`: the change from the level before plus the resolution of
+    ρ*, one squeeze increment or sub-increment, relative), and its cumulative time.  The finer target's run took finer increments, so the time is
     an upper bound on that of a run at ``target``."""
     from types import SimpleNamespace
 
@@ -115,8 +115,10 @@ def adaptive_at(acc: dict[str, Any], target: float) -> dict[str, Any] | None:
         if not i or not ch or levels[i - 1]["success"] != lv["success"]:
             continue
         # a level's record holds what estimated_error reads of its GraspAnswer
+        step = lv.get("step") or 0.0
         answer = SimpleNamespace(success=lv["success"], reason=lv.get("reason", ""),
-                                 squeeze_depth=lv.get("squeeze_depth") or 0.0, step=lv.get("step") or 0.0)
+                                 squeeze_depth=lv.get("squeeze_depth") or 0.0, step=step,
+                                 resolution=lv.get("resolution") or step / (lv.get("step_divisions") or 1))
         est = estimated_error(ch, answer)
         if max(est.values()) <= target:
             return {"level": lv, "seconds": seconds,
