@@ -68,10 +68,10 @@ def scene_of(args: argparse.Namespace) -> Any:
             raise BadInput("--allow-implausible-units: only a mesh file's size and density are checked for their "
                            f"unit; the scene's object is a {scene.object.kind}")
         scene = scene.with_(allow_implausible_units=True)
+    from dataclasses import replace
+
     accuracy = getattr(args, "accuracy", None)
     if accuracy is not None:
-        from dataclasses import replace
-
         from ..io.scene import parse_accuracy
 
         scene = replace(scene, accuracy=parse_accuracy(accuracy, "--accuracy"))
@@ -79,8 +79,6 @@ def scene_of(args: argparse.Namespace) -> Any:
     if max_contacts is not None:
         if max_contacts < 1:
             raise BadInput(f"--max-finger-contacts must be a whole number ≥ 1, got {max_contacts}")
-        from dataclasses import replace
-
         scene = replace(scene, max_finger_contacts=max_contacts)
     return scene
 

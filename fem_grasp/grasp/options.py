@@ -171,18 +171,11 @@ class PickupOptions:
         if not isinstance(self.lift, (bool, np.bool_)):
             raise ValueError(f"lift must be True or False, got {self.lift!r}")
         put(self, "lift", bool(self.lift))
-        n = self.max_finger_contacts
-        if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < 1:
-            raise ValueError(f"max_finger_contacts must be a whole number ≥ 1, got {n!r}")
-        put(self, "max_finger_contacts", int(n))
-        n = self.step_divisions
-        if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < 1:
-            raise ValueError(f"step_divisions must be a whole number ≥ 1, got {n!r}")
-        put(self, "step_divisions", int(n))
-        n = self.max_lift_attempts
-        if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < 1:
-            raise ValueError(f"max_lift_attempts must be a whole number ≥ 1, got {n!r}")
-        put(self, "max_lift_attempts", int(n))
+        for name in ("max_finger_contacts", "step_divisions", "max_lift_attempts"):
+            n = getattr(self, name)
+            if isinstance(n, (bool, np.bool_)) or not isinstance(n, (int, np.integer)) or n < 1:
+                raise ValueError(f"{name} must be a whole number ≥ 1, got {n!r}")
+            put(self, name, int(n))
         if self.placement_rule not in PLACEMENT_RULES:
             raise SceneError(f"unknown placement rule {self.placement_rule!r}; choose one of {PLACEMENT_RULES}")
         if self.backend not in BACKENDS:

@@ -115,11 +115,14 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
     tested = [state]  # where the increment in which the test passes begins: the last failing test, or the start
     again = [False]
 
+    def emit(st: ContactState, events: list[ContactEvent]) -> None:
+        out.events.extend(events)
+        if on_event is not None:
+            on_event(st, events)
+
     def keep() -> None:
         for st, events in pending:
-            out.events.extend(events)
-            if on_event is not None:
-                on_event(st, events)
+            emit(st, events)
         pending.clear()
 
     def test(st: ContactState) -> bool:
@@ -159,8 +162,10 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
         final, _, stopped = run(tracker, state, velocities, stop=max_squeeze, step=step, param=Parameter.SQUEEZE_DEPTH,
                                 phase="squeeze", after_step=after, on_event=record)
         if again[0]:
-            final, stopped = _divide(tracker, tested[0], final, velocities, step / divisions, test, out, on_event,
-                                     pending, last)
+            pending.clear()  # the first pass through the increment is not kept
+            del out.liftable[-1]
+            final, stopped = _divide(tracker, tested[0], final.squeeze_depth, velocities, step / divisions, test,
+                                     emit, last)
             if not stopped:  # w(ρ) crossed mg and fell back within the increment: squeeze on, undivided
                 next_test[0] = final.squeeze_depth + step
                 final, _, stopped = run(tracker, final, velocities, stop=max_squeeze, step=step,
@@ -182,15 +187,12 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
     return out
 
 
-def _divide(tracker: Tracker, start: ContactState, passing: ContactState, velocities: np.ndarray, sub: float,
-            test: Callable[[ContactState], bool], out: SqueezeOutcome,
-            on_event: Callable[[ContactState, list[ContactEvent]], None] | None,
-            pending: list, last: list) -> tuple[ContactState, bool]:
-    """The passing increment (``start`` → ``passing``) squeezed again in sub-increments ``sub`` with the lift test
-    after each, to the first that passes (the increment's own end at the latest, tested again)."""
-    pending.clear()  # the first pass through the increment is not kept
-    del out.liftable[-1]
-    end = passing.squeeze_depth
+def _divide(tracker: Tracker, start: ContactState, end: float, velocities: np.ndarray, sub: float,
+            test: Callable[[ContactState], bool], emit: Callable[[ContactState, list[ContactEvent]], None],
+            last: list) -> tuple[ContactState, bool]:
+    """The passing increment (``start`` to ρ = ``end``) squeezed again in sub-increments ``sub`` with the lift test
+    after each, to the first that passes (the increment's own end at the latest, tested again); its events go to
+    ``emit``."""
     next_test = [start.squeeze_depth + sub]
 
     def after(st: ContactState, events: list[ContactEvent]) -> bool:
@@ -201,13 +203,8 @@ def _divide(tracker: Tracker, start: ContactState, passing: ContactState, veloci
         next_test[0] = rho + sub
         return test(st)
 
-    def record(st: ContactState, events: list[ContactEvent]) -> None:
-        out.events.extend(events)
-        if on_event is not None:
-            on_event(st, events)
-
     last[0] = start
     final, _, stopped = run(tracker, start, velocities, stop=end, step=sub, param=Parameter.SQUEEZE_DEPTH,
-                            phase="squeeze", after_step=after, on_event=record)
+                            phase="squeeze", after_step=after, on_event=emit)
     return final, stopped
 
