@@ -788,7 +788,7 @@ def accuracy_errors(raw: dict[str, Any], reference: dict[str, Any]) -> dict[str,
     least the actual one for every quantity that has both (False on a wrong verdict; None when nothing is
     stated).
     """
-    from fem_grasp.grasp.accuracy import relative_change
+    from fem_grasp.grasp.estimates import relative_change
 
     ans = raw["answer"]
     verdict_ok = bool(ans["success"]) == bool(reference["success"])

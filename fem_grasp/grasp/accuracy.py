@@ -23,13 +23,18 @@ geometry (:mod:`fem_grasp.mesh.remesh`) with half the spacing at those patches
 finer outer mesh, and takes a squeeze increment small enough that the lift
 test's quantisation of ρ* (at most one increment) uses at most half the target
 (:func:`next_step`; h in proportion); it stops when two successive levels
-agree on the verdict and their estimated error — the difference of ρ* and of
-the finger force Σ f·n̂ between them, relative to the last, plus one
-increment (:func:`estimated_error`) — is within the target.  The answer is the
-last level's.  For a sequence converging at least linearly in the spacing with
-ratio 2, the last level's error against the converged value is at most the
-last difference.  Where three levels are monotone with an observed order, the
-Richardson estimate is reported too (:func:`estimate`).
+agree on the verdict and their estimated error is within the target.  The
+answer is the last level's.  The estimated error (:func:`estimated_error`) is
+the difference of ρ* and of the finger force Σ f·n̂ between the last two
+levels, relative to the last — for a sequence converging at least linearly in
+the spacing with ratio 2, the last level's error against the converged value
+is at most that — or, from the third level on, the larger of that and the
+uncertainty of the last three levels (:func:`three_level_errors`, after Eça and
+Hoekstra, :mod:`fem_grasp.grasp.estimates`: 1.25 × the extrapolated error
+where they converge monotonically, three times their scatter where they
+swing), plus the resolution of ρ* (one increment).  Where three levels are
+monotone with an observed order, the Richardson estimate is reported too
+(:func:`estimate`).
 
 Definitions (:class:`GraspAnswer`)
 ----------------------------------
@@ -55,13 +60,13 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from .estimates import estimate, relative_change, sequence_uncertainty
 from .options import MAX_FINGER_CONTACTS as _MAX_FINGER_CONTACTS
 from .options import PickupOptions
 
-__all__ = ["GraspAnswer", "AccuracyLevel", "AccuracyReport", "answer_of", "patch_points", "estimate",
-           "single_run_report", "next_step", "estimated_error",
-           "relative_change", "converged_pickup", "LEVEL_RATIO", "STEP_DIVISIONS", "DEFAULT_ACCURACY", "MAX_LEVELS",
-           "MAX_FINGER_CONTACTS"]
+__all__ = ["GraspAnswer", "AccuracyLevel", "AccuracyReport", "answer_of", "patch_points",
+           "single_run_report", "next_step", "estimated_error", "three_level_errors", "converged_pickup",
+           "LEVEL_RATIO", "STEP_DIVISIONS", "DEFAULT_ACCURACY", "MAX_LEVELS", "MAX_FINGER_CONTACTS"]
 
 log = logging.getLogger(__name__)
 
@@ -189,66 +194,19 @@ def patch_points(result: Any) -> tuple[np.ndarray, np.ndarray]:
 
 
 # ============================================================== estimation
-def relative_change(a: float, b: float) -> float:
-    """|a − b| / |b| (inf when b = 0 and a ≠ 0)."""
-    if a == b:
-        return 0.0
-    return abs(a - b) / abs(b) if b != 0 else math.inf
-
-
-def estimate(values: Sequence[float], sizes: Sequence[float], *, min_order: float = 0.25,
-             max_order: float = 4.0) -> dict[str, Any]:
-    """The converged value of a sequence computed at decreasing sizes, and the last value's error.
-
-    Richardson extrapolation from the last three values when their two
-    differences have the same sign (monotone) and the observed order p,
-    solving (q₂ − q₁)/(q₃ − q₂) = (h₁ᵖ − h₂ᵖ)/(h₂ᵖ − h₃ᵖ), lies in
-    [``min_order``, ``max_order``] (outside it the "order" is noise: 0.25
-    would take sixteen halvings per halving of the error, 4 is beyond P1);
-    then q∞ = q₃ + (q₃ − q₂) h₃ᵖ/(h₂ᵖ − h₃ᵖ).  Otherwise the finest value with a
-    band: the largest difference between the last value and the two before
-    it (the scatter of the finest levels).
-
-    Returns
-    -------
-    dict
-        ``value`` (the estimate), ``error`` (|last − value| / |value|, or the
-        band relative to the last value), ``method`` ("richardson", "band" or
-        "single"), ``order`` (p or None).
-    """
-    q = [float(v) for v in values]
-    h = [float(s) for s in sizes]
-    if len(q) != len(h):
-        raise ValueError("values and sizes differ in length")
-    if not q:
-        return {"value": math.nan, "error": math.inf, "method": "none", "order": None}
-    if len(q) == 1:
-        return {"value": q[0], "error": math.inf, "method": "single", "order": None}
-    if len(q) >= 3:
-        (q1, q2, q3), (h1, h2, h3) = q[-3:], h[-3:]
-        d1, d2 = q2 - q1, q3 - q2
-        if d1 != 0 and d2 != 0 and (d1 > 0) == (d2 > 0) and h1 > h2 > h3 > 0:
-            target = d1 / d2
-
-            def ratio(p: float) -> float:
-                return (h1**p - h2**p) / (h2**p - h3**p)
-
-            lo, hi = min_order, max_order
-            rlo, rhi = ratio(lo) - target, ratio(hi) - target
-            if rlo * rhi <= 0:
-                for _ in range(100):  # bisection: the ratio is monotone in p for h1 > h2 > h3
-                    mid = 0.5 * (lo + hi)
-                    rm = ratio(mid) - target
-                    if (rm > 0) == (rlo > 0):
-                        lo, rlo = mid, rm
-                    else:
-                        hi = mid
-                p = 0.5 * (lo + hi)
-                value = q3 + d2 * h3**p / (h2**p - h3**p)
-                return {"value": value, "error": relative_change(q3, value), "method": "richardson", "order": p}
-    band = max(abs(q[-1] - x) for x in q[-3:-1])
-    return {"value": q[-1], "error": band / abs(q[-1]) if q[-1] != 0 else math.inf, "method": "band",
-            "order": None}
+def three_level_errors(levels: Sequence[dict[str, Any]]) -> dict[str, dict[str, Any]]:
+    """Per quantity (ρ* and Σ f·n̂), :func:`~fem_grasp.grasp.estimates.sequence_uncertainty` of the last three
+    levels (records as :meth:`AccuracyLevel.to_dict` writes them), when all three lifted the object (the verdict
+    the levels compare) at decreasing patch spacings; else empty (a failed pickup's ρ* is where the squeeze
+    stopped, not a converging quantity)."""
+    last = list(levels)[-3:]
+    if len(last) < 3 or not all((lv["success"] or "lift was not run" in lv.get("reason", ""))
+                                and (lv.get("squeeze_depth") or 0.0) > 0 for lv in last):
+        return {}
+    sizes = [float(lv["inner_size"]) for lv in last]
+    if not sizes[0] > sizes[1] > sizes[2] > 0:
+        return {}
+    return {q: sequence_uncertainty([float(lv[q]) for lv in last], sizes) for q in ("squeeze_depth", "finger_force")}
 
 
 # ============================================================ the loop
@@ -296,6 +254,9 @@ class AccuracyReport:
     levels : every level run
     note : how the estimate was made, or why the loop stopped unconverged
     richardson : per quantity, :func:`estimate` over the levels (when three or more were run)
+    geometry : what the levels remeshed
+    three_levels : per quantity, how the last three levels behaved (:func:`three_level_errors`: ``method``,
+        observed ``order``, ``contraction``, ``relative`` uncertainty), when they all lifted the object
     """
 
     target: float
@@ -305,10 +266,12 @@ class AccuracyReport:
     note: str = ""
     richardson: dict[str, Any] = field(default_factory=dict)
     geometry: str = ""
+    three_levels: dict[str, Any] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
         return {"target": self.target, "estimated_error": dict(self.estimated_error), "converged": self.converged,
                 "note": self.note, "geometry": self.geometry, "richardson": self.richardson,
+                "three_levels": self.three_levels,
                 "levels": [lv.to_dict() for lv in self.levels]}
 
     def summary_line(self) -> str:
@@ -466,14 +429,18 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
                  ans.finger_force, change["finger_force"], ans.seconds + t_mesh)
         if on_level is not None:
             on_level(report)
-        report.estimated_error = estimated_error(change, ans)
+        three = three_level_errors([lv.to_dict() for lv in report.levels])
+        report.estimated_error = estimated_error(change, ans, three)
+        report.three_levels = {k: {"method": u["method"], "order": u["order"], "contraction": u["contraction"],
+                                   "relative": u["relative"]} for k, u in three.items()}
         if _passed(ans) != _passed(before):
             report.estimated_error = {"squeeze_depth": math.inf, "finger_force": math.inf}
             report.note = f"the verdict changed between levels {level - 1} and {level}"
         elif max(report.estimated_error.values()) <= accuracy:
             report.converged = True
             report.note = (f"levels {level - 1} and {level} agree within {100 * accuracy:g} %: the estimated error is "
-                           "their difference plus the resolution of rho*")
+                           + ("the larger of their difference and the uncertainty of the last three levels"
+                              if three else "their difference") + " plus the resolution of rho*")
             break
         f2, t2 = patch_points(result)
         fingers, table = np.vstack([fingers, f2]), np.vstack([table, t2])
@@ -514,12 +481,17 @@ def next_step(step: float, before: GraspAnswer, accuracy: float) -> float:
     return min(step, STEP_SHARE * accuracy * before.squeeze_depth)
 
 
-def estimated_error(change: dict[str, float], ans: GraspAnswer) -> dict[str, float]:
-    """Relative error of a level's answer: its change from the level before, plus, for a level that found ρ*,
-    its resolution (ρ* is found up to one increment, or sub-increment, late, and the finger force grows with ρ*,
-    about in proportion near the lift-off)."""
+def estimated_error(change: dict[str, float], ans: GraspAnswer,
+                    three_levels: dict[str, dict[str, Any]] | None = None) -> dict[str, float]:
+    """Relative error of a level's answer: its change from the level before — or, where the last three levels
+    lifted the object, the larger of that change and their uncertainty (``three_levels``,
+    :func:`three_level_errors`) — plus, for a level that found ρ*, its resolution (ρ* is found up to one
+    increment, or sub-increment, late, and the finger force grows with ρ*, about in proportion near the
+    lift-off)."""
     q = ans.resolution / ans.squeeze_depth if _passed(ans) and ans.squeeze_depth > 0 else 0.0
-    out = {"squeeze_depth": change["squeeze_depth"] + q, "finger_force": change["finger_force"] + q}
+    three = three_levels or {}
+    out = {k: max(change[k], three[k]["relative"] if k in three else 0.0) + q
+           for k in ("squeeze_depth", "finger_force")}
     if "max_liftable" in change:
         out["max_liftable"] = change["max_liftable"]
     return out

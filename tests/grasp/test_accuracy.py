@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from fem_grasp import Body, box_mesh
-from fem_grasp.grasp.accuracy import answer_of, converged_pickup, estimate, relative_change
+from fem_grasp.grasp.accuracy import answer_of, converged_pickup
+from fem_grasp.grasp.estimates import relative_change
 from fem_grasp.grasp.pickup import pickup
 from fem_grasp.grasp.rest import rest
 from fem_grasp.mesh import remesh
@@ -22,25 +23,6 @@ FACE_CENTRES = np.array([[0.0, -0.02, 0.015], [0.0, 0.02, 0.015]])
 
 def _centre_nodes(mesh):
     return tuple(int(k) for k in remesh.nearest_surface_nodes(mesh, FACE_CENTRES))
-
-
-# ------------------------------------------------------------ estimates
-def test_richardson_recovers_the_limit_and_the_order_of_a_smooth_sequence():
-    h = np.array([0.4, 0.2, 0.1])
-    q = 2.0 + 0.3 * h**1.5
-    est = estimate(q, h)
-    assert est["method"] == "richardson"
-    assert est["order"] == pytest.approx(1.5, abs=1e-6)
-    assert est["value"] == pytest.approx(2.0, abs=1e-9)
-    assert est["error"] == pytest.approx(0.3 * 0.1**1.5 / 2.0, rel=1e-6)  # the finest value's true error
-
-
-def test_a_non_monotone_sequence_gets_the_finest_value_with_the_scatter_as_band():
-    est = estimate([1.0, 1.3, 1.1], [0.4, 0.2, 0.1])
-    assert est["method"] == "band" and est["value"] == 1.1
-    assert est["error"] == pytest.approx(0.2 / 1.1)
-    assert estimate([1.0], [0.1])["error"] == math.inf
-    assert relative_change(1.0, 1.0) == 0.0 and relative_change(1.1, 1.0) == pytest.approx(0.1)
 
 
 # ------------------------------------------------------------ the answer

@@ -100,12 +100,13 @@ def within(row: dict[str, Any], target: float, picked: bool) -> bool:
 def adaptive_at(acc: dict[str, Any], target: float) -> dict[str, Any] | None:
     """What ``pickup(..., accuracy=target)`` returns, read off a run of the loop at a finer target: the first level
     ≥ 1 with the verdict of the one before whose estimated error meets ``target`` by the loop's own rule
-    (:func:`fem_grasp.grasp.accuracy.estimated_error`: the change from the level before plus the resolution of
-    ρ*, one squeeze increment or sub-increment, relative), and its cumulative time.  The finer target's run took finer increments, so the time is
+    (:func:`fem_grasp.grasp.accuracy.estimated_error`: the change from the level before, or the uncertainty of
+    the last three levels where larger, plus the resolution of ρ*, one squeeze increment or sub-increment,
+    relative), and its cumulative time.  The finer target's run took finer increments, so the time is
     an upper bound on that of a run at ``target``."""
     from types import SimpleNamespace
 
-    from fem_grasp.grasp.accuracy import estimated_error
+    from fem_grasp.grasp.accuracy import estimated_error, three_level_errors
 
     levels = acc.get("levels", [])
     seconds = 0.0
@@ -119,7 +120,7 @@ def adaptive_at(acc: dict[str, Any], target: float) -> dict[str, Any] | None:
         answer = SimpleNamespace(success=lv["success"], reason=lv.get("reason", ""),
                                  squeeze_depth=lv.get("squeeze_depth") or 0.0, step=step,
                                  resolution=lv.get("resolution") or step / (lv.get("step_divisions") or 1))
-        est = estimated_error(ch, answer)
+        est = estimated_error(ch, answer, three_level_errors(levels[:i + 1]))
         if max(est.values()) <= target:
             return {"level": lv, "seconds": seconds,
                     "estimated_error": {k: est[k] for k in ("squeeze_depth", "finger_force")}}
@@ -128,7 +129,7 @@ def adaptive_at(acc: dict[str, Any], target: float) -> dict[str, Any] | None:
 
 def analyse(records: dict[str, dict], objects: tuple[str, ...], cfg: dict[str, Any]) -> dict[str, Any]:
     """Tables, estimates, errors against the reference, resolutions per target, scatter, flips."""
-    from fem_grasp.grasp.accuracy import estimate
+    from fem_grasp.grasp.estimates import estimate
 
     out: dict[str, Any] = {"objects": {}, "codes": sorted({r.get("code", "?") for r in records.values()})}
     for name in objects:

@@ -1,0 +1,117 @@
+"""The error of a refinement sequence (fem_grasp.grasp.estimates): Richardson extrapolation and the three-level
+uncertainty of the accuracy loop, on sequences whose limit is known."""
+
+import math
+
+import numpy as np
+import pytest
+
+from fem_grasp.grasp.accuracy import estimated_error, three_level_errors
+from fem_grasp.grasp.estimates import estimate, observed_order, relative_change, sequence_uncertainty
+
+H = np.array([0.4, 0.2, 0.1])  # patch spacings of three levels, ratio 2 as the loop's
+
+
+def test_richardson_recovers_the_limit_and_the_order_of_a_smooth_sequence():
+    q = 2.0 + 0.3 * H**1.5
+    est = estimate(q, H)
+    assert est["method"] == "richardson"
+    assert est["order"] == pytest.approx(1.5, abs=1e-6)
+    assert est["value"] == pytest.approx(2.0, abs=1e-9)
+    assert est["error"] == pytest.approx(0.3 * 0.1**1.5 / 2.0, rel=1e-6)  # the finest value's true error
+
+
+def test_a_non_monotone_sequence_gets_the_finest_value_with_the_scatter_as_band():
+    est = estimate([1.0, 1.3, 1.1], [0.4, 0.2, 0.1])
+    assert est["method"] == "band" and est["value"] == 1.1
+    assert est["error"] == pytest.approx(0.2 / 1.1)
+    assert estimate([1.0], [0.1])["error"] == math.inf
+    assert relative_change(1.0, 1.0) == 0.0 and relative_change(1.1, 1.0) == pytest.approx(0.1)
+
+
+def test_observed_order_of_uneven_spacings():
+    h = np.array([0.5, 0.3, 0.1])
+    assert observed_order(1.0 - 0.2 * h**0.8, h) == pytest.approx(0.8, abs=1e-9)
+    assert observed_order([1.0, 1.2, 1.1], h) is None  # not monotone
+    assert observed_order([1.0, 1.2, 1.3], [0.1, 0.2, 0.3]) is None  # sizes not decreasing
+
+
+@pytest.mark.parametrize("p", [0.3, 0.5, 0.7, 1.0, 1.5, 2.0, 3.0, 4.0])
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_three_monotone_levels_bound_the_true_error_of_the_finest(p, sign):
+    """q(h) = q∞ + a hᵖ: the stated uncertainty covers |q₃ − q∞| for every order from 0.3 up, within a factor
+    of a few, where the last difference alone under-states it for orders below 1."""
+    q = 5.0 + sign * 2.0 * H**p
+    u = sequence_uncertainty(q, H)
+    true = abs(q[2] - 5.0)
+    assert u["error"] >= true * (1 - 1e-9)
+    assert u["error"] <= 12 * true  # not a vacuous bound
+    assert u["relative"] == pytest.approx(u["error"] / abs(q[2]))
+    if p >= 0.5:
+        assert u["method"] == "monotone" and u["order"] == pytest.approx(p, abs=1e-6)
+        assert u["error"] <= 1.25 * true * (1 + 1e-9) if p <= 2 else u["error"] >= true
+    if p < 1:
+        assert abs(q[2] - q[1]) < true  # the two-level difference would not cover it
+
+
+def test_levels_that_oscillate_and_contract_state_their_last_difference():
+    c = 0.3
+    q = [7.0 + 1.5 * (-c) ** k for k in range(3)]
+    u = sequence_uncertainty(q, H)
+    assert u["method"] == "oscillating" and u["contraction"] == pytest.approx(c)
+    assert u["error"] == pytest.approx(abs(q[2] - q[1]))
+    assert u["error"] >= 3 * abs(q[2] - 7.0) * (1 - 1e-12)  # three times the alternating series' remainder
+
+
+@pytest.mark.parametrize("q", [[9.42, 12.68, 8.95],  # a swing wider than the change before it
+                               [1.0, 1.8, 2.5],  # converging slower than order 0.5 (contraction 0.875)
+                               [1.0, 1.1, 1.3],  # diverging
+                               [1.0, 2.0, 1.4]])  # oscillating without halving
+def test_levels_that_do_not_converge_state_three_times_their_scatter(q):
+    u = sequence_uncertainty(q, H)
+    assert u["method"] == "scatter"
+    assert u["error"] == pytest.approx(3 * (max(q) - min(q)))
+    assert u["error"] > abs(q[2] - q[1])
+
+
+def test_agreeing_levels_have_no_uncertainty_and_bad_input_is_refused():
+    assert sequence_uncertainty([2.0, 2.0, 2.0], H)["error"] == 0.0
+    assert sequence_uncertainty([3.0, 2.0, 2.0], H)["error"] == 0.0
+    with pytest.raises(ValueError, match="decrease"):
+        sequence_uncertainty([1.0, 1.1, 1.2], [0.1, 0.2, 0.4])
+    with pytest.raises(ValueError, match="three"):
+        sequence_uncertainty([1.0, 1.1], [0.2, 0.1])
+
+
+# ---------------------------------------------------------------- in the loop's estimate
+def _level(rho_mm: float, force: float, inner: float, success: bool = True) -> dict:
+    return {"success": success, "reason": "" if success else "lift test did not pass", "squeeze_depth": 1e-3 * rho_mm,
+            "finger_force": force, "inner_size": inner, "resolution": 1e-5}
+
+
+class _Answer:  # what estimated_error reads of a GraspAnswer
+    def __init__(self, rho: float) -> None:
+        self.success, self.reason, self.squeeze_depth, self.resolution = True, "", rho, 1e-5
+
+
+def test_a_swinging_third_level_raises_the_loops_estimate_above_the_last_difference():
+    levels = [_level(9.42, 4.7, 4e-3), _level(12.68, 6.0, 2e-3), _level(9.30, 4.75, 1e-3)]
+    three = three_level_errors(levels)
+    assert set(three) == {"squeeze_depth", "finger_force"}
+    change = {"squeeze_depth": relative_change(12.68e-3, 9.30e-3), "finger_force": relative_change(6.0, 4.75)}
+    two = estimated_error(change, _Answer(9.30e-3))
+    est = estimated_error(change, _Answer(9.30e-3), three)
+    res = 1e-5 / 9.30e-3
+    assert three["squeeze_depth"]["method"] == "scatter"
+    assert est["squeeze_depth"] == pytest.approx(3 * (12.68 - 9.30) / 9.30 + res)
+    assert est["squeeze_depth"] > two["squeeze_depth"] == pytest.approx(change["squeeze_depth"] + res)
+
+
+def test_a_well_converging_third_level_keeps_the_last_difference_and_failures_get_none():
+    levels = [_level(12.0, 6.0, 4e-3), _level(10.5, 5.2, 2e-3), _level(10.2, 5.05, 1e-3)]  # contraction 0.2
+    three = three_level_errors(levels)
+    change = {"squeeze_depth": relative_change(10.5, 10.2), "finger_force": relative_change(5.2, 5.05)}
+    est = estimated_error(change, _Answer(10.2e-3), three)
+    assert est == pytest.approx(estimated_error(change, _Answer(10.2e-3)))
+    assert three_level_errors(levels[:2]) == {}
+    assert three_level_errors(levels[:2] + [_level(20.0, 1.0, 1e-3, success=False)]) == {}
