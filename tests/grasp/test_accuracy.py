@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from fem_grasp import Body, box_mesh
-from fem_grasp.grasp.accuracy import answer_of, converged_pickup
+from fem_grasp.grasp.accuracy import STEP_SHARE, answer_of, converged_pickup
 from fem_grasp.grasp.estimates import relative_change
 from fem_grasp.grasp.pickup import pickup
 from fem_grasp.grasp.rest import rest
@@ -82,14 +82,14 @@ def levels():
                             mu_finger=0.5, finger_radius=0.01, lift=False)
 
 
-def test_each_level_halves_the_patch_spacing_and_resolves_rho_to_half_the_target(levels):
+def test_each_level_halves_the_patch_spacing_and_resolves_rho_to_its_share_of_the_target(levels):
     lv = levels.accuracy["levels"]
     assert [x["level"] for x in lv] == [0, 1, 2]
     for a, b in zip(lv, lv[1:]):
         assert b["inner_size"] == pytest.approx(a["inner_size"] / 2)
         assert b["vertices"] > a["vertices"] and sum(b["finger_nodes"]) > sum(a["finger_nodes"])
-        # the lift test finds ρ* up to one (sub-)increment late: that resolution takes at most half the target
-        assert b["resolution"] <= min(a["resolution"], 0.5 * TARGET * a["squeeze_depth"]) * (1 + 1e-12)
+        # the lift test finds ρ* up to one (sub-)increment late: that resolution takes at most its share of the target
+        assert b["resolution"] <= min(a["resolution"], STEP_SHARE * TARGET * a["squeeze_depth"]) * (1 + 1e-12)
         assert b["resolution"] == pytest.approx(b["step"] / b["step_divisions"])
         assert b["lift_test_step"] / b["resolution"] == pytest.approx(lv[0]["lift_test_step"] / lv[0]["resolution"])
 

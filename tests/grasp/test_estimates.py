@@ -115,3 +115,41 @@ def test_a_well_converging_third_level_keeps_the_last_difference_and_failures_ge
     assert est == pytest.approx(estimated_error(change, _Answer(10.2e-3)))
     assert three_level_errors(levels[:2]) == {}
     assert three_level_errors(levels[:2] + [_level(20.0, 1.0, 1e-3, success=False)]) == {}
+
+
+# ---------------------------------------------------------------- what the next level's resolution costs
+def _answer(rho_mm: float, force: float, resolution_mm: float):
+    from fem_grasp.grasp.accuracy import GraspAnswer
+
+    f = {"resultant": force / 2, "along_squeeze": force / 2, "vertical": 0.1, "nodes": 10}
+    return GraspAnswer(True, "", 1e-3 * rho_mm, force, (f, f), 20, 1.0, 1.0, (), 1000, 4e-3 * resolution_mm, 0.05,
+                       1.0, 4)
+
+
+def _levels(first, second):
+    from fem_grasp.grasp.accuracy import AccuracyLevel
+
+    a, b = _answer(*first), _answer(*second)
+    change = {"squeeze_depth": relative_change(a.squeeze_depth, b.squeeze_depth),
+              "finger_force": relative_change(a.finger_force, b.finger_force)}
+    return [AccuracyLevel(0, 4e-3, 6e-3, a), AccuracyLevel(1, 2e-3, 4e-3, b, change=change)]
+
+
+def test_a_level_predicted_to_converge_resolves_rho_finer_and_others_do_not():
+    from fem_grasp.grasp.accuracy import FINE_STEP_SHARE, STEP_SHARE, next_step, predicted_mesh_error
+
+    target = 0.05
+    # ρ* moved by less than the coarser level's resolution, the force by 3.6 %: about 1.8 % predicted
+    quiet = _levels((2.27, 0.666, 0.25), (2.04, 0.642, 0.057))
+    p = predicted_mesh_error(quiet)
+    assert p == pytest.approx(max(0.0, relative_change(0.666, 0.642) - 0.25 / 2.04) / 2)
+    assert p <= (1 - FINE_STEP_SHARE) * target
+    rho = quiet[-1].answer.squeeze_depth
+    assert next_step(1.0, quiet[-1].answer, target, p) == pytest.approx(FINE_STEP_SHARE * target * rho)
+    # a change of 16 % beyond the resolution: the next level is not expected to converge, half the target for ρ*
+    moving = _levels((12.40, 7.84, 0.59), (10.37, 6.05, 0.31))
+    p = predicted_mesh_error(moving)
+    assert p > (1 - FINE_STEP_SHARE) * target
+    rho = moving[-1].answer.squeeze_depth
+    assert next_step(1.0, moving[-1].answer, target, p) == pytest.approx(STEP_SHARE * target * rho)
+    assert predicted_mesh_error(moving[:1]) is None

@@ -24,18 +24,29 @@ def runs():
     return coarse, divided, fine
 
 
-def test_the_divided_increment_finds_the_fine_increments_rho_and_forces(runs):
+def _force_along(result, rho):
+    """Σ f·n̂ along a run's squeeze at depth ρ: linear between its events (eqs. 6–8 are linear in ρ between them)."""
+    snaps = [s for s in result.snapshots if s.label in ("initial", "event", "lift start")]
+    depths = np.array([s.squeeze_depth for s in snaps])
+    forces = np.array([s.finger_normal_force(result.table) for s in snaps])
+    order = np.argsort(depths, kind="stable")
+    assert depths.min() <= rho <= depths.max() * (1 + 1e-12)
+    return float(np.interp(rho, depths[order], forces[order]))
+
+
+def test_the_divided_increment_finds_the_fine_increments_rho_and_follows_its_path(runs):
     coarse, divided, fine = runs
     s = coarse.step
     for r in runs:
         assert "lift test passed" in r.reason or "lift was not run" in r.reason
-    # within the coarse increment that passed, and one sub-increment of the fine increment's answer
+    # within the coarse increment that passed, and one sub-increment of the fine increment's answer (the two
+    # test on different grids of depths, so where w(ρ) reaches mg between them they differ by up to one)
     assert coarse.squeeze_depth - s * (1 + 1e-9) <= divided.squeeze_depth <= coarse.squeeze_depth * (1 + 1e-12)
     assert abs(divided.squeeze_depth - fine.squeeze_depth) <= s / DIVISIONS * (1 + 1e-9)
+    # the same squeeze path: the finger force of both at the shallower of the two answers within 1 % of mg
     mg = divided.body.weight
-    assert abs(divided.finger_normal_force - fine.finger_normal_force) <= 0.01 * mg
-    for a, b in zip(divided.finger_forces, fine.finger_forces):
-        assert np.linalg.norm(np.asarray(a.resultant) - np.asarray(b.resultant)) <= 0.01 * mg
+    rho = min(divided.squeeze_depth, fine.squeeze_depth)
+    assert abs(_force_along(divided, rho) - _force_along(fine, rho)) <= 0.01 * mg
     assert divided.step_divisions == DIVISIONS and divided.to_dict()["step_divisions"] == DIVISIONS
 
 
