@@ -21,9 +21,9 @@ the contact patches (fingertips and table); each next level remeshes the
 geometry (:mod:`fem_grasp.mesh.remesh`) with half the spacing at those patches
 (:data:`LEVEL_RATIO`), the table patch at four times that (:data:`TABLE_LAG`) and a
 finer outer mesh, and takes a squeeze increment small enough that the lift
-test's quantisation of ρ* (at most one increment) uses at most half the target,
-a quarter where the level is predicted to meet it (:func:`next_step`; h in
-proportion); it stops when two successive levels
+test's quantisation of ρ* (at most one increment) uses at most a quarter of the
+target, half where the last two levels predict that this one will not meet it
+(:func:`next_step`; h in proportion); it stops when two successive levels
 agree on the verdict and their estimated error is within the target.  The
 answer is the last level's.  The estimated error (:func:`estimated_error`) is
 the difference of ρ* and of the finger force Σ f·n̂ between the last two
@@ -466,11 +466,11 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
 #: so ρ* is found up to one late (0 to 1 increment: the answer of 4,586-vertex orange moved by 2.3 % from
 #: increment ρ*/22 to ρ*/176, all but 0.6 % of it within the first increment's bracket).
 STEP_SHARE = 0.5
-#: The share where the next level is predicted to meet the target (:func:`predicted_mesh_error`): a finer ρ*
-#: costs more lift tests at that level, a further level several times the level before, so a level expected to
-#: converge leaves three quarters of the target to the mesh (the foam block at 5 %: converged at level 2, where
-#: half the target for ρ* took it on to level 3, 205 s).  The prediction only chooses what a level costs; the
-#: estimated error is measured as ever.
+#: The share at level 1 and wherever the next level is predicted to meet the target (:func:`predicted_mesh_error`):
+#: a finer ρ* costs more lift tests at that level, a further level several times the level before, so a level
+#: that may converge leaves three quarters of the target to the mesh (the foam block at 5 %: converged at level
+#: 2, where half the target for ρ* took it on to level 3, 205 s).  The prediction only chooses what a level
+#: costs; the estimated error is measured as ever.
 FINE_STEP_SHARE = 0.25
 #: Levels after the first squeeze in increments of this many times the resolution of ρ* and divide the one in
 #: which the lift test passes (``PickupOptions.step_divisions``): the same ρ* as the fine increment throughout,
@@ -495,12 +495,14 @@ def predicted_mesh_error(levels: Sequence[AccuracyLevel]) -> float | None:
 def next_step(step: float, before: GraspAnswer, accuracy: float, predicted: float | None = None) -> float:
     """The next level's resolution of ρ* (its squeeze increment over ``STEP_DIVISIONS``): at most
     ``STEP_SHARE × accuracy × ρ*`` of the level before (so the quantisation of ρ* by the lift test, at most one
-    resolution, takes at most that share of the target) — ``FINE_STEP_SHARE`` where the ``predicted`` mesh error
-    of the next level (:func:`predicted_mesh_error`) leaves the rest of the target to it — never larger than the
-    last; halved when the level before found no ρ* (its verdict: not lifted)."""
+    resolution, takes at most that share of the target) — ``FINE_STEP_SHARE`` unless the ``predicted`` mesh error
+    of the next level (:func:`predicted_mesh_error`; None: no prediction yet, as for level 1) leaves less than the
+    rest of the target to it — never larger than the last; halved when the level before found no ρ* (its
+    verdict: not lifted).  Two levels compared at different resolutions differ by the quantisation of the
+    coarser, so a level expected to converge follows one resolved as finely."""
     if not _passed(before) or not before.squeeze_depth > 0:
         return step / LEVEL_RATIO
-    fine = predicted is not None and predicted <= (1.0 - FINE_STEP_SHARE) * accuracy
+    fine = predicted is None or predicted <= (1.0 - FINE_STEP_SHARE) * accuracy
     return min(step, (FINE_STEP_SHARE if fine else STEP_SHARE) * accuracy * before.squeeze_depth)
 
 

@@ -152,4 +152,6 @@ def test_a_level_predicted_to_converge_resolves_rho_finer_and_others_do_not():
     assert p > (1 - FINE_STEP_SHARE) * target
     rho = moving[-1].answer.squeeze_depth
     assert next_step(1.0, moving[-1].answer, target, p) == pytest.approx(STEP_SHARE * target * rho)
-    assert predicted_mesh_error(moving[:1]) is None
+    assert predicted_mesh_error(moving[:1]) is None  # level 1: no prediction, the fine share
+    assert next_step(1.0, moving[0].answer, target, None) == pytest.approx(
+        FINE_STEP_SHARE * target * moving[0].answer.squeeze_depth)
