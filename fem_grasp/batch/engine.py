@@ -631,7 +631,8 @@ def _render_process(wanted: bool) -> Iterator[Any]:
 def _write_best(out: Path, setup: SearchSetup, cset: CandidateSet, ranked: Any, count: int, scene: Any,
                 pool: Any = None) -> list[Path]:
     """The best grasps' full results (result.json, the ParaView series) in ``out/best/01`` …, rerun in this
-    process on the shared setup (the same answer as their rows); each with its pickup report when pyvista is there."""
+    process on the shared setup (the same answer as their rows; with an accuracy target, the accuracy loop's, its
+    levels in result.json); each with its pickup report when pyvista is there."""
     from ..io.output import write_run
     from ..io.scene import with_overrides
 
@@ -645,7 +646,7 @@ def _write_best(out: Path, setup: SearchSetup, cset: CandidateSet, ranked: Any, 
         result = ev.pickup(cand)
         sc = None
         if scene is not None:
-            sc = with_overrides(scene, contacts=cand.finger_nodes, ratio=cand.ratio,
+            sc = with_overrides(scene, contacts=cand.finger_nodes, ratio=cand.ratio, accuracy=setup.accuracy,
                                 directions=tuple(tuple(float(x) for x in d) for d in cand.directions),
                                 name=f"{scene.name}, grasp {int(rank)} of the search")
         write_run(folder, result, sc, force=True, extra={"search_candidate": cand.to_dict()})

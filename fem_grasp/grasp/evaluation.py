@@ -134,7 +134,9 @@ ROW_COLUMNS: dict[str, tuple[str, str]] = {
     "converged": ("bool", "the accuracy loop reached its target (two successive levels agree within it); False for "
                           "one level"),
     "levels": ("int", "meshes Algorithm 1 ran on for this candidate: 1 without an accuracy target, else the accuracy "
-                      "loop's levels (level 0 on the search's mesh, then refined at the contact patches)"),
+                      "loop's levels (level 0 on the search's mesh, then refined at the contact patches; the answer "
+                      "columns are then the last level's, the candidate's columns its placement on the search's "
+                      "mesh)"),
 }
 
 
