@@ -178,7 +178,7 @@ class SearchSetup:
     table_z, rest_nodes, rest_forces, rest_displacements, rest_sliding, support_triangle, pose_rotation,
     pose_translation, pose_margin, rest_iterations, rest_time : the resting state
     key : a digest of what the answers depend on (not the name, nor what is re-solved from the rest; the accuracy
-        target, its contact bound and the geometry's description when there is a target)
+        target, its contact bound and the geometry's kind and parameters when there is a target)
     """
 
     name: str
@@ -232,8 +232,10 @@ class SearchSetup:
         # options enter by name, each as a plain value
         named = {**fields, **{k: getattr(shared, k) for k in SHARED_OPTIONS}}
         if shared.accuracy is not None:  # a one-level search keeps the key it always had
+            # the geometry by its kind and parameters (a surface's by its kind: it is the body's or its scan's,
+            # whose mesh is in the key), not by its description, which names the object
             named.update(accuracy=shared.accuracy, max_finger_contacts=shared.max_finger_contacts,
-                         geometry="the body's boundary" if shared.geometry is None else shared.geometry.describe())
+                         geometry=repr(shared.geometry))
         key = _digest(*(v for k, v in sorted(named.items())
                         if k not in ("name", "rest_time", "rest_iterations", "rest_forces", "pose_margin")))
         fields["options"] = shared

@@ -152,6 +152,16 @@ def test_each_candidate_is_refined_and_carries_its_own_errors_and_the_marks_foll
     assert bool(best["within_error"])
 
 
+def test_a_worker_gives_the_refined_answer_of_the_plain_loop(refined):
+    serial = search(small_box(), None, azimuths=AZIMUTHS[1:], workers=0, accuracy=TARGET, **SETTINGS).table
+    row = serial.iloc[0]
+    dask = refined.table.set_index("key").loc[row["key"]]
+    assert dask["levels"] == row["levels"] and dask["converged"] == row["converged"]
+    assert dask["outcome"] == row["outcome"]
+    for col in ("rho_star", "finger_normal_force", "error_rho_star", "error_finger_force", "squeeze_depth"):
+        assert np.isclose(dask[col], row[col], rtol=1e-6, equal_nan=True), (col, dask[col], row[col])
+
+
 def test_without_a_target_the_search_is_one_level_within_the_stated_error(client):
     r = search(small_box(), None, azimuths=AZIMUTHS, client=client, expected_error=0.15, **SETTINGS)
     t = r.table
