@@ -33,6 +33,7 @@ import contextlib
 import datetime
 import json
 import logging
+import math
 import os
 import sys
 import time
@@ -50,7 +51,7 @@ from ..io.cache import cached_rest, rest_code_digest
 from ..io.output import MARKER, add_to_marker, atomic_write_text, json_safe, package_version, prepare_out_dir
 from .store import CSV_FILE, FILE_COLUMNS, PARQUET_FILE, ResultStore, read_results
 
-__all__ = ["MANIFEST", "RANKINGS", "SCHEMA", "SchedulerError", "SearchError", "SearchResult", "rank_table",
+__all__ = ["ERROR_COLUMNS", "MANIFEST", "RANKINGS", "SCHEMA", "SchedulerError", "SearchError", "SearchResult", "rank_table",
            "require_search_extra", "search"]
 
 log = logging.getLogger(__name__)
@@ -94,9 +95,12 @@ class SearchResult:
     best : folders of the best grasps' full results (``best/01``, …)
     rank_by : the ranking (:data:`RANKINGS`)
     rest_positions : (n, 3) the resting shape the candidates were made on
-    expected_error : the relative error each answer carries (the scene's ``solver.expected_error``: of ρ* and the
-        finger force, one run on its mesh), or None when not stated; ``ranked["within_error"]`` flags the grasps
-        within the combined error of the best (:func:`rank_table`)
+    expected_error : the relative error each one-level answer carries (the scene's ``solver.expected_error``: of ρ*
+        and the finger force, one run on its mesh), or None when not stated; without an accuracy target
+        ``ranked["within_error"]`` flags the grasps within the combined error of the best (:func:`rank_table`)
+    accuracy : the accuracy target of every candidate's answer, or None (one run on the object's mesh); with it each
+        row carries its own estimated errors (``error_rho_star``, ``error_finger_force``), and
+        ``ranked["within_error"]`` flags the grasps within the sum of their own and the best one's
     """
 
     table: Any
@@ -112,6 +116,7 @@ class SearchResult:
     rank_by: str = "force"
     rest_positions: Any = None
     expected_error: float | None = None
+    accuracy: float | None = None
 
     @property
     def n_grasped(self) -> int:
@@ -130,16 +135,26 @@ class SearchResult:
 
 #: The rankings whose quantity a scene's stated error (``solver.expected_error``: of ρ* and the finger force) covers.
 _STATED = {"force", "squeeze"}
+#: Each ranking's column of per-candidate estimated relative errors (the accuracy loop's).
+ERROR_COLUMNS = {"force": "error_finger_force", "squeeze": "error_rho_star"}
 
 
-def rank_table(table: Any, by: str = "force", error: float | None = None) -> Any:
+def rank_table(table: Any, by: str = "force", error: float | None = None, *, per_row: bool = False) -> Any:
     """``table`` ranked: the grasps (``grasped``: picked up, or the lift test passed when the lift is not
     simulated) first, best first by :data:`RANKINGS` ``[by]``; then the others by how close they came (margin,
-    largest first); errors last.  Adds ``rank`` (1, 2, … for the grasps, 0 for the rest) and
-    ``within_error``: the grasps whose ranking quantity q lies within the combined error of the best one's q₁,
-    |q − q₁| ≤ e (|q| + |q₁|) for the relative error ``e`` each answer carries (the scene's stated
-    ``expected_error`` of ρ* and the finger force), so that the best one itself and every grasp flagged could be
-    the best; all False when the error is not known or does not cover the ranking (``margin``)."""
+    largest first); errors last.  Adds ``rank`` (1, 2, … for the grasps, 0 for the rest) and ``within_error``: the
+    grasps whose ranking quantity q could be the best one's q₁ given their errors, so that the best one itself and
+    every grasp flagged could be the best.
+
+    * ``per_row``: each answer carries its own estimated relative error e (the columns ``error_finger_force`` and
+      ``error_rho_star`` of a search with an accuracy target, :data:`ERROR_COLUMNS`), and a grasp overlaps the best
+      when |q − q₁| ≤ e·|q| + e₁·|q₁|; a grasp whose error, or the best one's, is not known (NaN) or unbounded (inf)
+      is flagged: it could be the best;
+    * else ``error``, the one relative error every answer carries (the scene's stated ``expected_error`` of ρ* and
+      the finger force, one run on its mesh): the same rule with e = e₁, |q − q₁| ≤ e (|q| + |q₁|); all flagged when
+      it is inf, none when it is not known (None).
+
+    No grasp is flagged for a ranking the errors do not cover (``margin``)."""
     if by not in RANKINGS:
         raise SearchError(f"unknown ranking {by!r}; choose one of {sorted(RANKINGS)}")
     col, ascending = RANKINGS[by]
@@ -147,16 +162,27 @@ def rank_table(table: Any, by: str = "force", error: float | None = None) -> Any
     rest = table[~table["grasped"] & (table["status"] == "ok")].sort_values(
         ["margin", "candidate"], ascending=[False, True], kind="stable")
     err = table[table["status"] != "ok"].sort_values("candidate", kind="stable")
+    import numpy as np
     import pandas as pd
 
     ranked = pd.concat([ok, rest, err]).reset_index(drop=True)
     ranked.insert(0, "rank", [k + 1 if k < len(ok) else 0 for k in range(len(ranked))])
-    within = [False] * len(ranked)
-    if error is not None and error >= 0 and by in _STATED and len(ok):
-        q = ranked[col].to_numpy(float)
-        q1 = q[0]
-        for k in range(len(ok)):
-            within[k] = bool(abs(q[k] - q1) <= error * (abs(q[k]) + abs(q1))) if error != float("inf") else True
+    within = np.zeros(len(ranked), dtype=bool)
+    if by in _STATED and len(ok):
+        q = ranked[col].to_numpy(float)[:len(ok)]
+        if per_row:
+            if ERROR_COLUMNS[by] not in ranked:
+                raise SearchError(f"per-row errors: the table has no column {ERROR_COLUMNS[by]!r}")
+            e = ranked[ERROR_COLUMNS[by]].to_numpy(float)[:len(ok)]
+        elif error is not None and error >= 0:
+            e = np.full(len(ok), float(error))
+        else:
+            e = None
+        if e is not None:
+            unknown = ~np.isfinite(e) | ~np.isfinite(e[0])
+            with np.errstate(invalid="ignore"):
+                near = np.abs(q - q[0]) <= e * np.abs(q) + e[0] * abs(q[0])
+            within[:len(ok)] = unknown | near
     ranked["within_error"] = within
     return ranked
 
@@ -173,9 +199,10 @@ class _Object:
 
 
 #: The pickup options a search of a body takes as keywords (the rest are each candidate's, or not run per
-#: candidate: :data:`~fem_grasp.grasp.evaluation.SHARED_OPTIONS` and the candidates' maximum squeeze).
+#: candidate: :data:`~fem_grasp.grasp.evaluation.SHARED_OPTIONS` and the candidates' maximum squeeze; with an
+#: accuracy target, the loop's ``max_finger_contacts`` and ``geometry``).
 _OPTIONS = ("mu_finger", "mu_table", "finger_radius", "max_squeeze", "step", "lift_test_step", "max_lift", "lift",
-            "max_lift_attempts", "backend")
+            "max_lift_attempts", "backend", "max_finger_contacts", "geometry")
 
 
 def _object(scene: Any, quick: bool, cache_dir: Path | None, kwargs: dict[str, Any]) -> _Object:
@@ -195,6 +222,44 @@ def _object(scene: Any, quick: bool, cache_dir: Path | None, kwargs: dict[str, A
         scene = load_scene(resolve_scene(scene), quick=quick)
     return _Object(scene.name + (" (quick)" if scene.quick else ""), scene.body(cache_dir), scene,
                    scene.pickup_options(), scene.object.down, scene.expected_error)
+
+
+def _target(accuracy: Any) -> float | None:
+    """The search's accuracy target: a relative error (0.05), a percentage ("5%"), or None / "off" (one level)."""
+    from ..io.scene import parse_accuracy
+
+    try:
+        return parse_accuracy(accuracy, "accuracy")
+    except SceneError as exc:
+        raise SearchError(str(exc)) from None
+
+
+def _geometry(obj: _Object, target: float) -> Any:
+    """What the accuracy loop remeshes: the options' geometry, the scene's (paper shape, box, scanned surface), or
+    the boundary of the object's mesh; a :class:`SearchError` naming the problem when there is none."""
+    from ..mesh.remesh import NoGeometryError, geometry_of_mesh
+
+    if obj.options.geometry is not None:
+        return obj.options.geometry
+    geometry = obj.scene.geometry() if obj.scene is not None else None
+    if geometry is not None:
+        return geometry
+    try:
+        return geometry_of_mesh(obj.body.mesh, f"the mesh of {obj.name}")
+    except NoGeometryError as exc:
+        raise SearchError(f"accuracy {100 * target:g} %: the accuracy loop remeshes the object at the contact patches, "
+                          f"but {exc}; give a geometry (a scene's paper shape, box or surface scan, or geometry=), "
+                          "or search without an accuracy target") from None
+
+
+def _stamp(row: dict[str, Any], error: float | None) -> dict[str, Any]:
+    """A one-level row with the error the search states for every answer (NaN when none)."""
+    if row.get("status") == "ok":
+        e = math.nan if error is None else float(error)
+        row["error_rho_star"] = row["error_finger_force"] = e
+        if not int(row.get("levels", -1)) >= 1:
+            row["levels"] = 1
+    return row
 
 
 # ------------------------------------------------------------------ the engine
@@ -333,7 +398,7 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
            force: bool = False, rank: str = "force", best: int = 3, report: bool = True, quick: bool = False,
            cache_dir: str | Path | None = None, connect_timeout: float = 10.0, progress: bool = False,
            candidate_list: Sequence[Candidate] | None = None, on_row: Callable[[dict[str, Any]], None] | None = None,
-           **settings: Any) -> SearchResult:
+           accuracy: float | str | None = None, **settings: Any) -> SearchResult:
     """Where to grasp: Algorithm 1 for many finger placements and squeezes of one object (module notes).
 
     Parameters
@@ -342,7 +407,9 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
         :class:`~fem_grasp.elastic.body.Body` (then ``settings`` give ``mu_finger``, ``mu_table``,
         ``finger_radius``, ``max_squeeze``, ``step``, ``lift_test_step``, ``max_lift``, ``lift``,
         ``max_lift_attempts`` and ``backend``, fields of :class:`~fem_grasp.grasp.options.PickupOptions`
-        as :func:`~fem_grasp.grasp.pickup` takes them; ``down`` and ``name``; and ``expected_error``, the relative error of one answer, as a scene's ``solver.expected_error``)
+        as :func:`~fem_grasp.grasp.pickup` takes them, and, with ``accuracy``, ``max_finger_contacts`` and
+        ``geometry`` (what the loop remeshes; default: the body's boundary); ``down`` and ``name``; and
+        ``expected_error``, the relative error of one answer, as a scene's ``solver.expected_error``)
     out : the search folder (results.parquet, results.csv, search.json, report.html, best/), or None
     candidates, heights, azimuths, tilts, ratios, seed, cone : the candidates
         (:func:`~fem_grasp.grasp.candidates.placement_candidates`; angles in degrees)
@@ -364,6 +431,15 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
     progress : a tqdm progress bar on stderr
     candidate_list : evaluate these candidates instead of making them
     on_row : called with each result row as it arrives (in this process)
+    accuracy : an accuracy target for every candidate's answer: a relative error of ρ* and the finger force in
+        (0, 1), 0.05 or "5%" (None or "off": one run of Algorithm 1 per candidate on the object's mesh, the
+        default).  Each candidate is then evaluated by the accuracy loop
+        (:func:`fem_grasp.grasp.accuracy.converged_pickup`: level 0 on the shared resting state, then meshes
+        refined at its contact patches until two agree within the target), on the scene's geometry (its paper
+        shape, box or surface scan) or the boundary of the object's mesh; its row carries its estimated errors
+        (``error_rho_star``, ``error_finger_force``), ``converged`` and ``levels``, and the ranking's ≈ marks use
+        them (:func:`rank_table`).  Each candidate costs several runs of Algorithm 1 on finer meshes (and so do the
+        ``best`` reruns); a resumed search keeps only rows of the same target
 
     Returns
     -------
@@ -372,7 +448,8 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
     Raises
     ------
     SearchError, SchedulerError
-        A search that cannot run as asked; a scheduler that cannot be reached.
+        A search that cannot run as asked (an accuracy that is not a relative error in (0, 1), an accuracy target
+        for an object with no geometry to remesh, …); a scheduler that cannot be reached.
     MainGuardError
         Called from a script's top level outside ``if __name__ == "__main__":`` with worker processes or a
         report to start (``workers`` ≠ 0, or ``out`` and ``report``).
@@ -395,16 +472,19 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
         raise SearchError(f"workers must be >= 0 (0: a plain loop in this process), got {workers}")
     if scheduler and (client is not None or workers):
         raise SearchError("give a scheduler address or workers (a local cluster) or a client, not several")
+    target = _target(accuracy)
     require_search_extra(dask=not (workers == 0 and client is None and not scheduler), files=out is not None,
                          report=report and out is not None)
     obj = _object(scene, quick, cache, dict(settings))
     options = obj.options
+    geometry = None if target is None else _geometry(obj, target)
 
     t0 = time.perf_counter()
     rest_state, _ = cached_rest(obj.body, options.table_friction, backend=options.backend, down=obj.down,
                                 cache_dir=cache)
     timings["rest"] = time.perf_counter() - t0
-    setup = SearchSetup.from_rest(rest_state, name=obj.name, options=options)
+    setup = SearchSetup.from_rest(rest_state, name=obj.name, options=options,
+                                  **({} if target is None else {"accuracy": target, "geometry": geometry}))
     identity = f"{setup.key}-{rest_code_digest()}"
     request = _request(candidates, heights, azimuths, tilts, ratios, seed, cone)
 
@@ -415,6 +495,12 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
         manifest = _read_manifest(outp) if resume else None
         if manifest is not None:
             if manifest.get("identity") != identity:
+                before = manifest.get("accuracy")
+                if before != target:
+                    said = lambda a: "no accuracy target" if a is None else f"accuracy {100 * a:g} %"  # noqa: E731
+                    raise SearchError(f"{outp} holds a search with {said(before)}, this one has {said(target)}: its "
+                                      f"rows are not this search's answers; resume it with the same accuracy, or start "
+                                      "a new search in another folder (or without --resume)")
                 raise SearchError(f"{outp} holds a search of another object, settings or fem_grasp code "
                                   f"({manifest.get('object')}); resume it with the same scene and settings, or "
                                   "start a new search in another folder (or without --resume)")
@@ -448,6 +534,8 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
     index = {c.key: c.index for c in cset}
     for r in kept:
         r["candidate"] = index[r["key"]]
+        if target is None:
+            _stamp(r, obj.expected_error)
     store = ResultStore(outp, kept)
     todo = [c for c in cset if c.key not in store]
 
@@ -457,6 +545,7 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
            "object": obj.name, "scene": None if obj.scene is None else obj.scene.to_dict(),
            "request": request, "grid": cset.grid, "valid": cset.valid, "rejected": cset.rejected, "seed": int(seed),
            "candidates": [c.to_dict() for c in cset], "rank": rank, "expected_error": obj.expected_error,
+           "accuracy": target, "geometry": None if geometry is None else geometry.describe(),
            "column_units": {f: f.rsplit("_", 1)[1] if f != n or n.endswith("_deg") else ""
                             for n, (f, _) in FILE_COLUMNS.items()},
            "setup": {"mu_finger": setup.options.mu_finger, "mu_table": setup.options.mu_table,
@@ -471,6 +560,8 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
     bar = _progress(len(cset), len(cset) - len(todo), progress)
 
     def arrived(row: dict[str, Any]) -> None:
+        if target is None:
+            _stamp(row, obj.expected_error)
         store.add(row)
         if bar is not None:
             bar.update(1)
@@ -499,10 +590,10 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
             bar.close()
     table = store.table()
     error = obj.expected_error
-    ranked = rank_table(table, rank, error)
+    ranked = rank_table(table, rank, per_row=True) if target is not None else rank_table(table, rank, error)
     result = SearchResult(table, ranked, cset, setup, engine, outp, timings=timings,
                           resumed=len(cset) - len(todo), rank_by=rank, rest_positions=rest_state.positions,
-                          expected_error=error)
+                          expected_error=error, accuracy=target)
     if outp is not None:
         t0 = time.perf_counter()
         with _render_process(best > 0 or report) as pool:  # one process draws every picture of the search
@@ -540,7 +631,8 @@ def _render_process(wanted: bool) -> Iterator[Any]:
 def _write_best(out: Path, setup: SearchSetup, cset: CandidateSet, ranked: Any, count: int, scene: Any,
                 pool: Any = None) -> list[Path]:
     """The best grasps' full results (result.json, the ParaView series) in ``out/best/01`` …, rerun in this
-    process on the shared setup (the same answer as their rows); each with its pickup report when pyvista is there."""
+    process on the shared setup (the same answer as their rows; with an accuracy target, the accuracy loop's, its
+    levels in result.json); each with its pickup report when pyvista is there."""
     from ..io.output import write_run
     from ..io.scene import with_overrides
 
@@ -554,7 +646,7 @@ def _write_best(out: Path, setup: SearchSetup, cset: CandidateSet, ranked: Any, 
         result = ev.pickup(cand)
         sc = None
         if scene is not None:
-            sc = with_overrides(scene, contacts=cand.finger_nodes, ratio=cand.ratio,
+            sc = with_overrides(scene, contacts=cand.finger_nodes, ratio=cand.ratio, accuracy=setup.accuracy,
                                 directions=tuple(tuple(float(x) for x in d) for d in cand.directions),
                                 name=f"{scene.name}, grasp {int(rank)} of the search")
         write_run(folder, result, sc, force=True, extra={"search_candidate": cand.to_dict()})

@@ -246,18 +246,31 @@ _TABLE = (("rank", "rank", None), ("within_error", "≈ best", None), ("candidat
           ("events", "events", None), ("time", "time (s)", 1.0), ("reason", "reason", None))
 
 
-def _table_html(ranked: Any) -> str:
+#: With an accuracy target, each answer's estimated errors (in %) and the meshes it ran on, after Σ f·n̂.
+_ACCURACY_TABLE = (("error_rho_star", "± ρ* (%)", 100.0), ("error_finger_force", "± Σ f·n̂ (%)", 100.0),
+                   ("levels", "levels", None))
+
+
+def _table_html(ranked: Any, accuracy: float | None = None) -> str:
     from .store import FILE_COLUMNS
 
+    columns = _TABLE
+    if accuracy is not None:
+        at = [c for c, _, _ in _TABLE].index("finger_normal_force") + 1
+        columns = _TABLE[:at] + _ACCURACY_TABLE + _TABLE[at:]
     head = "".join(f'<th title="{html.escape(FILE_COLUMNS[c][0]) if c in FILE_COLUMNS else ""}">{html.escape(t)}</th>'
-                   for c, t, _ in _TABLE)
+                   for c, t, _ in columns)
     rows = []
     for _, r in ranked.iterrows():
         cells = []
-        for col, _, scale in _TABLE:
+        for col, _, scale in columns:
             v = r.get(col, "")
             if col == "within_error":
                 cells.append("<td>≈</td>" if v is True or v == 1 else "<td></td>")
+                continue
+            if col == "levels":
+                cells.append(f"<td>{int(v)}{'' if r.get('converged', False) else ' (not converged)'}</td>"
+                             if r["status"] == "ok" else "<td></td>")
                 continue
             cells.append(f"<td>{_g(v, scale) if scale is not None else html.escape(str(v))}</td>")
         cls = ("ok near" if r.get("within_error", False) else "ok") if r["grasped"] else \
@@ -267,7 +280,18 @@ def _table_html(ranked: Any) -> str:
 
 
 def _error_note(result: Any) -> str:
-    """What the ≈ marks mean for this search (the scene's stated error), in a sentence."""
+    """What the ≈ marks mean for this search (each answer's own estimated error, or the scene's stated error), in a
+    sentence."""
+    target = getattr(result, "accuracy", None)
+    if target is not None:
+        each = (f"Each answer was refined to {100 * target:g} % by the accuracy loop (levels: the meshes it ran on) "
+                "and carries its own estimated relative errors of ρ* and Σ f·n̂ (± columns; — when not known, e.g. "
+                "when the verdict changed between its last two meshes).")
+        if result.rank_by not in ("force", "squeeze"):
+            return each + " The errors cover ρ* and the finger force, not w/mg: no grasp is marked ≈."
+        return each + (" ≈ within error of the best: a grasp whose ranking quantity q and the best one's q₁ could be "
+                       "equal given each one's own error e and e₁, |q − q₁| ≤ e·|q| + e₁·|q₁|, or whose error is not "
+                       "known: it could be the best.")
     e = getattr(result, "expected_error", None)
     if e is None:
         return ("No error is stated for this scene (<code>solver.expected_error</code>), so which grasps are as good "
@@ -295,13 +319,18 @@ def _best_html(out: Path, result: Any) -> str:
         link = (f'<a href="{rel}/report.html">its pickup report</a>' if (folder / "report.html").exists()
                 else f'<a href="{rel}/result.json">result.json</a>')
         near = " (≈ within error of the best)" if rank > 1 and r.get("within_error", False) else ""
+        acc = ""
+        if getattr(result, "accuracy", None) is not None:
+            acc = (f" Estimated error (accuracy loop, {int(r['levels'])} meshes, "
+                   f"{'converged' if r['converged'] else 'not converged'} to {100 * result.accuracy:g} %): ρ* ±"
+                   f"{_g(r['error_rho_star'], 100, '.2g')} %, Σ f·n̂ ±{_g(r['error_finger_force'], 100, '.2g')} %.")
         parts.append(
             f"<figure>{pic}<figcaption><b>Grasp {rank}</b>{near} (candidate {int(r['candidate'])}): nodes "
             f"{int(r['node_i'])} and {int(r['node_j'])}, azimuth {r['azimuth_deg']:.1f}°, tilt {r['tilt_deg']:.1f}°, "
             f"s = {r['ratio']:g}, {1e3 * r['height']:.3g} mm above the table. {_word(result.setup.options.lift).capitalize()} at ρ* = "
             f"{1e3 * r['rho_star']:.3g} mm; grip {r['grip1']:.3g} and {r['grip2']:.3g} N, Σ f·n̂ "
             f"{r['finger_normal_force']:.3g} N (rigid object: {_g(r['rigid_normal_force'])} N), {int(r['contacts'])} "
-            f"contact nodes, {int(r['events'])} events. Full results: {link} (ParaView: "
+            f"contact nodes, {int(r['events'])} events.{acc} Full results: {link} (ParaView: "
             f"<code>{rel}/object.pvd</code>).</figcaption></figure>")
     return "\n".join(parts)
 
@@ -323,6 +352,9 @@ def _html(out: Path, result: Any, pictures: list[str]) -> str:
                        f"{rejected}"),
         ("verdicts", f"{n_ok} {_word(s.options.lift)}, {len(t) - n_ok - n_err} not, {n_err} errors"),
         ("engine", f"{result.engine}; {result.resumed} candidates from an earlier run"),
+        ("accuracy", "one run of Algorithm 1 per candidate on this mesh" if getattr(result, "accuracy", None) is None
+         else f"each candidate refined to {100 * result.accuracy:g} % of ρ* and Σ f·n̂ (the accuracy loop); "
+              f"{int(t['converged'].sum()) if len(t) else 0} of {len(t)} converged"),
         ("time", f"{times}; per candidate: median {_g(np.median(per) if len(per) else math.nan)} s"),
     ]
     info = "".join(f"<tr><th>{html.escape(k)}</th><td>{html.escape(v)}</td></tr>" for k, v in rows)
@@ -356,7 +388,7 @@ squeeze along (d̂₁, s d̂₂) from the initial contacts p_i, p_j, with the li
 <p>Grasps ({html.escape(_word(s.options.lift))}) first, ranked by {html.escape(result.rank_by)}; then the others by how close the
 lift test came (w/mg), with their reason; errors last. {_error_note(result)} Lengths in mm, forces in N (the result
 files name each column with its unit: <code>height_mm</code>, <code>rho_star_mm</code>, <code>grip1_N</code>, …).</p>
-{_table_html(result.ranked)}
+{_table_html(result.ranked, getattr(result, "accuracy", None))}
 </body></html>
 """
 

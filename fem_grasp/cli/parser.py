@@ -133,6 +133,13 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0, help="picks the candidates when the grid holds more (default 0)")
     p.add_argument("--cone", type=float, metavar="DEG", help="half-angle of the antipodal cone (default atan mu_F)")
     p.add_argument("--resume", action="store_true", help="skip the candidates whose results DIR already holds")
+    p.add_argument("--accuracy", metavar="A",
+                   help="an accuracy target for every candidate's answer: a relative error of rho* and the finger force "
+                        "(0.05 or 5%%, as for `fem-grasp run`): each candidate runs the accuracy loop (refined at its "
+                        "contact patches until two successive answers agree within A), its row carries its own "
+                        "estimated errors, and ≈ marks the grasps within their and the best one's errors; several "
+                        "times the cost per candidate (default: one run per candidate on the scene's mesh, within the "
+                        "scene's stated error)")
     p.add_argument("--rank", choices=["force", "squeeze", "margin"], default="force",
                    help="rank grasps by the least finger normal force (default), the least rho*, or the largest w/mg")
     p.add_argument("--best", type=int, default=3, metavar="K", help="full results and pickup reports of the best K")

@@ -36,15 +36,21 @@ _RANKED_BY = {"force": "the least finger normal force Σ f·n̂", "squeeze": "th
               "margin": "the largest w/mg"}
 
 
-def _best_table(best: Any, rank: str, error: float | None) -> list[str]:
+def _best_table(best: Any, rank: str, error: float | None, accuracy: float | None = None) -> list[str]:
     """The best grasps of a search as a table whose headers are the result files' column names (with units);
-    ``≈`` marks those within the stated error of the best one (``within_error``, :func:`fem_grasp.batch.rank_table`)."""
+    ``≈`` marks those within the error of the best one (``within_error``, :func:`fem_grasp.batch.rank_table`): the
+    stated ``error`` of every one-level answer, or, with an ``accuracy`` target, each answer's own estimated errors
+    (the columns ``±rho_%`` and ``±force_%``, with its ``levels``; "—" where the error is not known)."""
     if not len(best):
         return []
-    cols = (("rank", None, ""), ("nodes", None, ""), ("azimuth_deg", "azimuth_deg", ".0f"),
-            ("tilt_deg", "tilt_deg", ".1f"), ("s", "ratio", "g"), ("height_mm", "height", ".3g"),
-            ("rho_star_mm", "rho_star", ".4g"), ("grip1_N", "grip1", ".3g"), ("grip2_N", "grip2", ".3g"),
-            ("finger_normal_force_N", "finger_normal_force", ".3g"))
+    cols: tuple[tuple[str, Any, str], ...] = (
+        ("rank", None, ""), ("nodes", None, ""), ("azimuth_deg", "azimuth_deg", ".0f"),
+        ("tilt_deg", "tilt_deg", ".1f"), ("s", "ratio", "g"), ("height_mm", "height", ".3g"),
+        ("rho_star_mm", "rho_star", ".4g"), ("grip1_N", "grip1", ".3g"), ("grip2_N", "grip2", ".3g"),
+        ("finger_normal_force_N", "finger_normal_force", ".3g"))
+    if accuracy is not None:
+        cols += (("±rho_%", "error_rho_star", ".1f"), ("±force_%", "error_finger_force", ".1f"),
+                 ("levels", "levels", "d"))
     rows = []
     for _, r in best.iterrows():
         cells = []
@@ -53,14 +59,22 @@ def _best_table(best: Any, rank: str, error: float | None) -> list[str]:
                 cells.append(f"{int(r['rank'])}{' ≈' if r.get('within_error', False) else ''}")
             elif head == "nodes":
                 cells.append(f"{int(r['node_i'])}, {int(r['node_j'])}")
+            elif head == "levels":
+                cells.append(f"{int(r['levels'])}{'' if r['converged'] else '*'}")
             else:
-                scale = 1e3 if head.endswith("_mm") else 1.0
+                scale = 1e3 if head.endswith("_mm") else 100.0 if head.endswith("_%") else 1.0
                 v = float(r[col]) * scale
                 cells.append(format(v, fmt) if np.isfinite(v) else "—")
         rows.append(cells)
     widths = [max(len(h), *(len(c[k]) for c in rows)) for k, (h, _, _) in enumerate(cols)]
     line = lambda cells: "  " + "  ".join(c.ljust(w) for c, w in zip(cells, widths)).rstrip()  # noqa: E731
-    if error is None or rank not in ("force", "squeeze"):
+    if accuracy is not None:
+        note = (f"; each answer refined to {100 * accuracy:g} % (levels: meshes run, * not converged) with its own "
+                "estimated error (±, — when not known)")
+        if rank in ("force", "squeeze"):
+            note += ("; ≈: its range and the best one's overlap, each with its own error (|q − q₁| ≤ e·|q| + "
+                     "e₁·|q₁|), or its error is not known, so it could be the best")
+    elif error is None or rank not in ("force", "squeeze"):
         note = ("; no error stated for this scene, so which of them are equally good is not known" if error is None
                 else "")
     elif not np.isfinite(error):
@@ -73,10 +87,12 @@ def _best_table(best: Any, rank: str, error: float | None) -> list[str]:
 
 def cmd_search(args: argparse.Namespace) -> int:
     from ..batch.engine import search
+    from ..io.scene import parse_accuracy
 
     scene = scene_of(args)
     if args.workers is not None and args.workers < 0:
         raise BadInput("--workers must be >= 0 (0: a plain loop in this process)")
+    accuracy = None if args.accuracy is None else parse_accuracy(args.accuracy, "--accuracy")
     grid = {k: _grid_option(getattr(args, k), f"--{k}") for k in ("heights", "azimuths", "tilts", "ratios")}
     for k in ("tilts", "ratios"):  # a bare number of tilts or ratios is that value, not a count
         if isinstance(grid[k], int):
@@ -85,7 +101,7 @@ def cmd_search(args: argparse.Namespace) -> int:
                     workers=args.workers, scheduler=args.scheduler, resume=args.resume, force=args.force,
                     rank=args.rank, best=args.best if args.out else 0, report=not args.no_report and bool(args.out),
                     cache_dir=cache_dir_of(args), connect_timeout=args.connect_timeout,
-                    progress=progress_on(args), **grid)
+                    progress=progress_on(args), accuracy=accuracy, **grid)
     t, cs = result.table, result.candidates
     n_ok, n_err = result.n_grasped, result.n_errors
     rejected = ", ".join(f"{k} {v}" for k, v in cs.rejected.items()) or "none"
@@ -95,7 +111,7 @@ def cmd_search(args: argparse.Namespace) -> int:
     echo(args, f"result     {n_ok} {verdict}, {len(t) - n_ok - n_err} not, {n_err} errors"
                + (f" ({result.resumed} from an earlier run)" if result.resumed else ""))
     best = result.ranked[result.ranked["rank"] > 0].head(max(args.best, 5))
-    for line in _best_table(best, args.rank, result.expected_error):
+    for line in _best_table(best, args.rank, result.expected_error, result.accuracy):
         echo(args, line)
     per = t["time"].median() if len(t) else float("nan")
     echo(args, "time       " + ", ".join(f"{k} {v:.1f} s" for k, v in result.timings.items())

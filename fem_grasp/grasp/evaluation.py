@@ -51,7 +51,7 @@ from .pickup import PickupResult, pickup
 from .pose import RestingPose
 from .rest import RestState
 
-__all__ = ["COLUMN_BATCH", "Evaluator", "KEEP_EVALUATORS", "REST_RTOL", "ROW_COLUMNS", "SHARED_COLUMNS_BYTES",
+__all__ = ["ACCURACY_OPTIONS", "COLUMN_BATCH", "Evaluator", "KEEP_EVALUATORS", "REST_RTOL", "ROW_COLUMNS", "SHARED_COLUMNS_BYTES",
            "SHARED_OPTIONS", "SearchSetup", "error_row", "evaluate", "evaluator_for", "one_thread", "result_row"]
 
 #: Above this many bytes of compliance columns (every surface node's three, all kept rows) the columns are not
@@ -66,10 +66,13 @@ KEEP_EVALUATORS = 2
 REST_RTOL = 1e-8
 
 #: The options every candidate of a search shares (a :class:`SearchSetup`'s); the others are the candidate's
-#: (``contacts``, ``directions``, ``ratio``, ``max_squeeze``) or not run per candidate (the placement rule, the
-#: accuracy loop).
+#: (``contacts``, ``directions``, ``ratio``, ``max_squeeze``), not run per candidate (the placement rule), or those
+#: of the accuracy loop (:data:`ACCURACY_OPTIONS`).
 SHARED_OPTIONS = ("mu_finger", "mu_table", "finger_radius", "step", "lift_test_step", "max_lift", "lift",
                   "max_lift_attempts", "backend")
+#: The accuracy loop's options a search shares when it has an accuracy target (``accuracy`` set): each candidate is
+#: then evaluated by :func:`fem_grasp.grasp.accuracy.converged_pickup`; without it they are not kept.
+ACCURACY_OPTIONS = ("accuracy", "max_finger_contacts", "geometry")
 
 #: The columns of a result row: name → (kind, description).  Lengths in metres, forces in newtons, angles in
 #: degrees.  Per-finger forces are those of the final snapshot (at lift-off when picked up), measured as in
@@ -123,6 +126,17 @@ ROW_COLUMNS: dict[str, tuple[str, str]] = {
     "setup_time": ("float", "wall time this evaluation spent building the shared state, s (0 when its process "
                             "had it)"),
     "worker": ("str", "host:pid of the process that evaluated it"),
+    "error_rho_star": ("float", "estimated relative error of ρ*: with an accuracy target, the accuracy loop's estimate "
+                                "(the change between its last two levels plus the resolution of ρ*; inf when not "
+                                "known, e.g. the verdict changed between levels); in a one-level search, the "
+                                "scene's stated error (solver.expected_error), NaN when none is stated"),
+    "error_finger_force": ("float", "estimated relative error of the finger force Σ f·n̂, as error_rho_star"),
+    "converged": ("bool", "the accuracy loop reached its target (two successive levels agree within it); False for "
+                          "one level"),
+    "levels": ("int", "meshes Algorithm 1 ran on for this candidate: 1 without an accuracy target, else the accuracy "
+                      "loop's levels (level 0 on the search's mesh, then refined at the contact patches; the answer "
+                      "columns are then the last level's, the candidate's columns its placement on the search's "
+                      "mesh)"),
 }
 
 
@@ -159,11 +173,12 @@ class SearchSetup:
     points, tets : the posed body's mesh (the node numbering of every candidate)
     young, poisson, density, gravity : its material
     options : the :class:`~fem_grasp.grasp.options.PickupOptions` every candidate shares (:data:`SHARED_OPTIONS`;
-        ``mu_table`` is the resting state's); each candidate adds its contacts, directions, ratio and maximum
-        squeeze
+        ``mu_table`` is the resting state's; with an accuracy target also :data:`ACCURACY_OPTIONS`, the target and
+        the geometry the loop remeshes); each candidate adds its contacts, directions, ratio and maximum squeeze
     table_z, rest_nodes, rest_forces, rest_displacements, rest_sliding, support_triangle, pose_rotation,
     pose_translation, pose_margin, rest_iterations, rest_time : the resting state
-    key : a digest of what the answers depend on (not the name, nor what is re-solved from the rest)
+    key : a digest of what the answers depend on (not the name, nor what is re-solved from the rest; the accuracy
+        target, its contact bound and the geometry's kind and parameters when there is a target)
     """
 
     name: str
@@ -192,10 +207,12 @@ class SearchSetup:
                   **overrides: Any) -> "SearchSetup":
         """The setup of a search on the object resting in ``rest_state``, with ``options`` (default: the defaults)
         changed by ``overrides`` (:meth:`PickupOptions.from_overrides`); only :data:`SHARED_OPTIONS` are kept, and
-        ``mu_table`` is the resting state's."""
+        ``mu_table`` is the resting state's; with ``accuracy`` set, also :data:`ACCURACY_OPTIONS` (``geometry``: what
+        the accuracy loop remeshes, in the frame of the body as given before it was posed on the table; None: the
+        body's boundary, :func:`fem_grasp.mesh.remesh.geometry_of_mesh`)."""
         given = PickupOptions.from_overrides(overrides, base=options)
-        shared = PickupOptions(**{k: getattr(given, k) for k in SHARED_OPTIONS}).replace(
-            mu_table=float(rest_state.mu_table))
+        keep = SHARED_OPTIONS + (ACCURACY_OPTIONS if given.accuracy is not None else ())
+        shared = PickupOptions(**{k: getattr(given, k) for k in keep}).replace(mu_table=float(rest_state.mu_table))
         body = rest_state.body
         fields = dict(
             name=str(name), points=np.array(body.mesh.points, dtype=float), tets=np.array(body.mesh.tets, dtype=np.int64),
@@ -214,10 +231,21 @@ class SearchSetup:
         # (the forces and the margin, equal to round-off whether the rest was computed or read from a cache); the
         # options enter by name, each as a plain value
         named = {**fields, **{k: getattr(shared, k) for k in SHARED_OPTIONS}}
+        if shared.accuracy is not None:  # a one-level search keeps the key it always had
+            # the geometry by its kind and parameters (a surface's by its kind: it is the body's or its scan's,
+            # whose mesh is in the key), not by its description, which names the object
+            named.update(accuracy=shared.accuracy, max_finger_contacts=shared.max_finger_contacts,
+                         geometry=repr(shared.geometry))
         key = _digest(*(v for k, v in sorted(named.items())
                         if k not in ("name", "rest_time", "rest_iterations", "rest_forces", "pose_margin")))
         fields["options"] = shared
         return cls(**fields, key=key)
+
+    @property
+    def accuracy(self) -> float | None:
+        """The accuracy target of every candidate's answer (:func:`~fem_grasp.grasp.accuracy.converged_pickup`), or
+        None: one run of Algorithm 1 on this mesh."""
+        return self.options.accuracy
 
 
 
@@ -236,6 +264,7 @@ class Evaluator:
     def __init__(self, setup: SearchSetup) -> None:
         t0 = time.perf_counter()
         self.setup = setup
+        self._given: Body | None = None
         with one_thread():
             warm_up()
             body = Body(TetMesh(setup.points, setup.tets), setup.young, setup.poisson, density=setup.density,
@@ -282,7 +311,20 @@ class Evaluator:
                 rest_state = self._restore_rest(body)
             options = s.options.replace(contacts=candidate.finger_nodes, directions=candidate.directions,
                                         ratio=candidate.ratio, max_squeeze=candidate.max_squeeze)
-            return pickup(body, options, rest_state=rest_state)
+            if options.accuracy is None:
+                return pickup(body, options, rest_state=rest_state)
+            # The accuracy loop: level 0 on the shared rest (and factorisation), as above; the finer levels remesh
+            # the geometry, which is in the frame of the body as given, and rest and solve on their own.
+            return pickup(self.given_body(), options, rest_state=rest_state)
+
+    def given_body(self) -> Body:
+        """The body as it was given, before it was posed on the table (the frame of the accuracy loop's geometry),
+        with the posed body's node numbering: its mesh is the posed one moved back, p = Rᵀ (q − t)."""
+        if self._given is None:
+            s = self.setup
+            points = (s.points - s.pose_translation) @ s.pose_rotation
+            self._given = Body(TetMesh(points, s.tets), s.young, s.poisson, density=s.density, gravity=s.gravity)
+        return self._given
 
 #: This process's evaluators, by setup key (oldest first).
 _EVALUATORS: "OrderedDict[str, Evaluator]" = OrderedDict()
@@ -341,6 +383,14 @@ def result_row(candidate: Candidate, result: PickupResult, seconds: float = math
         "events": len(result.events), **{f"events_{k}": int(v) for k, v in counts.items()},
         "lift_attempts": len(result.lift_attempts), "time": float(seconds),
     })
+    acc = getattr(result, "accuracy", None)
+    if acc:  # the accuracy loop's answer: its own estimated error
+        err = acc.get("estimated_error", {})
+        row.update({"error_rho_star": float(err.get("squeeze_depth", math.inf)),
+                    "error_finger_force": float(err.get("finger_force", math.inf)),
+                    "converged": bool(acc.get("converged", False)), "levels": len(acc.get("levels", ())) or 1})
+    else:  # one run on the search's mesh: the error is the one the search states (set by the search)
+        row.update({"converged": False, "levels": 1})
     if ff is not None:
         for k, f in enumerate(ff, start=1):
             row.update({f"grip{k}": f.grip, f"vertical{k}": f.vertical, f"normal{k}": f.normal_sum,

@@ -53,9 +53,9 @@ def cached_mesh(cache_dir: Path | None, key: tuple, build: Callable[[], "TetMesh
     if cache_dir is None:
         return build()
     try:
-        import gmsh
+        from ..mesh.gmsh_session import import_gmsh
 
-        version = getattr(gmsh, "__version__", "?")
+        version = getattr(import_gmsh(), "__version__", "?")
     except ImportError:
         version = "none"
     h = hashlib.sha256(repr((key, version)).encode()).hexdigest()[:20]

@@ -7,6 +7,11 @@ vertices renumbered (:func:`extract_tets`); :func:`mesh_with_vertex_count` finds
 wanted number of vertices; :class:`Refinement` grades the mesh around given points (where the fingertips
 touch).  gmsh is an optional dependency (the ``mesh`` extra, or Debian's ``python3-gmsh``), imported only
 when a mesh is made (:func:`import_gmsh`).
+
+gmsh keeps one global state per process, and sets the handler of SIGINT when it is imported and initialised,
+which Python allows only on the main thread.  Sessions are therefore serialised within a process (a lock), and
+on any other thread (a Dask worker's task, a thread pool) gmsh is imported and initialised with the signal
+handlers left as they are.
 """
 
 from __future__ import annotations
@@ -14,6 +19,8 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
+import signal
+import threading
 from dataclasses import dataclass
 from typing import Any, Callable, Iterator, Sequence
 
@@ -133,11 +140,33 @@ def surface_algorithm(algorithm: str, volume: float, mesh_size: float) -> int:
         raise ValueError(f"unknown algorithm {algorithm!r}; choose 'auto' or one of {sorted(SURFACE_ALGORITHMS)}") from None
 
 
+#: One gmsh session at a time in a process (gmsh's state is global); re-entrant for a caller's own session.
+_SESSION = threading.RLock()
+_SIGNALS = threading.Lock()
+
+
+@contextlib.contextmanager
+def _signal_handlers_kept() -> Iterator[None]:
+    """On a thread other than the main one, make ``signal.signal`` leave the handlers as they are for the duration
+    (gmsh sets SIGINT's when imported and initialised, which Python refuses there); on the main thread, nothing."""
+    if threading.current_thread() is threading.main_thread():
+        yield
+        return
+    with _SIGNALS:
+        real = signal.signal
+        signal.signal = lambda signum, handler: signal.getsignal(signum)  # type: ignore[assignment]
+        try:
+            yield
+        finally:
+            signal.signal = real
+
+
 def import_gmsh() -> Any:
     """Import gmsh, or raise :class:`~fem_grasp.errors.MissingExtraError` (an ImportError) that says how to
     install it: the ``mesh`` extra, or Debian's python3-gmsh.  (The shipped paper scenes load their committed
-    meshes without gmsh.)"""
-    return require("gmsh", "mesh", "Making a tetrahedral mesh (gmsh)")
+    meshes without gmsh.)  Works on any thread (module notes)."""
+    with _signal_handlers_kept():
+        return require("gmsh", "mesh", "Making a tetrahedral mesh (gmsh)")
 
 
 @contextlib.contextmanager
@@ -147,15 +176,23 @@ def gmsh_model(name: str, mesh_size: float, surface_algorithm: int) -> Iterator[
     gmsh is initialised on entry and finalised on exit, even on error.  If the
     caller already runs a gmsh session (gmsh >= 4.9 can tell), that session is
     left alive: a separate model is added and removed, and the options changed
-    here are restored.
+    here are restored.  One session at a time per process, on any thread (module notes).
     """
     if not (math.isfinite(mesh_size) and mesh_size > 0):
         raise ValueError(f"mesh_size must be a positive finite length, got {mesh_size!r}")
+    with _SESSION:
+        with _gmsh_model(name, mesh_size, surface_algorithm) as gmsh:
+            yield gmsh
+
+
+@contextlib.contextmanager
+def _gmsh_model(name: str, mesh_size: float, surface_algorithm: int) -> Iterator[Any]:
     gmsh = import_gmsh()
     nested = bool(getattr(gmsh, "isInitialized", lambda: False)())
     saved: dict[str, float] = {}
     if not nested:
-        gmsh.initialize([], False)  # no argv, do not read the user's gmshrc
+        with _signal_handlers_kept():
+            gmsh.initialize([], False)  # no argv, do not read the user's gmshrc
     try:
         options = dict(GMSH_OPTIONS)
         options["Mesh.MeshSizeMax"] = float(mesh_size)
@@ -179,7 +216,8 @@ def gmsh_model(name: str, mesh_size: float, surface_algorithm: int) -> Iterator[
             for key, value in saved.items():
                 gmsh.option.setNumber(key, value)
         else:
-            gmsh.finalize()
+            with _signal_handlers_kept():
+                gmsh.finalize()
 
 
 def orient_positive(points: np.ndarray, tets: np.ndarray) -> np.ndarray:

@@ -216,13 +216,24 @@ class BoxGeometry(Geometry):
         lo, hi = np.asarray(self.lower, float), np.asarray(self.upper, float)
         ext = hi - lo
         tol = 1e-9 * float(np.linalg.norm(ext))
+        pts = np.zeros((0, 3)) if embed is None else np.asarray(embed, float).reshape(-1, 3)
+        # A point on a face is embedded in it; a point on an edge splits the edge (embedding it in a face makes gmsh
+        # abort the process); a corner is a node of every mesh already.
+        on_bounds = (np.abs(pts - lo) <= tol) | (np.abs(pts - hi) <= tol)
+        dims = 3 - on_bounds.sum(axis=1)
+        inside = pts[(dims == 3) | (pts < lo - tol).any(axis=1) | (pts > hi + tol).any(axis=1)]
+        if len(inside):
+            raise ValueError(f"point {inside[0].tolist()} to embed is not on the box's surface")
         with gmsh_model("box", size, _algorithm(self.volume, size, refs)) as gmsh:
             occ = gmsh.model.occ
-            occ.addBox(*lo, *ext)
-            tags = [occ.addPoint(*map(float, p)) for p in ([] if embed is None else np.asarray(embed, float))]
+            box = occ.addBox(*lo, *ext)
+            edge_points = [occ.addPoint(*map(float, p)) for p in pts[dims == 1]]
+            if edge_points:
+                occ.fragment([(3, box)], [(0, t) for t in edge_points])
+            tags = [occ.addPoint(*map(float, p)) for p in pts[dims == 2]]
             occ.synchronize()
             faces = gmsh.model.getEntities(2)
-            for tag, p in zip(tags, [] if embed is None else np.asarray(embed, float)):
+            for tag, p in zip(tags, pts[dims == 2]):
                 for _, s in faces:
                     closest = np.asarray(gmsh.model.getClosestPoint(2, s, p.tolist())[0], float)
                     if np.linalg.norm(closest - p) <= tol:
