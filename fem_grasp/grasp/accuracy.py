@@ -495,15 +495,17 @@ def predicted_mesh_error(levels: Sequence[AccuracyLevel]) -> float | None:
 def next_step(step: float, before: GraspAnswer, accuracy: float, predicted: float | None = None) -> float:
     """The next level's resolution of ρ* (its squeeze increment over ``STEP_DIVISIONS``): at most
     ``STEP_SHARE × accuracy × ρ*`` of the level before (so the quantisation of ρ* by the lift test, at most one
-    resolution, takes at most that share of the target) — ``FINE_STEP_SHARE`` unless the ``predicted`` mesh error
-    of the next level (:func:`predicted_mesh_error`; None: no prediction yet, as for level 1) leaves less than the
-    rest of the target to it — never larger than the last; halved when the level before found no ρ* (its
-    verdict: not lifted).  Two levels compared at different resolutions differ by the quantisation of the
-    coarser, so a level expected to converge follows one resolved as finely."""
+    resolution, takes at most that share of the target) where the ``predicted`` mesh error of the next level
+    (:func:`predicted_mesh_error`) leaves it less than the rest of the target, so that a level not expected to
+    converge costs few lift tests; else ``FINE_STEP_SHARE`` (also with no prediction yet, as for level 1), never
+    larger than the last, so that a level expected to converge follows one resolved as finely (two levels at
+    different resolutions differ by the coarser one's quantisation); halved when the level before found no ρ*
+    (its verdict: not lifted)."""
     if not _passed(before) or not before.squeeze_depth > 0:
         return step / LEVEL_RATIO
-    fine = predicted is None or predicted <= (1.0 - FINE_STEP_SHARE) * accuracy
-    return min(step, (FINE_STEP_SHARE if fine else STEP_SHARE) * accuracy * before.squeeze_depth)
+    if predicted is None or predicted <= (1.0 - FINE_STEP_SHARE) * accuracy:
+        return min(step, FINE_STEP_SHARE * accuracy * before.squeeze_depth)
+    return STEP_SHARE * accuracy * before.squeeze_depth
 
 
 def estimated_error(change: dict[str, float], ans: GraspAnswer,
