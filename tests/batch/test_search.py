@@ -51,16 +51,6 @@ def same_rows(a, b):
 
 
 @pytest.fixture(scope="module")
-def client():
-    from dask.distributed import Client, LocalCluster
-
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None) \
-            as cluster, Client(cluster) as c:
-        c.wait_for_workers(2, timeout=120)
-        yield c
-
-
-@pytest.fixture(scope="module")
 def serial():
     """The plain loop in this process: the reference every engine must reproduce."""
     r = search(small_box(), None, azimuths=AZIMUTHS, workers=0, **SETTINGS)

@@ -39,16 +39,6 @@ def overlaps(q, e, q1, e1):
     return abs(q - q1) <= e * abs(q) + e1 * abs(q1)
 
 
-@pytest.fixture(scope="module")
-def client():
-    from dask.distributed import Client, LocalCluster
-
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None) \
-            as cluster, Client(cluster) as c:
-        c.wait_for_workers(2, timeout=120)
-        yield c
-
-
 # ------------------------------------------------------------------ ranking with per-candidate errors
 def _table(forces, errors, grasped=None):
     n = len(forces)
