@@ -207,7 +207,11 @@ def three_level_errors(levels: Sequence[dict[str, Any]]) -> dict[str, dict[str, 
     sizes = [float(lv["inner_size"]) for lv in last]
     if not sizes[0] > sizes[1] > sizes[2] > 0:
         return {}
-    return {q: sequence_uncertainty([float(lv[q]) for lv in last], sizes) for q in ("squeeze_depth", "finger_force")}
+    # each level's quantisation: ρ* up to one resolution late, the force about in proportion
+    res = [float(lv.get("resolution") or 0.0) / float(lv["squeeze_depth"]) for lv in last]
+    return {q: sequence_uncertainty([float(lv[q]) for lv in last], sizes, [x * abs(float(lv[q])) for x, lv in
+                                                                           zip(res, last)])
+            for q in ("squeeze_depth", "finger_force")}
 
 
 # ============================================================ the loop
@@ -434,7 +438,7 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         three = three_level_errors([lv.to_dict() for lv in report.levels])
         report.estimated_error = estimated_error(change, ans, three)
         report.three_levels = {k: {"method": u["method"], "order": u["order"], "contraction": u["contraction"],
-                                   "relative": u["relative"]} for k, u in three.items()}
+                                   "spread": u["spread"], "relative": u["relative"]} for k, u in three.items()}
         if _passed(ans) != _passed(before):
             report.estimated_error = {"squeeze_depth": math.inf, "finger_force": math.inf}
             report.note = f"the verdict changed between levels {level - 1} and {level}"

@@ -117,29 +117,37 @@ def estimate(values: Sequence[float], sizes: Sequence[float], *, min_order: floa
             "order": None}
 
 
-def sequence_uncertainty(values: Sequence[float], sizes: Sequence[float]) -> dict[str, Any]:
+def sequence_uncertainty(values: Sequence[float], sizes: Sequence[float],
+                         resolutions: Sequence[float] | None = None) -> dict[str, Any]:
     """The uncertainty of the finest of three levels q₁, q₂, q₃ computed at sizes h₁ > h₂ > h₃ (module notes).
 
-    With d₁ = q₂ − q₁, d₂ = q₃ − q₂ and the contraction c = |d₂| / |d₁|:
+    With d₁ = q₂ − q₁, d₂ = q₃ − q₂, the contraction c = |d₂| / |d₁| and the spread Δ of the three net of
+    their quantisation (the largest |qᵢ − qⱼ| less the coarser resolution of the two, ``resolutions``):
 
     * ``"monotone"`` (d₁, d₂ of one sign, observed order p ≥ 0.5): U = 1.25 |q₃ − q∞|, q∞ the Richardson
-      limit at order min(p, 2) (:data:`SAFETY_FACTOR`, :data:`ORDER_RANGE`);
+      limit at order min(p, 2) (:data:`SAFETY_FACTOR`, :data:`ORDER_RANGE`); where p > 2 (or d₂ = 0), at least
+      1.25 Δ: convergence faster than believed says the coarsest level lies outside the asymptotic range, and
+      the next level may move as far as these did;
     * ``"oscillating"`` (opposite signs, c ≤ 0.5): U = |d₂|, three times the distance c/(1 + c) |d₂| ≤ |d₂|/3
-      from q₃ to the limit of an alternating sequence contracting by c (:data:`OSCILLATION_CONTRACTION`);
+      from q₃ to the limit of an alternating sequence contracting by c (:data:`OSCILLATION_CONTRACTION`); where
+      c < 1/4 (an apparent order above 2), at least 1.25 Δ, as above;
     * ``"scatter"`` (the levels do not contract, c > 1; converge slower than order 0.5; or oscillate with
-      c > 0.5): U = 3 max |qᵢ − qⱼ| (:data:`SCATTER_FACTOR`);
+      c > 0.5): U = 3 Δ (:data:`SCATTER_FACTOR`);
     * ``"constant"``: the three agree, U = 0.
 
     Parameters
     ----------
     values : the three levels' values, coarsest first (more are allowed: the last three are used)
     sizes : their mesh sizes (the spacing at the contact patches), decreasing
+    resolutions : how far each value may be off by its own quantisation (ρ*: one squeeze increment or
+        sub-increment), in the values' unit; default none
 
     Returns
     -------
     dict
         ``error``: U, in the values' unit; ``relative``: U / |q₃| (inf when q₃ = 0 and U > 0); ``method``;
-        ``order``: the observed order p (monotone levels) or None; ``contraction``: c (inf when d₁ = 0 ≠ d₂).
+        ``order``: the observed order p (monotone levels) or None; ``contraction``: c (inf when d₁ = 0 ≠ d₂);
+        ``spread``: Δ.
     """
     q = [float(v) for v in values][-3:]
     h = [float(s) for s in sizes][-3:]
@@ -147,24 +155,34 @@ def sequence_uncertainty(values: Sequence[float], sizes: Sequence[float]) -> dic
         raise ValueError("sequence_uncertainty needs three values and three sizes")
     if not h[0] > h[1] > h[2] > 0:
         raise ValueError(f"the sizes must decrease and be positive, got {h}")
+    r = [0.0, 0.0, 0.0] if resolutions is None else [abs(float(x)) for x in resolutions][-3:]
+    if len(r) != 3:
+        raise ValueError("sequence_uncertainty needs a resolution per value")
     d1, d2 = q[1] - q[0], q[2] - q[1]
     contraction = abs(d2) / abs(d1) if d1 != 0 else (0.0 if d2 == 0 else math.inf)
-    scatter = max(q) - min(q)
+    spread = max(max(0.0, abs(q[i] - q[j]) - max(r[i], r[j])) for i, j in ((0, 1), (0, 2), (1, 2)))
     order = None
-    if scatter == 0:
+    if max(q) == min(q):
         u, method = 0.0, "constant"
     elif d1 * d2 > 0 and contraction <= 1:
         order = observed_order(q, h)
+        if order is None and contraction < 2.0 ** -ORDER_RANGE[1]:
+            order = math.inf  # faster than any order the bisection brackets
         if order is not None and order >= ORDER_RANGE[0]:
             p = min(order, ORDER_RANGE[1])
             u, method = SAFETY_FACTOR * abs(d2) * h[2]**p / (h[1]**p - h[2]**p), "monotone"
+            if order > ORDER_RANGE[1]:
+                u = max(u, SAFETY_FACTOR * spread)
         else:
-            u, method = SCATTER_FACTOR * scatter, "scatter"
+            u, method = SCATTER_FACTOR * spread, "scatter"
+    elif d2 == 0:  # the last two agree after a change: an order beyond any
+        u, method = SAFETY_FACTOR * spread, "monotone"
     elif d1 * d2 < 0 and contraction <= OSCILLATION_CONTRACTION:
         u, method = abs(d2), "oscillating"
-    elif d2 == 0:  # the last two agree after a change: an order beyond any, extrapolated at order 2 to q₃ itself
-        u, method = 0.0, "monotone"
+        if contraction < 2.0 ** -ORDER_RANGE[1]:
+            u = max(u, SAFETY_FACTOR * spread)
     else:
-        u, method = SCATTER_FACTOR * scatter, "scatter"
+        u, method = SCATTER_FACTOR * spread, "scatter"
     rel = u / abs(q[2]) if q[2] != 0 else (0.0 if u == 0 else math.inf)
-    return {"error": u, "relative": rel, "method": method, "order": order, "contraction": contraction}
+    return {"error": u, "relative": rel, "method": method, "order": order, "contraction": contraction,
+            "spread": spread}
