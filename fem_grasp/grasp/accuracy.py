@@ -32,8 +32,9 @@ the spacing with ratio 2, the last level's error against the converged value
 is at most that — or, from the third level on, the larger of that and the
 uncertainty of the last three levels (:func:`three_level_errors`, after Eça and
 Hoekstra, :mod:`fem_grasp.grasp.estimates`: 1.25 × the extrapolated error
-where they converge monotonically, three times their scatter where they
-swing), plus the resolution of ρ* (one increment).  Where three levels are
+where they converge monotonically, at least 1.25 × their spread where faster
+than order 2, three times their spread where they swing), plus the resolution
+of ρ* (one increment).  Where three levels are
 monotone with an observed order, the Richardson estimate is reported too
 (:func:`estimate`).
 
@@ -67,7 +68,8 @@ from .options import PickupOptions
 
 __all__ = ["GraspAnswer", "AccuracyLevel", "AccuracyReport", "answer_of", "patch_points",
            "single_run_report", "next_step", "predicted_mesh_error", "estimated_error", "three_level_errors",
-           "converged_pickup", "LEVEL_RATIO", "STEP_SHARE", "FINE_STEP_SHARE", "STEP_DIVISIONS", "DEFAULT_ACCURACY", "MAX_LEVELS", "MAX_FINGER_CONTACTS"]
+           "converged_pickup", "LEVEL_RATIO", "STEP_SHARE", "FINE_STEP_SHARE", "STEP_DIVISIONS", "DEFAULT_ACCURACY",
+           "MAX_LEVELS", "MAX_FINGER_CONTACTS"]
 
 log = logging.getLogger(__name__)
 
