@@ -51,6 +51,21 @@ def test_the_refinements_contact_bound_reaches_the_pickup_options_without_droppi
     assert scene_of(args).pickup_options().max_finger_contacts == 300
 
 
+def test_step_divisions_reach_the_pickup_options_from_the_command_line_and_the_scene_file(tmp_path):
+    from argparse import Namespace
+
+    from fem_grasp.cli.common import scene_of
+    from fem_grasp.io.scene import load_scene
+
+    args = Namespace(scene="orange", quick=False, backend=None, no_lift=False, young=None, step_divisions=4)
+    assert scene_of(args).pickup_options().step_divisions == 4
+    args.step_divisions = None
+    assert scene_of(args).pickup_options().step_divisions == 1  # the paper's Algorithm 1 as printed
+    f = tmp_path / "s.toml"
+    f.write_text('[object]\npaper = "tomato"\n[solver]\nstep_divisions = 3\n')
+    assert load_scene(f).pickup_options().step_divisions == 3
+
+
 @pytest.mark.requires("gmsh")  # the quick scene remeshes its object
 def test_summary_printed_and_quiet_prints_nothing(capsys, tmp_path):
     args = ["run", "football", "--quick", "--cache", str(cache_dir()), "--no-lift"]
@@ -146,6 +161,11 @@ def test_bad_input_exits_2_with_a_message_that_names_it(capsys, tmp_path):
     _bad(capsys, ["run", "tomato", "--accuracy", "5%", "--max-finger-contacts", "0"], "--max-finger-contacts", "≥ 1")
     scene.write_text('[object]\npaper = "tomato"\n[solver]\nmax_finger_contacts = 0\n')
     _bad(capsys, ["run", str(scene)], "solver.max_finger_contacts", "≥ 1")
+    _bad(capsys, ["run", "tomato", "--step-divisions", "0"], "--step-divisions", "≥ 1")
+    scene.write_text('[object]\npaper = "tomato"\n[solver]\nstep_divisions = 2.5\n')
+    _bad(capsys, ["run", str(scene)], "solver.step_divisions", "integer")
+    scene.write_text('[object]\npaper = "tomato"\n[solver]\nstep_divisions = 0\n')
+    _bad(capsys, ["run", str(scene)], "solver.step_divisions", "≥ 1")
     # Surfaces: not closed, self-intersecting.
     p, f = icosphere(0.03, 2)
     _bad(capsys, ["mesh", str(write_stl(tmp_path / "open.stl", p, f[1:])), "-o", str(tmp_path / "o.vtu")],

@@ -80,6 +80,11 @@ def scene_of(args: argparse.Namespace) -> Any:
         if max_contacts < 1:
             raise BadInput(f"--max-finger-contacts must be a whole number ≥ 1, got {max_contacts}")
         scene = replace(scene, max_finger_contacts=max_contacts)
+    divisions = getattr(args, "step_divisions", None)
+    if divisions is not None:
+        if divisions < 1:
+            raise BadInput(f"--step-divisions must be a whole number ≥ 1, got {divisions}")
+        scene = with_overrides(scene, step_divisions=divisions)
     return scene
 
 

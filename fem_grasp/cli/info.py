@@ -127,7 +127,9 @@ def _scene_lines(scene: Any) -> list[str]:
         f"({', '.join(f'{x:.3g}' for x in d1)}) and ({', '.join(f'{x:.3g}' for x in d2)}), {tilt:.3g} deg below "
         f"the horizontal; ratio s {scene.ratio:g}",
         f"solver     {scene.backend}; max squeeze {opt(scene.max_squeeze, 'mm', '40 % of the width (default)')}, "
-        f"increment {opt(scene.step, 'mm', 'adapted to E (default)')}, lift-test step "
+        f"increment {opt(scene.step, 'mm', 'adapted to E (default)')}"
+        + (f" (divided by {scene.step_divisions} where the lift test passes)"
+           if (scene.step_divisions or 1) > 1 else "") + ", lift-test step "
         f"{opt(scene.lift_test_step, 'N', 'mg/20 (default)')}, max lift "
         f"{opt(scene.max_lift, 'mm', 'the object height (default)')}; "
         + ("lift simulated" if scene.lift else "stops when the lift test passes (lift = false)"),

@@ -70,6 +70,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --accuracy: do not run a level predicted to put more than N contacts on one fingertip "
                         "(default 300; each level has about four times the contacts of the one before, and costs "
                         "several times as much)")
+    p.add_argument("--step-divisions", metavar="D", type=int,
+                   help="squeeze the increment in which the lift test first passes again in D parts, testing after "
+                        "each: rho* to within the scene's step / D for at most D - 1 more lift tests (default: the "
+                        "scene's [solver] step_divisions, 1: the paper's Algorithm 1 as printed)")
     p.set_defaults(func=cmd_run)
 
     p = sub.add_parser("rest", parents=[common, scene_opts], help="compute the resting state of a scene's object",

@@ -124,7 +124,9 @@ def _accuracy_lines(acc: dict[str, Any], quick: bool) -> list[str]:
     lines = [head]
     for lv in acc["levels"]:
         lines.append(f"  level {lv['level']}  {lv['vertices']:,} vertices, spacing {1e3 * lv['inner_size']:.3g} mm at "
-                     f"the patches, increment {1e3 * lv['step']:.3g} mm: "
+                     f"the patches, increment {1e3 * lv['step']:.3g} mm"
+                     + (f" (divided by {lv['step_divisions']} where the lift test passed)"
+                        if lv.get("step_divisions", 1) > 1 else "") + ": "
                      f"{'picked up' if lv['success'] else 'not picked up'}, rho {1e3 * lv['squeeze_depth']:.4g} mm, "
                      f"finger force {lv['finger_force']:.4g} N, {lv['seconds'] + lv['mesh_seconds']:.1f} s")
     return lines

@@ -35,6 +35,8 @@ optional)::
     backend = "sparse"        # "spectral" computes the dense eigendecomposition (paper, eq. 3)
     max_squeeze = "3 cm"
     step = "0.5 mm"
+    step_divisions = 1        # squeeze the increment in which the lift test first passes again in this many parts:
+                              # ρ* to within step / step_divisions for a few more lift tests
     lift_test_step = "0.05 N"
     max_lift = "5 cm"
     lift = true
@@ -167,6 +169,7 @@ class Scene:
     accuracy: float | None = None
     expected_error: float | None = None
     max_finger_contacts: int | None = None
+    step_divisions: int | None = None
 
     # ------------------------------------------------------------ building
     def load_mesh(self, cache_dir: Path | None = None) -> "TetMesh":
@@ -203,8 +206,10 @@ class Scene:
                              contacts=self.contacts, directions=self.directions, ratio=self.ratio,
                              max_squeeze=self.max_squeeze, step=self.step, lift_test_step=self.lift_test_step,
                              max_lift=self.max_lift, lift=self.lift, placement_rule=self.placement_rule,
-                             backend=self.backend, **({} if self.max_finger_contacts is None else
-                                                      {"max_finger_contacts": self.max_finger_contacts}))
+                             backend=self.backend,
+                             **({} if self.max_finger_contacts is None else
+                                {"max_finger_contacts": self.max_finger_contacts}),
+                             **({} if self.step_divisions is None else {"step_divisions": self.step_divisions}))
 
     def pickup_kwargs(self) -> dict[str, Any]:
         """:meth:`pickup_options` as keyword arguments of :func:`fem_grasp.grasp.pickup.pickup`, by name: the fields
@@ -410,6 +415,9 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
     max_contacts = s.get("max_finger_contacts")
     if max_contacts is not None and not (isinstance(max_contacts, int) and max_contacts >= 1):
         raise SceneError(f"{s.where('max_finger_contacts')} is a whole number of contacts ≥ 1; got {max_contacts!r}")
+    divisions = s.get("step_divisions")
+    if divisions is not None and not (isinstance(divisions, int) and divisions >= 1):
+        raise SceneError(f"{s.where('step_divisions')} is a whole number of sub-increments ≥ 1; got {divisions!r}")
     expected_error = s.get("expected_error")
     if expected_error is not None and not expected_error > 0:
         raise SceneError(f"{s.where('expected_error')} is a relative error > 0 (inf: the verdict itself may be wrong); "
@@ -430,7 +438,7 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
                  path=path, quick=quick, expect=expect, placement_rule=rule,
                  accuracy=None if accuracy is None else float(accuracy),
                  expected_error=None if expected_error is None else float(expected_error),
-                 max_finger_contacts=max_contacts)
+                 max_finger_contacts=max_contacts, step_divisions=divisions)
 
 
 def load_scene(path: str | Path, quick: bool = False) -> Scene:

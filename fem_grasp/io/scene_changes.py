@@ -59,7 +59,7 @@ CHANGES: dict[str, tuple[str, str]] = {
     "ratio": ("ratio", "ratio"), "backend": ("backend", "backend"), "max_squeeze": ("max_squeeze", "length"),
     "step": ("step", "length"), "lift_test_step": ("lift_test_step", "force"), "max_lift": ("max_lift", "length"),
     "lift": ("lift", "bool"), "vertices": ("vertices", "int"), "accuracy": ("accuracy", "accuracy"),
-    "max_finger_contacts": ("max_finger_contacts", "count"),
+    "max_finger_contacts": ("max_finger_contacts", "count"), "step_divisions": ("step_divisions", "count"),
     "units": ("units", "units"), "allow_implausible_units": ("allow_implausible_units", "allow_units"),
 }
 
@@ -132,7 +132,7 @@ def with_changes(scene: Scene, changes: dict[str, Any]) -> Scene:
             new["lift"] = value
         elif kind == "accuracy":
             new["accuracy"] = parse_accuracy(value, w)
-        elif kind == "count":  # the accuracy loop's contacts per fingertip
+        elif kind == "count":  # contacts per fingertip, sub-increments
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
                 raise SceneError(f"{w}: expected a whole number ≥ 1, got {value!r}")
             new[field_name] = int(value)
