@@ -66,6 +66,24 @@ def test_step_divisions_reach_the_pickup_options_from_the_command_line_and_the_s
     assert load_scene(f).pickup_options().step_divisions == 3
 
 
+def test_the_accuracy_loops_time_budget_reaches_the_pickup_options_without_dropping_the_stated_error(tmp_path):
+    from argparse import Namespace
+
+    from fem_grasp.cli.common import scene_of
+    from fem_grasp.io.scene import load_scene
+
+    args = Namespace(scene="orange", quick=False, backend=None, no_lift=False, young=None, accuracy="5%",
+                     max_seconds=30.0)
+    scene = scene_of(args)
+    assert scene.pickup_options().max_seconds == 30.0 and scene.expected_error is not None
+    args.max_seconds = None
+    assert scene_of(args).pickup_options().max_seconds is None  # no budget
+    f = tmp_path / "s.toml"
+    f.write_text('[object]\npaper = "tomato"\n[solver]\nmax_seconds = 45\n')
+    assert load_scene(f).pickup_options().max_seconds == 45.0
+    assert load_scene(f).with_(max_seconds=10).pickup_options().max_seconds == 10.0
+
+
 @pytest.mark.requires("gmsh")  # the quick scene remeshes its object
 def test_summary_printed_and_quiet_prints_nothing(capsys, tmp_path):
     args = ["run", "football", "--quick", "--cache", str(cache_dir()), "--no-lift"]
@@ -162,6 +180,9 @@ def test_bad_input_exits_2_with_a_message_that_names_it(capsys, tmp_path):
     scene.write_text('[object]\npaper = "tomato"\n[solver]\nmax_finger_contacts = 0\n')
     _bad(capsys, ["run", str(scene)], "solver.max_finger_contacts", "≥ 1")
     _bad(capsys, ["run", "tomato", "--step-divisions", "0"], "--step-divisions", "≥ 1")
+    _bad(capsys, ["run", "tomato", "--accuracy", "5%", "--max-seconds", "0"], "--max-seconds", "> 0")
+    scene.write_text('[object]\npaper = "tomato"\n[solver]\nmax_seconds = -5.0\n')
+    _bad(capsys, ["run", str(scene)], "solver.max_seconds", "> 0")
     scene.write_text('[object]\npaper = "tomato"\n[solver]\nstep_divisions = 2.5\n')
     _bad(capsys, ["run", str(scene)], "solver.step_divisions", "integer")
     scene.write_text('[object]\npaper = "tomato"\n[solver]\nstep_divisions = 0\n')

@@ -200,9 +200,9 @@ class _Object:
 
 #: The pickup options a search of a body takes as keywords (the rest are each candidate's, or not run per
 #: candidate: :data:`~fem_grasp.grasp.evaluation.SHARED_OPTIONS` and the candidates' maximum squeeze; with an
-#: accuracy target, the loop's ``max_finger_contacts`` and ``geometry``).
+#: accuracy target, the loop's ``max_finger_contacts``, ``max_seconds`` and ``geometry``).
 _OPTIONS = ("mu_finger", "mu_table", "finger_radius", "max_squeeze", "step", "lift_test_step", "max_lift", "lift",
-            "max_lift_attempts", "backend", "max_finger_contacts", "geometry")
+            "max_lift_attempts", "backend", "max_finger_contacts", "max_seconds", "geometry")
 
 
 def _object(scene: Any, quick: bool, cache_dir: Path | None, kwargs: dict[str, Any]) -> _Object:

@@ -85,6 +85,11 @@ def scene_of(args: argparse.Namespace) -> Any:
         if divisions < 1:
             raise BadInput(f"--step-divisions must be a whole number ≥ 1, got {divisions}")
         scene = with_overrides(scene, step_divisions=divisions)
+    max_seconds = getattr(args, "max_seconds", None)
+    if max_seconds is not None:
+        if not (np.isfinite(max_seconds) and max_seconds > 0):
+            raise BadInput(f"--max-seconds must be a time in seconds > 0, got {max_seconds:g}")
+        scene = with_overrides(scene, max_seconds=max_seconds)
     return scene
 
 

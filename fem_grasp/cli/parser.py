@@ -70,6 +70,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --accuracy: do not run a level predicted to put more than N contacts on one fingertip "
                         "(default 300; each level has about four times the contacts of the one before, and costs "
                         "several times as much)")
+    p.add_argument("--max-seconds", metavar="S", type=float,
+                   help="with --accuracy: a time budget; no level is started that would carry the loop past S "
+                        "seconds (predicted from the levels so far), and the answer is the last level's with its "
+                        "estimated error (default: the scene's [solver] max_seconds, or none)")
     p.add_argument("--step-divisions", metavar="D", type=int,
                    help="squeeze the increment in which the lift test first passes again in D parts, testing after "
                         "each: rho* to within the scene's step / D for at most D - 1 more lift tests (default: the "
@@ -144,6 +148,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "estimated errors, and ≈ marks the grasps within their and the best one's errors; several "
                         "times the cost per candidate (default: one run per candidate on the scene's mesh, within the "
                         "scene's stated error)")
+    p.add_argument("--max-seconds", metavar="S", type=float,
+                   help="with --accuracy: each candidate's time budget, as for `fem-grasp run --max-seconds` (the "
+                        "levels a budget allows depend on the machine)")
     p.add_argument("--rank", choices=["force", "squeeze", "margin"], default="force",
                    help="rank grasps by the least finger normal force (default), the least rho*, or the largest w/mg")
     p.add_argument("--best", type=int, default=3, metavar="K", help="full results and pickup reports of the best K")

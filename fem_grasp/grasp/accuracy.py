@@ -67,8 +67,8 @@ from .options import MAX_FINGER_CONTACTS as _MAX_FINGER_CONTACTS
 from .options import PickupOptions
 
 __all__ = ["GraspAnswer", "AccuracyLevel", "AccuracyReport", "answer_of", "patch_points",
-           "single_run_report", "next_step", "predicted_mesh_error", "estimated_error", "three_level_errors",
-           "converged_pickup", "LEVEL_RATIO", "STEP_SHARE", "FINE_STEP_SHARE", "STEP_DIVISIONS", "DEFAULT_ACCURACY",
+           "single_run_report", "next_step", "predicted_mesh_error", "predicted_level_seconds", "estimated_error",
+           "three_level_errors", "converged_pickup", "LEVEL_COST_GROWTH", "LEVEL_RATIO", "STEP_SHARE", "FINE_STEP_SHARE", "STEP_DIVISIONS", "DEFAULT_ACCURACY",
            "MAX_LEVELS", "MAX_FINGER_CONTACTS"]
 
 log = logging.getLogger(__name__)
@@ -304,6 +304,18 @@ PATCH_RADIUS = 1.5
 TABLE_LAG = 4.0
 
 
+#: A level costs at least this many times the one before (its patches hold about four times the contacts).
+LEVEL_COST_GROWTH = 4.0
+
+
+def predicted_level_seconds(levels: Sequence[AccuracyLevel]) -> float:
+    """The time the next level will take: the last level's (meshing included), times the growth from the level
+    before it, at least :data:`LEVEL_COST_GROWTH` (the orange: 1, 8 and 50 s for levels 0, 1 and 2)."""
+    t = [lv.answer.seconds + lv.mesh_seconds for lv in levels]
+    growth = max(LEVEL_COST_GROWTH, t[-1] / t[-2]) if len(t) >= 2 and t[-2] > 0 else LEVEL_COST_GROWTH
+    return t[-1] * growth
+
+
 def _level_meshes(geometry: Any, fingers: np.ndarray, table: np.ndarray, inner: float, radius: float,
                   outer: float, embed: np.ndarray | None) -> Any:
     from ..mesh.remesh import patch_refinement
@@ -333,8 +345,9 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
     max_finger_contacts : a level whose fingertip patches would hold more contacts than this (predicted from the
         level before: times the square of ``LEVEL_RATIO`` per halving of the spacing) is not run (default: the
         options' ``max_finger_contacts``, :data:`MAX_FINGER_CONTACTS` unless set)
-    max_seconds : stop refining once the levels so far took this long (the answer is then reported
-        unconverged, with the last difference as its estimated error)
+    max_seconds : a time budget, seconds: no level is started once the levels so far took this long, nor when
+        :func:`predicted_level_seconds` would carry the loop past it (the answer is then reported unconverged,
+        with its estimated error); default the options' ``max_seconds``, None: no budget
     options : the grasp's :class:`~fem_grasp.grasp.options.PickupOptions` (default: the defaults), of which
         ``contacts`` are finger contact nodes of ``body`` (on finer levels the surface nodes at their positions,
         embedded as nodes where the geometry allows, :meth:`~fem_grasp.mesh.remesh.Geometry.build`) and ``step``,
@@ -361,6 +374,8 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
     opts = PickupOptions.from_overrides(overrides, base=options).replace(accuracy=None, geometry=None)
     if max_finger_contacts is None:
         max_finger_contacts = opts.max_finger_contacts
+    if max_seconds is None:
+        max_seconds = opts.max_seconds
     contacts = opts.contacts
     t_start = time.perf_counter()
     geo = geometry if geometry is not None else geometry_of_mesh(body.mesh)
@@ -388,9 +403,15 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         report.note = f"level 0 stopped before the squeeze ({ans.reason}): there is no squeeze to refine"
         max_levels = 0
     for level in range(1, max_levels + 1):
-        if max_seconds is not None and time.perf_counter() - t_start > max_seconds:
-            report.note = f"stopped after {time.perf_counter() - t_start:.0f} s (max_seconds = {max_seconds:g})"
-            break
+        if max_seconds is not None:
+            spent = time.perf_counter() - t_start
+            ahead = predicted_level_seconds(report.levels)
+            if spent >= max_seconds or spent + ahead > max_seconds:
+                report.note = (f"stopped after {spent:.0f} s before level {level}"
+                               + (f", predicted to take about {ahead:.0f} s" if spent < max_seconds else "")
+                               + f" (max_seconds = {max_seconds:g}; to go on, raise it: fem-grasp run --max-seconds "
+                               "S, the scene's [solver] max_seconds, or PickupOptions.max_seconds)")
+                break
         inner_l = inner / LEVEL_RATIO**level
         predicted = max(f["nodes"] for f in report.levels[-1].answer.fingers) * LEVEL_RATIO**2
         if predicted > max_finger_contacts:

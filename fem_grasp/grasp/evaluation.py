@@ -72,7 +72,7 @@ SHARED_OPTIONS = ("mu_finger", "mu_table", "finger_radius", "step", "lift_test_s
                   "max_lift_attempts", "backend")
 #: The accuracy loop's options a search shares when it has an accuracy target (``accuracy`` set): each candidate is
 #: then evaluated by :func:`fem_grasp.grasp.accuracy.converged_pickup`; without it they are not kept.
-ACCURACY_OPTIONS = ("accuracy", "max_finger_contacts", "geometry")
+ACCURACY_OPTIONS = ("accuracy", "max_finger_contacts", "max_seconds", "geometry")
 
 #: The columns of a result row: name → (kind, description).  Lengths in metres, forces in newtons, angles in
 #: degrees.  Per-finger forces are those of the final snapshot (at lift-off when picked up), measured as in
@@ -236,7 +236,8 @@ class SearchSetup:
             # the geometry by its kind and parameters (a surface's by its kind: it is the body's or its scan's,
             # whose mesh is in the key), not by its description, which names the object
             named.update(accuracy=shared.accuracy, max_finger_contacts=shared.max_finger_contacts,
-                         geometry=repr(shared.geometry))
+                         geometry=repr(shared.geometry),
+                         **({} if shared.max_seconds is None else {"max_seconds": shared.max_seconds}))
         key = _digest(*(v for k, v in sorted(named.items())
                         if k not in ("name", "rest_time", "rest_iterations", "rest_forces", "pose_margin")))
         fields["options"] = shared

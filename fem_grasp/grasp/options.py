@@ -122,6 +122,12 @@ class PickupOptions:
         loop stops with the answer it has and its estimated error (≥ 1, default :data:`MAX_FINGER_CONTACTS`).  Each
         halving of the patch spacing quadruples a patch's contacts, and the hanging patch's contact algebra is
         dense in them: the level costs several times the one before.
+    max_seconds : float or None
+        With ``accuracy``: a time budget of the loop, seconds.  A level is not started once the levels so far
+        took this long, nor when the last level's time, grown as the last two levels' times grew (at least
+        fourfold), would carry the loop past it; the answer is then the last level's, with its estimated error.
+        None (default): no budget.  The budget is wall-clock time, so how many levels it allows depends on the
+        machine: an answer under a budget is reproducible only with its levels (``result.accuracy``).
     geometry : Geometry or None
         What the ``accuracy`` loop remeshes (:class:`fem_grasp.mesh.remesh.Geometry`).  None: the body's boundary
         surface (:func:`fem_grasp.mesh.remesh.geometry_of_mesh`).  Not compared: two records that differ only
@@ -145,6 +151,7 @@ class PickupOptions:
     backend: str = "sparse"
     accuracy: float | None = None
     max_finger_contacts: int = MAX_FINGER_CONTACTS
+    max_seconds: float | None = None
     geometry: Any = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
@@ -164,7 +171,8 @@ class PickupOptions:
         for name, what, unit in (("max_squeeze", "the maximum squeeze depth", "metres"),
                                  ("step", "the squeeze increment", "metres"),
                                  ("lift_test_step", "the lift-test step h", "newtons"),
-                                 ("max_lift", "the maximum lift height", "metres")):
+                                 ("max_lift", "the maximum lift height", "metres"),
+                                 ("max_seconds", "the accuracy loop's time budget", "seconds")):
             value = getattr(self, name)
             if value is not None:
                 put(self, name, check_positive(value, f"{what} ({name})", unit, SceneError))

@@ -43,6 +43,7 @@ optional)::
     accuracy = 0.05           # relative accuracy of ρ* and the finger force: refine at the contact patches until
                               # two successive levels agree within it (fem_grasp.grasp.accuracy); omit for one run
     max_finger_contacts = 300 # with accuracy: a level predicted to put more contacts on a fingertip is not run
+    max_seconds = 120         # with accuracy: a time budget; a level predicted to overrun it is not run
     expected_error = 0.3      # how far a single run of this scene (no accuracy loop, e.g. its [quick] variant) is
                               # from the converged answer, as measured by `make converge`: printed with its answer
 
@@ -170,6 +171,7 @@ class Scene:
     expected_error: float | None = None
     max_finger_contacts: int | None = None
     step_divisions: int | None = None
+    max_seconds: float | None = None
 
     # ------------------------------------------------------------ building
     def load_mesh(self, cache_dir: Path | None = None) -> "TetMesh":
@@ -209,7 +211,8 @@ class Scene:
                              backend=self.backend,
                              **({} if self.max_finger_contacts is None else
                                 {"max_finger_contacts": self.max_finger_contacts}),
-                             **({} if self.step_divisions is None else {"step_divisions": self.step_divisions}))
+                             **({} if self.step_divisions is None else {"step_divisions": self.step_divisions}),
+                             max_seconds=self.max_seconds)
 
     def pickup_kwargs(self) -> dict[str, Any]:
         """:meth:`pickup_options` as keyword arguments of :func:`fem_grasp.grasp.pickup.pickup`, by name: the fields
@@ -418,6 +421,9 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
     divisions = s.get("step_divisions")
     if divisions is not None and not (isinstance(divisions, int) and divisions >= 1):
         raise SceneError(f"{s.where('step_divisions')} is a whole number of sub-increments ≥ 1; got {divisions!r}")
+    max_seconds = s.get("max_seconds")
+    if max_seconds is not None and not (math.isfinite(max_seconds) and max_seconds > 0):
+        raise SceneError(f"{s.where('max_seconds')} is a time budget in seconds > 0; got {max_seconds!r}")
     expected_error = s.get("expected_error")
     if expected_error is not None and not expected_error > 0:
         raise SceneError(f"{s.where('expected_error')} is a relative error > 0 (inf: the verdict itself may be wrong); "
@@ -438,7 +444,8 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
                  path=path, quick=quick, expect=expect, placement_rule=rule,
                  accuracy=None if accuracy is None else float(accuracy),
                  expected_error=None if expected_error is None else float(expected_error),
-                 max_finger_contacts=max_contacts, step_divisions=divisions)
+                 max_finger_contacts=max_contacts, step_divisions=divisions,
+                 max_seconds=None if max_seconds is None else float(max_seconds))
 
 
 def load_scene(path: str | Path, quick: bool = False) -> Scene:

@@ -28,7 +28,7 @@ log = logging.getLogger(__name__)
 #: accuracy target and the lift's extent do not change ρ* or the forces at lift-off): a change of any other field
 #: makes the scene's stated error (``[solver] expected_error``, measured by the convergence study at the scene's
 #: own settings) no longer the run's.
-_ERROR_NEUTRAL = frozenset({"backend", "accuracy", "lift", "max_lift", "max_finger_contacts"})
+_ERROR_NEUTRAL = frozenset({"backend", "accuracy", "lift", "max_lift", "max_finger_contacts", "max_seconds"})
 
 
 def _without_borrowed_error(scene: Scene, new: Scene, fields: Any) -> Scene:
@@ -60,6 +60,7 @@ CHANGES: dict[str, tuple[str, str]] = {
     "step": ("step", "length"), "lift_test_step": ("lift_test_step", "force"), "max_lift": ("max_lift", "length"),
     "lift": ("lift", "bool"), "vertices": ("vertices", "int"), "accuracy": ("accuracy", "accuracy"),
     "max_finger_contacts": ("max_finger_contacts", "count"), "step_divisions": ("step_divisions", "count"),
+    "max_seconds": ("max_seconds", "seconds"),
     "units": ("units", "units"), "allow_implausible_units": ("allow_implausible_units", "allow_units"),
 }
 
@@ -132,6 +133,11 @@ def with_changes(scene: Scene, changes: dict[str, Any]) -> Scene:
             new["lift"] = value
         elif kind == "accuracy":
             new["accuracy"] = parse_accuracy(value, w)
+        elif kind == "seconds":  # the accuracy loop's time budget
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) \
+                    or not (np.isfinite(value) and value > 0):
+                raise SceneError(f"{w}: expected a time in seconds > 0, got {value!r}")
+            new[field_name] = float(value)
         elif kind == "count":  # contacts per fingertip, sub-increments
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
                 raise SceneError(f"{w}: expected a whole number ≥ 1, got {value!r}")

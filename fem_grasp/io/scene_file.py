@@ -55,7 +55,8 @@ SCHEMA: dict[str, dict[str, str]] = {
     "fingers": {"radius": "length", "contacts": "contacts", "directions": "directions", "ratio": "float"},
     "solver": {"backend": "str", "max_squeeze": "length", "step": "length", "lift_test_step": "force",
                "max_lift": "length", "lift": "bool", "accuracy": "float",
-               "expected_error": "float", "max_finger_contacts": "int", "step_divisions": "int"},
+               "expected_error": "float", "max_finger_contacts": "int", "step_divisions": "int",
+               "max_seconds": "float"},
 }
 
 

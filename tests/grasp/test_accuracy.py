@@ -146,6 +146,36 @@ def test_a_level_that_would_crowd_a_fingertip_with_contacts_is_not_run():
         assert res.body.n_nodes == body.n_nodes
 
 
+def test_a_time_budget_stops_the_loop_before_a_level_that_would_overrun_it():
+    """``max_seconds``: with a budget below what level 0 took, no finer level starts; the answer is level 0's, not
+    converged, and the note says why and how to go on (as the loop's argument and as the option pickup passes)."""
+    body = Body(BOX.grid((2, 2, 2)), 2e4, 0.3, weight=0.3)
+    kw = dict(contacts=_centre_nodes(body.mesh), mu_finger=0.5, finger_radius=0.01, lift=False)
+    by_argument = converged_pickup(body, solve=pickup, accuracy=TARGET, geometry=BOX, max_seconds=1e-6, **kw)
+    by_option = pickup(body, accuracy=TARGET, geometry=BOX, max_seconds=1e-6, **kw)
+    for res in (by_argument, by_option):
+        acc = res.accuracy
+        assert len(acc["levels"]) == 1 and not acc["converged"]
+        assert "max_seconds = 1e-06" in acc["note"] and "--max-seconds" in acc["note"]
+        assert math.isinf(max(acc["estimated_error"].values()))
+        assert res.body.n_nodes == body.n_nodes
+    for bad in (0.0, -1.0, float("inf")):
+        with pytest.raises(ValueError, match="max_seconds"):
+            pickup(body, accuracy=TARGET, geometry=BOX, max_seconds=bad, **kw)
+
+
+def test_the_next_levels_time_grows_as_the_last_two_levels_did_and_at_least_fourfold():
+    from fem_grasp.grasp.accuracy import LEVEL_COST_GROWTH, AccuracyLevel, GraspAnswer, predicted_level_seconds
+
+    def level(seconds, mesh_seconds=0.0):
+        ans = GraspAnswer(True, "", 0.01, 1.0, ({}, {}), 10, 1.0, 1.0, (), 100, 1e-3, 0.05, seconds)
+        return AccuracyLevel(0, 0.01, 0.01, ans, mesh_seconds)
+
+    assert predicted_level_seconds([level(2.0)]) == pytest.approx(LEVEL_COST_GROWTH * 2.0)
+    assert predicted_level_seconds([level(1.0), level(7.0, 1.0)]) == pytest.approx(64.0)  # 8 s, grown eightfold
+    assert predicted_level_seconds([level(4.0), level(5.0)]) == pytest.approx(LEVEL_COST_GROWTH * 5.0)
+
+
 def test_accuracy_must_be_a_relative_error():
     body = Body(BOX.grid((2, 2, 2)), 2e4, 0.3, weight=0.3)
     for bad in (0.0, 1.0, -0.1, "5%"):
