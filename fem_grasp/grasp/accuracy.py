@@ -20,7 +20,9 @@ runs Algorithm 1 on a sequence of levels: level 0 on the body as given finds
 the contact patches (fingertips and table); each next level remeshes the
 geometry (:mod:`fem_grasp.mesh.remesh`) with half the spacing at those patches
 (:data:`LEVEL_RATIO`), the table patch at four times that (:data:`TABLE_LAG`) and a
-finer outer mesh, and takes a squeeze increment small enough that the lift
+finer outer mesh, grasps at the same points (the given contacts, or those the
+placement rule chose on level 0, each level's nearest surface nodes), and takes
+a squeeze increment small enough that the lift
 test's quantisation of ρ* (at most one increment) uses at most a quarter of the
 target, half where the last two levels predict that this one will not meet it
 (:func:`next_step`; h in proportion); it stops when two successive levels
@@ -67,7 +69,7 @@ from .options import MAX_FINGER_CONTACTS as _MAX_FINGER_CONTACTS
 from .options import PickupOptions
 
 __all__ = ["GraspAnswer", "AccuracyLevel", "AccuracyReport", "answer_of", "patch_points",
-           "single_run_report", "next_step", "predicted_mesh_error", "predicted_level_seconds", "estimated_error",
+           "single_run_report", "next_step", "predicted_mesh_error", "predicted_level_seconds", "placement_target", "estimated_error",
            "three_level_errors", "converged_pickup", "LEVEL_COST_GROWTH", "LEVEL_RATIO", "STEP_SHARE", "FINE_STEP_SHARE", "STEP_DIVISIONS", "DEFAULT_ACCURACY",
            "MAX_LEVELS", "MAX_FINGER_CONTACTS"]
 
@@ -264,6 +266,8 @@ class AccuracyReport:
     geometry : what the levels remeshed
     three_levels : per quantity, how the last three levels behaved (:func:`three_level_errors`: ``method``,
         observed ``order``, ``contraction``, ``relative`` uncertainty), when they all lifted the object
+    contact_points : (2, 3) the initial finger contact points every level grasps at, in the frame of the body as
+        given (the given contacts, or those the placement rule chose on level 0), or None before a placement
     """
 
     target: float
@@ -274,11 +278,12 @@ class AccuracyReport:
     richardson: dict[str, Any] = field(default_factory=dict)
     geometry: str = ""
     three_levels: dict[str, Any] = field(default_factory=dict)
+    contact_points: list[list[float]] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {"target": self.target, "estimated_error": dict(self.estimated_error), "converged": self.converged,
                 "note": self.note, "geometry": self.geometry, "richardson": self.richardson,
-                "three_levels": self.three_levels,
+                "three_levels": self.three_levels, "contact_points": self.contact_points,
                 "levels": [lv.to_dict() for lv in self.levels]}
 
     def summary_line(self) -> str:
@@ -302,6 +307,44 @@ PATCH_RADIUS = 1.5
 #: as a wide, smooth pressure, and its many contacts make every return mapping of the squeeze dearer (the steam
 #: bun's flat base at R/4 took more than 900 s against 37 s with only the fingertips graded; `make converge`).
 TABLE_LAG = 4.0
+
+
+def placement_target(geometry: Any, result: Any, direction: Any, spacing: float) -> np.ndarray:
+    """(2, 3) the points every finer level grasps at when the placement rule chose level 0's contacts, in the
+    frame of the body as given.
+
+    The rule (:func:`~fem_grasp.grasp.placement.finger_contact_nodes`, the nodes extreme along ∓d̂ near a height)
+    applied to points of the geometry's surface an eighth of level 0's patch spacing apart, at the height it
+    chose on level 0 (the centre of mass's, when both of level 0's nodes lie within its band), in level 0's
+    resting pose: where a mesh fine enough would put its nodes, rather than where level 0's coarse mesh had one.
+    Level 0's own nodes are kept for a finger whose point lies more than two spacings from it, and for both
+    where the geometry offers no surface points.
+    """
+    from .placement import extreme_points
+
+    mesh = result.body.mesh  # posed: the numbering of the body as given
+    pose = result.rest.pose
+    rot, trans = np.asarray(pose.rotation, float), np.asarray(pose.translation, float)
+    nodes = [int(k) for k in result.finger_nodes]
+    chosen = (mesh.points[nodes] - trans) @ rot  # level 0's nodes in the given frame
+    try:
+        samples = np.asarray(geometry.surface_points(spacing / 8.0), float)
+    except NotImplementedError:
+        return chosen
+    posed = samples @ rot.T + trans
+    z = posed[:, 2]
+    band = 0.1 * float(z.max() - z.min())
+    com = float(result.body.center_of_mass[2])
+    on = mesh.points[nodes, 2]
+    height = com if bool(np.all(np.abs(on - com) <= band)) else float(on.mean())
+    try:
+        i, j = extreme_points(posed, height, direction)
+    except ValueError:
+        return chosen
+    target = samples[[i, j]]
+    far = np.linalg.norm(target - chosen, axis=1) > 2.0 * spacing
+    target[far] = chosen[far]
+    return target
 
 
 #: A level costs at least this many times the one before (its patches hold about four times the contacts).
@@ -396,6 +439,13 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
     if on_level is not None:
         on_level(report)
     fingers, table = patch_points(result)
+    if contact_points is None and len(result.finger_nodes) == 2 and min(result.finger_nodes) >= 0:
+        # One grasp on every level: not a choice made again on each finer mesh, where a tie along a flat or
+        # cylindrical side, or the next facet, moves the fingers by up to centimetres (a capsule's ρ* followed
+        # its contacts' offset along the axis from the centre of mass).
+        contact_points = placement_target(geo, result, opts.directions[0], inner)
+    if contact_points is not None:
+        report.contact_points = np.asarray(contact_points, float).tolist()
     s0, h0 = ans.resolution, result.lift_test_step
     step_l = s0
     prev_inner = inner

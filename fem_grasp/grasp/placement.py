@@ -23,7 +23,7 @@ from ..validation import check_positive, check_real, check_vector
 
 __all__ = ["DEFAULT_PLACEMENT_RULE", "MAX_UP", "MIN_HORIZONTAL", "PAPER_SQUEEZE_DIRECTIONS", "PLACEMENT_RULES",
            "PLACEMENT_TOL", "check_contact_nodes", "check_directions", "check_finger_placement",
-           "finger_contact_nodes", "lowest_nodes", "spread_triple"]
+           "extreme_points", "finger_contact_nodes", "lowest_nodes", "spread_triple"]
 
 #: Relative tolerance (× max(R, object diameter)) for "touching" and "inside" in
 #: :func:`check_finger_placement`.
@@ -73,14 +73,23 @@ def finger_contact_nodes(mesh: TetMesh, height: float, direction: np.ndarray = P
     height and the middle of the face: not an edge or corner node, where the
     surface normal is the average of two faces'.
     """
+    surf = mesh.surface_nodes
+    i, j = extreme_points(mesh.points[surf], height, direction, band)
+    return int(surf[i]), int(surf[j])
+
+
+def extreme_points(points: np.ndarray, height: float, direction: np.ndarray = PAPER_SQUEEZE_DIRECTIONS[0],
+                   band: float = 0.1) -> tuple[int, int]:
+    """:func:`finger_contact_nodes`'s rule on any points of a surface (n, 3): the indices of the two extreme along
+    ∓d̂ among those within ``band`` × (their height range) of ``height``, ties as there."""
     d = np.asarray(direction, dtype=float).copy()
     d[2] = 0.0
     if np.linalg.norm(d) == 0:
         raise ValueError("the squeeze direction has no horizontal component; fingers cannot face each other")
     d /= np.linalg.norm(d)
-    p, surf = mesh.points, mesh.surface_nodes
-    z = p[surf, 2]
-    near = surf[np.abs(z - height) <= band * (z.max() - z.min())]
+    p = np.asarray(points, dtype=float)
+    z = p[:, 2]
+    near = np.flatnonzero(np.abs(z - height) <= band * (z.max() - z.min()))
     if len(near) < 2:
         raise ValueError(f"no surface nodes near height {height:g} m; the fingers would miss the object")
     s = p[near] @ d

@@ -159,6 +159,11 @@ class Geometry:
     def describe(self) -> str:
         return type(self).__name__
 
+    def surface_points(self, spacing: float) -> np.ndarray:
+        """(n, 3) points on the solid's surface about ``spacing`` apart or closer: where a rule that picks surface
+        nodes (the fingers' placement) finds the point a fine enough mesh would have as a node."""
+        raise NotImplementedError
+
     def size_for_vertices(self, vertices: int) -> float:
         """The uniform mesh size that gives about ``vertices`` vertices (n ≈ V / h³)."""
         return (self.volume / vertices) ** (1.0 / 3.0)
@@ -180,6 +185,21 @@ class PaperGeometry(Geometry):
 
     def describe(self) -> str:
         return f"paper shape {self.name}"
+
+    def surface_points(self, spacing: float) -> np.ndarray:
+        shape = PAPER_SHAPES[self.name]
+        if shape.kind == "ellipsoid":
+            axes, centre, lowest = np.asarray(shape.dimensions, float), np.zeros(3), -1.0
+        else:  # the dome: the spheroid (r, r, h) about (0, 0, e), above its flat base z = 0
+            r, h, e = shape.dimensions
+            axes, centre, lowest = np.array([r, r, h], float), np.array([0.0, 0.0, e]), -e / h
+        n = max(16, int(math.ceil(math.pi * float(axes.max()) / spacing)))
+        polar = np.linspace(0.0, math.pi, n + 1)
+        polar = polar[np.cos(polar) >= lowest]
+        azimuth = np.linspace(0.0, 2.0 * math.pi, 2 * n, endpoint=False)
+        t, a = np.meshgrid(polar, azimuth, indexing="ij")
+        unit = np.stack([np.sin(t) * np.cos(a), np.sin(t) * np.sin(a), np.cos(t)], axis=-1).reshape(-1, 3)
+        return centre + unit * axes
 
     def build(self, size: float, refine: Refinement | Sequence[Refinement] | None = None,
               embed: np.ndarray | None = None) -> TetMesh:
@@ -203,6 +223,19 @@ class BoxGeometry(Geometry):
 
     def describe(self) -> str:
         return f"box {np.subtract(self.upper, self.lower).round(6).tolist()} m"
+
+    def surface_points(self, spacing: float) -> np.ndarray:
+        lo, hi = np.asarray(self.lower, float), np.asarray(self.upper, float)
+        ticks = [np.linspace(lo[k], hi[k], max(2, int(math.ceil((hi[k] - lo[k]) / spacing)) + 1)) for k in range(3)]
+        out = []
+        for k in range(3):  # the two faces normal to axis k
+            i, j = [m for m in range(3) if m != k]
+            u, v = np.meshgrid(ticks[i], ticks[j], indexing="ij")
+            for w in (lo[k], hi[k]):
+                p = np.empty((u.size, 3))
+                p[:, i], p[:, j], p[:, k] = u.ravel(), v.ravel(), w
+                out.append(p)
+        return np.vstack(out)
 
     def grid(self, divisions: Sequence[int]) -> TetMesh:
         """The structured Kuhn-split grid of :func:`fem_grasp.mesh.box_mesh`."""
@@ -259,6 +292,10 @@ class SurfaceGeometry(Geometry):
 
     def describe(self) -> str:
         return f"surface {self.surface.source} ({len(self.surface.faces)} triangles)"
+
+    def surface_points(self, spacing: float) -> np.ndarray:
+        """The surface's vertices: a faceted surface has its extremes there."""
+        return np.asarray(self.surface.points, float)
 
     def build(self, size: float, refine: Refinement | Sequence[Refinement] | None = None,
               embed: np.ndarray | None = None) -> TetMesh:

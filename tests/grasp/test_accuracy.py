@@ -176,6 +176,61 @@ def test_the_next_levels_time_grows_as_the_last_two_levels_did_and_at_least_four
     assert predicted_level_seconds([level(4.0), level(5.0)]) == pytest.approx(LEVEL_COST_GROWTH * 5.0)
 
 
+def test_every_level_grasps_at_the_points_the_placement_rule_gives_on_the_geometry():
+    """Without given contacts the placement rule chooses level 0's nodes on its mesh, and the points of every finer
+    level once, on the box itself: the middles of the two faces across the squeeze (embedded as nodes of each
+    remeshed box), not a choice of each mesh's own, so that every level answers the same grasp."""
+    body = Body(BOX.grid((3, 3, 3)), 2e4, 0.3, weight=0.3)
+    res = converged_pickup(body, solve=pickup, accuracy=TARGET, geometry=BOX, max_levels=1, mu_finger=0.5,
+                           finger_radius=0.01, lift=False)
+    acc = res.accuracy
+    assert len(acc["levels"]) == 2
+    chosen = np.asarray(acc["contact_points"])
+    level0 = pickup(body, mu_finger=0.5, finger_radius=0.01, lift=False)
+    assert np.allclose(chosen[:, :2], [[0.0, -0.02], [0.0, 0.02]], atol=1e-12)  # the faces' middles
+    assert np.linalg.norm(chosen - body.mesh.points[list(level0.finger_nodes)], axis=1).max() <= 0.01  # a spacing
+    pose = res.rest.pose
+    grasped = (res.body.mesh.points[list(res.finger_nodes)] - pose.translation) @ pose.rotation
+    assert res.body.n_nodes != body.n_nodes and np.allclose(grasped, chosen, atol=1e-9)
+
+
+def test_on_a_paper_shape_the_finer_levels_grasp_where_the_rule_puts_a_fine_meshs_node():
+    """The placement rule (the surface nodes extreme along ∓d̂ near the centre of mass's height) on the geometry
+    itself: on the tomato, an ellipsoid of semi-axes (33, 33, 27) mm, the points it gives lie on the surface
+    where, in the resting pose, the outward normal is horizontal and along ∓ŷ (the squeeze's horizontal part),
+    to the surface sampling (an eighth of the spacing); level 0's coarse nodes are millimetres away."""
+    from fem_grasp.grasp.accuracy import placement_target
+    from fem_grasp.io.scene import load_scene, resolve_scene
+
+    scene = load_scene(resolve_scene("tomato"))
+    opts = scene.pickup_options()
+    body = scene.body(None)
+    level0 = pickup(body, opts.replace(lift=False))
+    target = placement_target(scene.geometry(), level0, opts.directions[0], 4.7e-3)
+    axes = np.array([0.033, 0.033, 0.027])
+    assert np.allclose((target**2 / axes**2).sum(axis=1), 1.0, atol=1e-9)  # on the surface
+    normals = target / axes**2
+    normals = (normals / np.linalg.norm(normals, axis=1)[:, None]) @ level0.rest.pose.rotation.T  # posed
+    assert np.allclose(normals, [[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]], atol=0.03)
+    assert np.linalg.norm(body.mesh.points[list(level0.finger_nodes)] - target, axis=1).max() > 1e-3
+
+
+def test_the_rule_on_points_is_the_rule_on_a_meshs_surface_nodes():
+    from fem_grasp.grasp.placement import extreme_points, finger_contact_nodes
+
+    mesh = BOX.grid((4, 5, 6))
+    surf = mesh.surface_nodes
+    for height in (0.005, 0.015, 0.024):
+        i, j = extreme_points(mesh.points[surf], height)
+        assert (int(surf[i]), int(surf[j])) == finger_contact_nodes(mesh, height)
+    points = BOX.surface_points(0.002)
+    lo, hi = np.array(BOX.lower), np.array(BOX.upper)
+    on_face = (np.isclose(points, lo) | np.isclose(points, hi)).any(axis=1)
+    assert on_face.all() and ((points >= lo - 1e-12) & (points <= hi + 1e-12)).all()
+    i, j = extreme_points(points, 0.015)
+    assert np.allclose(points[[i, j]], [[0.0, -0.02, 0.015], [0.0, 0.02, 0.015]], atol=1e-3)  # the faces' middles
+
+
 def test_accuracy_must_be_a_relative_error():
     body = Body(BOX.grid((2, 2, 2)), 2e4, 0.3, weight=0.3)
     for bad in (0.0, 1.0, -0.1, "5%"):

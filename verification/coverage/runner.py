@@ -15,6 +15,8 @@ import time
 import traceback
 from typing import Any, Callable
 
+import numpy as np
+
 from .scene import CoverageObject
 
 log = logging.getLogger(__name__)
@@ -98,8 +100,9 @@ def run_object(seed: int, config: dict[str, Any], send: Callable[[tuple[str, Any
     t0 = time.perf_counter()
     try:
         fingers, table = patch_points(res)
-        contacts = kw.get("contacts")
-        embed = None if contacts is None else mesh.points[list(contacts)]
+        # the points every level of the answer grasped at (given, or chosen by the placement rule on level 0)
+        points = res.accuracy.get("contact_points")
+        embed = None if points is None else np.asarray(points, dtype=float)
         ref_mesh = _level_meshes(geometry, fingers, table, plan["inner_size"], plan["radius"], plan["outer_size"],
                                  embed)
         ref_body = Body(ref_mesh, body.young, body.poisson, weight=body.weight, gravity=body.gravity)
