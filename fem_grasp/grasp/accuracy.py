@@ -446,7 +446,11 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         # One grasp on every level: not a choice made again on each finer mesh, where a tie along a flat or
         # cylindrical side, or the next facet, moves the fingers by up to centimetres (a capsule's ρ* followed
         # its contacts' offset along the axis from the centre of mass).
-        contact_points = placement_target(geo, result, opts.directions[0], inner)
+        # The centre-of-mass-height rule is a rule on the surface, so it is taken on the geometry; another
+        # rule's choice (the least force over heights) is kept as level 0 made it.
+        contact_points = (placement_target(geo, result, opts.directions[0], inner)
+                          if opts.placement_rule == "centre-of-mass-height"
+                          else points0[[int(k) for k in result.finger_nodes]])
     if contact_points is not None:
         report.contact_points = np.asarray(contact_points, float).tolist()
     s0, h0 = ans.resolution, result.lift_test_step
