@@ -323,7 +323,7 @@ def placement_target(geometry: Any, result: Any, direction: Any, spacing: float)
     Level 0's own nodes are kept for a finger whose point lies more than two spacings from it, and for both
     where the geometry offers no surface points.
     """
-    from .placement import extreme_points
+    from .placement import HEIGHT_BAND, extreme_points
 
     mesh = result.body.mesh  # posed: the numbering of the body as given
     pose = result.rest.pose
@@ -336,7 +336,7 @@ def placement_target(geometry: Any, result: Any, direction: Any, spacing: float)
         return chosen
     posed = samples @ rot.T + trans
     z = posed[:, 2]
-    band = 0.1 * float(z.max() - z.min())
+    band = HEIGHT_BAND * float(z.max() - z.min())
     com = float(result.body.center_of_mass[2])
     on = mesh.points[nodes, 2]
     height = com if bool(np.all(np.abs(on - com) <= band)) else float(on.mean())

@@ -154,7 +154,7 @@ def pickup(body: Body, options: PickupOptions | None = None, *, rest_state: Rest
         from .accuracy import converged_pickup
 
         return converged_pickup(body, solve=pickup, accuracy=opts.accuracy, geometry=opts.geometry, options=opts,
-                                max_seconds=opts.max_seconds, rest_state=rest_state, settings=settings)
+                                rest_state=rest_state, settings=settings)
     t_start = time.perf_counter()
     mu_f, mu_t = opts.mu_finger, opts.table_friction
     finger_radius, ratio, backend = opts.finger_radius, opts.ratio, opts.backend

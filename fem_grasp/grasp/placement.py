@@ -22,7 +22,7 @@ from ..mesh.tetmesh import TetMesh
 from ..validation import check_positive, check_real, check_vector
 
 __all__ = ["DEFAULT_PLACEMENT_RULE", "MAX_UP", "MIN_HORIZONTAL", "PAPER_SQUEEZE_DIRECTIONS", "PLACEMENT_RULES",
-           "PLACEMENT_TOL", "check_contact_nodes", "check_directions", "check_finger_placement",
+           "PLACEMENT_TOL", "HEIGHT_BAND", "check_contact_nodes", "check_directions", "check_finger_placement",
            "extreme_points", "finger_contact_nodes", "lowest_nodes", "spread_triple"]
 
 #: Relative tolerance (× max(R, object diameter)) for "touching" and "inside" in
@@ -62,8 +62,12 @@ def lowest_nodes(mesh: TetMesh, band: float = 0.05) -> np.ndarray:
     return surf[z <= z.min() + band * (z.max() - z.min())]
 
 
+#: The placement rule's band about its height, as a fraction of the object's height (:func:`finger_contact_nodes`).
+HEIGHT_BAND = 0.1
+
+
 def finger_contact_nodes(mesh: TetMesh, height: float, direction: np.ndarray = PAPER_SQUEEZE_DIRECTIONS[0],
-                         band: float = 0.1) -> tuple[int, int]:
+                         band: float = HEIGHT_BAND) -> tuple[int, int]:
     """Initial finger contacts p_i, p_j: the surface nodes extreme along ∓d̂ at a height.
 
     Rule: among surface nodes within ``band`` × (object height) of ``height``,
@@ -79,7 +83,7 @@ def finger_contact_nodes(mesh: TetMesh, height: float, direction: np.ndarray = P
 
 
 def extreme_points(points: np.ndarray, height: float, direction: np.ndarray = PAPER_SQUEEZE_DIRECTIONS[0],
-                   band: float = 0.1) -> tuple[int, int]:
+                   band: float = HEIGHT_BAND) -> tuple[int, int]:
     """:func:`finger_contact_nodes`'s rule on any points of a surface (n, 3): the indices of the two extreme along
     ∓d̂ among those within ``band`` × (their height range) of ``height``, ties as there."""
     d = np.asarray(direction, dtype=float).copy()

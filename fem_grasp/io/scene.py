@@ -211,8 +211,7 @@ class Scene:
                              backend=self.backend,
                              **({} if self.max_finger_contacts is None else
                                 {"max_finger_contacts": self.max_finger_contacts}),
-                             **({} if self.step_divisions is None else {"step_divisions": self.step_divisions}),
-                             max_seconds=self.max_seconds)
+                             step_divisions=self.step_divisions or 1, max_seconds=self.max_seconds)
 
     def pickup_kwargs(self) -> dict[str, Any]:
         """:meth:`pickup_options` as keyword arguments of :func:`fem_grasp.grasp.pickup.pickup`, by name: the fields
