@@ -25,7 +25,7 @@ placement rule chose on level 0, each level's nearest surface nodes), and takes
 a squeeze increment small enough that the lift
 test's quantisation of ρ* (at most one increment) uses at most a quarter of the
 target, half where the last two levels predict that this one will not meet it
-(:func:`next_step`; h in proportion); it stops when two successive levels
+(:func:`next_step`), with level 0's lift-test step h (below); it stops when two successive levels
 agree on the verdict and their estimated error is within the target.  The
 answer is the last level's.  The estimated error (:func:`estimated_error`) is
 :data:`TWO_LEVEL_SAFETY` (3) times the difference of ρ* and of the finger force
@@ -41,6 +41,14 @@ than order 2, three times their spread where they swing), plus the resolution
 of ρ* (one increment).  Where three levels are
 monotone with an observed order, the Richardson estimate is reported too
 (:func:`estimate`).
+
+Every level tests the weights with level 0's lift-test step h (mg/20 unless
+set).  The lift test passes when the ramp h, 2h, … reaches mg, so h does not
+quantise ρ* as the squeeze increment does; it only sets how finely the load
+path is followed (a failing step is halved three times before the weight is
+not held), and a ramp's cost is in proportion to 1/h.  The convergence study
+halved and quartered h at a fixed mesh and increment on all five objects:
+ρ* and the finger force did not change (``make converge``, series ``h``).
 
 Definitions (:class:`GraspAnswer`)
 ----------------------------------
@@ -398,7 +406,7 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         ``contacts`` are finger contact nodes of ``body`` (on finer levels the surface nodes at their positions,
         embedded as nodes where the geometry allows, :meth:`~fem_grasp.mesh.remesh.Geometry.build`) and ``step``,
         ``lift_test_step`` level 0's squeeze increment (m) and lift-test step h (N), default pickup's (each next
-        level takes :func:`next_step` and h in proportion); its ``accuracy`` and ``geometry`` are not read (the
+        level takes :func:`next_step` and the same h); its ``accuracy`` and ``geometry`` are not read (the
         arguments above are)
     rest_state : a resting state of ``body`` (level 0 only)
     settings : the engine's :class:`~fem_grasp.settings.EngineSettings`, the same at every level
@@ -486,13 +494,13 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         lv_contacts = None if contact_points is None else tuple(int(k) for k in
                                                                 nearest_surface_nodes(mesh, contact_points))
         before = report.levels[-1].answer
-        # the resolution of ρ*; h in proportion
+        # the resolution of ρ*; the lift-test step stays level 0's (LIFT_TEST_STEP_NOTE)
         step_l = next_step(step_l, before, accuracy, predicted_mesh_error(report.levels))
         t0 = time.perf_counter()
         try:
             level_result = pickup(lv_body, opts.replace(contacts=lv_contacts, step=STEP_DIVISIONS * step_l,
                                                         step_divisions=STEP_DIVISIONS,
-                                                        lift_test_step=h0 * step_l / s0), settings=settings)
+                                                        lift_test_step=h0), settings=settings)
         except (RestConvergenceError, FrictionError) as exc:
             # The finer body does not come to rest as the coarser one did: no answer to compare at this level.
             report.note = (f"level {level} ({lv_body.n_nodes} vertices) found no resting state ({exc}): the answer "
