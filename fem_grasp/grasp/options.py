@@ -97,6 +97,12 @@ class PickupOptions:
         sub-increments with the lift test after each, stopping at the first that passes: ρ* is then found to
         within ``step / step_divisions`` for a few more lift tests, the answer of that finer increment wherever
         w(ρ) crosses mg once within the increment (≥ 1; default 1: Algorithm 1 as printed).
+    first_lift_test : float or None
+        No lift test at the squeeze increments that end below this depth ρ, metres (None: at every increment,
+        Algorithm 1 as printed).  If the first test passes, the increments below it are tested after all, in
+        order, and ρ* is the first that passes, as if every one had been tested; w(ρ) (``result.liftable``) then
+        has no entries below the first test.  The accuracy loop sets it below the coarser level's ρ*
+        (:data:`~fem_grasp.grasp.accuracy.FIRST_TEST_MARGIN`), where w(ρ) is far from mg.
     max_lift : float or None
         The lift height at which a lift that has not left the table fails, metres.  None: the object's height.
     lift : bool
@@ -144,6 +150,7 @@ class PickupOptions:
     step: float | None = None
     lift_test_step: float | None = None
     step_divisions: int = 1
+    first_lift_test: float | None = None
     max_lift: float | None = None
     lift: bool = True
     max_lift_attempts: int = 4
@@ -171,6 +178,7 @@ class PickupOptions:
         for name, what, unit in (("max_squeeze", "the maximum squeeze depth", "metres"),
                                  ("step", "the squeeze increment", "metres"),
                                  ("lift_test_step", "the lift-test step h", "newtons"),
+                                 ("first_lift_test", "the depth of the first lift test", "metres"),
                                  ("max_lift", "the maximum lift height", "metres"),
                                  ("max_seconds", "the accuracy loop's time budget", "seconds")):
             value = getattr(self, name)

@@ -245,7 +245,7 @@ def pickup(body: Body, options: PickupOptions | None = None, *, rest_state: Rest
     timings["squeeze"] = timings["lift_test"] = timings["lift"] = 0.0
     while True:
         sq = squeeze(tracker, state, (d1, d2), ratio, lt, max_squeeze=max_squeeze, step=step,
-                     divisions=opts.step_divisions,
+                     divisions=opts.step_divisions, first_test=opts.first_lift_test or 0.0,
                      on_event=lambda st, ev: snap(st, "event", ev))
         result.events.extend(sq.events)
         result.liftable.extend(sq.liftable)

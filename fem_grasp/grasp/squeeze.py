@@ -80,7 +80,7 @@ class SqueezeOutcome:
 
 
 def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray, np.ndarray], ratio: float,
-            lift_test: LiftTest, *, max_squeeze: float, step: float, divisions: int = 1,
+            lift_test: LiftTest, *, max_squeeze: float, step: float, divisions: int = 1, first_test: float = 0.0,
             on_event: Callable[[ContactState, list[ContactEvent]], None] | None = None) -> SqueezeOutcome:
     """Squeeze from ``state`` (at ρ = 0) until the lift test passes or ρ = ``max_squeeze``.
 
@@ -99,6 +99,9 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
         at the first that passes: ρ* is found to within ``step / divisions`` at the cost of a few more lift
         tests, as with that increment throughout wherever w(ρ) crosses mg once within the increment
         (default 1: Algorithm 1 as printed)
+    first_test : (``PickupOptions.first_lift_test``) no lift test at the increments that end below this squeeze
+        depth, metres; if the first test passes, those increments are tested after all, in order, and the first
+        that passes is the answer, as if every increment had been tested (default 0: every increment)
     on_event : called with the state after every event (of the increments kept: a passing increment squeezed
         again reports its events once, from the second pass)
     """
@@ -114,6 +117,9 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
     pending: list[tuple[ContactState, list[ContactEvent]]] = []
     tested = [state]  # where the increment in which the test passes begins: the last failing test, or the start
     again = [False]
+    # Increments ended below ``first_test``, untested; a pass at the first test runs their tests (in order).
+    skipped: list[ContactState] = []
+    passing = [state]  # the end of the increment in which the test passes
 
     def emit(st: ContactState, events: list[ContactEvent]) -> None:
         out.events.extend(events)
@@ -134,15 +140,43 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
                   int((st.owner != TABLE).sum()))
         return lift_test.passed
 
+    def keep_to(rho: float) -> None:
+        """Report the events up to depth ``rho``; those beyond stay pending."""
+        upto = [(st, ev) for st, ev in pending if st.squeeze_depth <= rho * (1.0 + 1e-12)]
+        del pending[:len(upto)]
+        for st, ev in upto:
+            emit(st, ev)
+
     def after_step(st: ContactState, events: list[ContactEvent]) -> bool:
         # The lift test runs once per increment of ``step`` in ρ (events split increments; the test is
         # not repeated after each of them).
-        if st.squeeze_depth < next_test[0] * (1.0 - 1e-9) and st.squeeze_depth < max_squeeze * (1.0 - 1e-9):
+        below_max = st.squeeze_depth < max_squeeze * (1.0 - 1e-9)
+        if st.squeeze_depth < next_test[0] * (1.0 - 1e-9) and below_max:
             return False
         next_test[0] = st.squeeze_depth + step
+        if st.squeeze_depth < first_test * (1.0 - 1e-9) and below_max and not out.liftable:
+            skipped.append(st)
+            return False
         passed = test(st)
+        passing[0] = st
+        if not passed:
+            skipped.clear()  # w(ρ) below mg at the first test: the increments below it are not tested
+        if passed and skipped:
+            # The first test passed: the increments below it are tested after all, and the first that passes
+            # is where the squeeze stops (its events reported, the later ones dropped).
+            for earlier in skipped:
+                if test(earlier):
+                    passing[0] = earlier
+                    break
+                tested[0] = earlier
+            skipped.clear()
+            if not (divisions > 1 and not again[0]):
+                keep_to(passing[0].squeeze_depth)
+                pending.clear()
+                return True
         if passed and divisions > 1 and not again[0]:
             again[0] = True  # squeezed again from the failing test's state, below
+            keep_to(tested[0].squeeze_depth)
             return True
         keep()
         if not passed:
@@ -161,11 +195,13 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
     try:
         final, _, stopped = run(tracker, state, velocities, stop=max_squeeze, step=step, param=Parameter.SQUEEZE_DEPTH,
                                 phase="squeeze", after_step=after, on_event=record)
+        if stopped and passing[0] is not final and not again[0]:
+            final = last[0] = passing[0]  # a pass among the increments below ``first_test``
         if again[0]:
             pending.clear()  # the first pass through the increment is not kept
-            del out.liftable[-1]
-            final, stopped = _divide(tracker, tested[0], final.squeeze_depth, velocities, step / divisions, test,
-                                     emit, last)
+            end = passing[0].squeeze_depth
+            out.liftable[:] = [(r, w) for r, w in out.liftable if r <= tested[0].squeeze_depth * (1.0 + 1e-12)]
+            final, stopped = _divide(tracker, tested[0], end, velocities, step / divisions, test, emit, last)
             if not stopped:  # w(ρ) crossed mg and fell back within the increment: squeeze on, undivided
                 next_test[0] = final.squeeze_depth + step
                 final, _, stopped = run(tracker, final, velocities, stop=max_squeeze, step=step,
@@ -179,6 +215,8 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
         out.reason = (f"squeeze failed: {exc}" if "ρ = " in str(exc) else
                       f"squeeze failed at ρ = {1e3 * last[0].squeeze_depth:.4g} mm: {exc}")
         return out
+    # in order of ρ, and not beyond where the squeeze stopped (a first test that passed above a lower pass)
+    out.liftable[:] = sorted((r, w) for r, w in out.liftable if r <= final.squeeze_depth * (1.0 + 1e-12))
     out.state = final
     out.passed = stopped
     if not stopped:

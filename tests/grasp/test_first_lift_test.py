@@ -1,0 +1,56 @@
+"""Lift tests from a given depth on (``PickupOptions.first_lift_test``, what the accuracy loop's finer levels use):
+the same answer as testing every increment, fewer tests where w(ρ) is far below mg, and, should the first test
+pass, the increments below it tested after all so that ρ* is still the first increment that passes."""
+
+import pytest
+
+from fem_grasp.grasp.options import PickupOptions
+from fem_grasp.grasp.pickup import pickup
+from fem_grasp.io.scene import load_scene, resolve_scene
+
+
+@pytest.fixture(scope="module", params=[1, 4], ids=["undivided", "divided"])
+def tomato(request):
+    scene = load_scene(resolve_scene("tomato"))
+    body = scene.body(None)
+    opts = scene.pickup_options().replace(lift=False, step_divisions=request.param)
+    return body, opts, pickup(body, opts)
+
+
+def _same_answer(a, b):
+    mg = a.body.weight
+    assert "lift test passed" in a.reason and "lift test passed" in b.reason
+    assert abs(a.squeeze_depth - b.squeeze_depth) <= a.step / a.step_divisions * (1 + 1e-9)
+    assert abs(a.finger_normal_force - b.finger_normal_force) <= 0.01 * mg
+    # each squeeze event reported once, in order, none beyond ρ*
+    depths = [e.squeeze_depth for e in b.events if e.phase == "squeeze"]
+    assert depths == sorted(depths) and max(depths) <= b.squeeze_depth * (1 + 1e-12)
+    assert len(depths) == len([e for e in a.events if e.phase == "squeeze"])
+
+
+def test_tests_from_below_rho_star_give_the_same_answer_with_fewer_tests(tomato):
+    body, opts, every = tomato
+    first = 0.8 * every.squeeze_depth
+    later = pickup(body, opts.replace(first_lift_test=first))
+    _same_answer(every, later)
+    rho = [r for r, _ in later.liftable]
+    assert rho == sorted(rho) and min(rho) >= first * (1 - 1e-9)
+    assert len(later.liftable) < len(every.liftable)
+    # where both tested, w(ρ) is the same test (h apart at most: round-off may decide a step near a finger's limit)
+    w_every = dict(every.liftable)
+    for r, w in later.liftable:
+        if r in w_every:
+            assert abs(w - w_every[r]) <= later.lift_test_step * (1 + 1e-9)
+
+
+def test_a_first_test_that_passes_tests_the_increments_below_it_in_order(tomato):
+    body, opts, every = tomato
+    late = pickup(body, opts.replace(first_lift_test=1.3 * every.squeeze_depth))
+    _same_answer(every, late)
+    assert [r for r, _ in late.liftable] == pytest.approx([r for r, _ in every.liftable], rel=1e-9)
+
+
+@pytest.mark.parametrize("bad", [0.0, -1e-3, float("nan")])
+def test_first_lift_test_must_be_a_positive_depth(bad):
+    with pytest.raises(ValueError, match="first lift test"):
+        PickupOptions(first_lift_test=bad)
