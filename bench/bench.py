@@ -84,8 +84,10 @@ Sections (``--only NAME``, repeatable; default all):
     "unknown") and whether it covers the actual one.  One subprocess per run
     (``--accuracy-cap`` seconds, beyond which the row says "not run");
     references are read from the study's cache (``--converge-quick``: its
-    quick study), and an object without one is skipped
-    (``--accuracy-compute`` computes it: hours, minutes for the quick study).
+    quick study), else from the full study's committed references
+    (``verification/converge/references.json``); an object with neither is
+    skipped (``--accuracy-compute`` computes it: hours, minutes for the
+    quick study).
 ``divisions``
     Per shipped scene, the pickup at its squeeze increment s, at s with the
     increment in which the lift test passes divided in four
@@ -730,20 +732,41 @@ ACCURACY_QUANTITIES = ("squeeze_depth", "finger_force")
 
 def study_references(quick: bool = False, compute: bool = False,
                      objects: tuple[str, ...] = ACCURACY_OBJECTS) -> dict[str, dict[str, Any] | None]:
-    """Each object's reference answer from the cache of ``python -m verification converge`` (``quick``: its quick
-    study): the analysis's ``reference`` (its verdict ``success``; on a pickup ``rho`` and ``force``, each a
-    ``{"value", "error", "method"}``), or None where the cache holds none.
+    """Each object's reference answer: the analysis's ``reference`` from the cache of ``python -m verification
+    converge`` (``quick``: its quick study), or — for the full study, where the cache holds none — the committed
+    one (:mod:`verification.converge.references`, written by the study on the machine that ran it); None where
+    neither has one.  Each carries ``source``: "cache", or the committed entry's study, date and machine.  Its
+    verdict is ``success``; on a pickup ``rho`` and ``force`` are each a ``{"value", "error", "method"}``.
 
     Reading analyses the cached records without computing any (as ``--report-only``, which also rewrites the
     study's converge.json and plots).  ``compute``: first run the cases a missing reference needs (the uniform
     levels, then the finest one's increments halved), which takes from minutes (quick) to hours.
     """
     from verification import converge
+    from verification.converge import references
 
     if compute:
         converge.study(quick=quick, objects=objects, series_filter={"uniform", "reference"})
     analysis = converge.study(quick=quick, compute=False)
-    return {name: (analysis["objects"].get(name) or {}).get("reference") for name in objects}
+    committed = {} if quick else references.load()
+    out: dict[str, dict[str, Any] | None] = {}
+    for name in objects:
+        ref = (analysis["objects"].get(name) or {}).get("reference")
+        if ref:
+            out[name] = dict(ref, source="cache")
+        elif name in committed:
+            out[name] = committed[name]
+        else:
+            out[name] = None
+    return out
+
+
+def _source(ref: dict[str, Any]) -> str:
+    """Where a reference comes from, in words."""
+    src = ref.get("source")
+    if not isinstance(src, dict):
+        return "this machine's study cache"
+    return f"verification/converge/references.json: the study of {src.get('date')} on {src.get('machine')}"
 
 
 def accuracy_worker(name: str, run: str) -> None:
@@ -803,15 +826,20 @@ def accuracy_errors(raw: dict[str, Any], reference: dict[str, Any]) -> dict[str,
     stated = {q: float(v) for q, v in (raw.get("stated") or {}).items() if math.isfinite(float(v))}
     if len(stated) < len(ACCURACY_QUANTITIES):
         stated = {}
+    band = {q: float((reference.get(key) or {}).get("error") or 0.0) for q, key in (("squeeze_depth", "rho"),
+                                                                                    ("finger_force", "force"))}
     if not stated:
-        covers = None
+        covers = covers_with_reference = None
     elif not verdict_ok:
-        covers = False
+        covers = covers_with_reference = False
     else:
         covers = all(stated[q] >= e for q, e in error.items() if math.isfinite(e))
+        # the reference is itself uncertain: the run and it agree within their two errors
+        covers_with_reference = all(stated[q] + band[q] >= e for q, e in error.items() if math.isfinite(e))
     row = {"status": "ok", "seconds": raw["seconds"], "vertices": raw.get("vertices"), "success": bool(ans["success"]),
            "verdict_ok": verdict_ok, "rho": ans["squeeze_depth"], "force": ans["finger_force"], "error": error,
-           "stated": stated or None, "covers": covers, "converged": raw.get("converged"),
+           "stated": stated or None, "covers": covers, "covers_with_reference": covers_with_reference,
+           "converged": raw.get("converged"),
            "levels": raw.get("levels"), "note": raw.get("note", "")}
     if not ans["success"] and not reference["success"] and reference.get("weight"):
         row["w_error"] = abs(ans["max_liftable"] - reference["max_liftable"]) / reference["weight"]
@@ -844,12 +872,12 @@ def section_accuracy(cap: float = 600.0, quick: bool = False, compute: bool = Fa
     for name in objects:
         ref = refs.get(name)
         if not ref:
-            log.warning("accuracy: no reference for %s in the convergence study's cache (python -m verification "
-                        "converge%s --objects %s computes it); skipped", name, " --quick" if quick else "", name)
+            log.warning("accuracy: no reference for %s, neither in the convergence study's cache nor committed "
+                        "(python -m verification converge%s --objects %s computes it); skipped", name, " --quick" if quick else "", name)
             out["objects"][name] = {"reference": None}
             continue
         reference = {k: ref.get(k) for k in ("success", "vertices", "rho", "force", "max_liftable", "weight",
-                                             "step")}
+                                             "step", "source")}
         rows: dict[str, Any] = {}
         for run, _ in ACCURACY_RUNS:
             raw = run_accuracy_worker(name, run, cap)
@@ -873,13 +901,14 @@ def print_accuracy(sec: dict[str, Any]) -> None:
     print(f"\n== accuracy: each shipped scene's answer against the convergence study's reference ({sec['study']} "
           f"study); adaptive at {100 * sec['target']:g} %, cap {sec['cap_s']:g} s per run")
     print("    error: relative to the reference (or 'wrong verdict'); stated: the run's own estimate of its error in "
-          "rho* / force\n    (the scene's expected_error, or the adaptive loop's); covers: stated >= actual for both")
+          "rho* / force\n    (the scene's expected_error, or the adaptive loop's); covers: stated >= actual for both "
+          "('NO, ref' where only\n    the stated error plus the reference's own uncertainty covers the difference)")
     print(f"{'object':<11} {'run':<28} {'seconds':>8} {'vertices':>8} {'verdict':<22} {'rho* mm':>8} "
-          f"{'error':>15} {'force N':>8} {'error':>15} {'stated':>15} {'covers':>6}")
+          f"{'error':>15} {'force N':>8} {'error':>15} {'stated':>15} {'covers':>7}")
     for name, obj in sec["objects"].items():
         ref = obj.get("reference")
         if not ref:
-            print(f"{name:<11} no reference in the study's cache: skipped")
+            print(f"{name:<11} no reference (the study's cache, the committed references): skipped")
             continue
         verdict = "picked up" if ref["success"] else "NOT picked up"
         if ref["success"]:
@@ -889,9 +918,10 @@ def print_accuracy(sec: dict[str, Any]) -> None:
                 return f"±{_pct(q['error'])} {q['method']}" if math.isfinite(q["error"]) else q["method"]
 
             print(f"{name:<11} {'reference':<28} {'':>8} {ref['vertices']:8d} {verdict:<22} "
-                  f"{1e3 * rho['value']:8.3f} {band(rho):>15} {force['value']:8.3f} {band(force):>15}")
+                  f"{1e3 * rho['value']:8.3f} {band(rho):>15} {force['value']:8.3f} {band(force):>15}"
+                  f"  ({_source(ref)})")
         else:
-            print(f"{name:<11} {'reference':<28} {'':>8} {ref['vertices']:8d} {verdict:<22}")
+            print(f"{name:<11} {'reference':<28} {'':>8} {ref['vertices']:8d} {verdict:<22}  ({_source(ref)})")
         for run, label in ACCURACY_RUNS:
             r = obj["rows"][run]
             if r["status"] == "cap":
@@ -904,10 +934,12 @@ def print_accuracy(sec: dict[str, Any]) -> None:
             st = r["stated"]
             stated = "unknown" if not st else f"{_pct(st['squeeze_depth'])}/{_pct(st['finger_force'])}"
             covers = {None: "–", True: "yes", False: "NO"}[r["covers"]]
+            if r["covers"] is False and r.get("covers_with_reference"):
+                covers = "NO, ref"
             e = r["error"]
             print(f"{'':<11} {label:<28} {r['seconds']:8.1f} {r['vertices']:8d} {v:<22} {1e3 * r['rho']:8.3f} "
                   f"{_pct(e['squeeze_depth']):>15} {r['force']:8.3f} {_pct(e['finger_force']):>15} {stated:>15} "
-                  f"{covers:>6}" + (f"  {r['levels']} levels, {'converged' if r['converged'] else 'not converged'}"
+                  f"{covers:>7}" + (f"  {r['levels']} levels, {'converged' if r['converged'] else 'not converged'}"
                                     if (r.get("levels") or 0) > 1 else ""))
 
 

@@ -354,6 +354,12 @@ def test_the_accuracy_section_measures_each_run_against_the_study_reference(monk
     assert default["error"]["squeeze_depth"] == pytest.approx(0.04) and default["covers"] is False
     assert rows["adaptive"]["status"] == "cap"
 
+    # stated 5 % against 6 % off a reference uncertain by 2 %: not covered, but within the two errors
+    close = bench.accuracy_errors(_fake_answer(rho=0.0106, force=6.0, stated={"squeeze_depth": 0.05,
+                                                                             "finger_force": 0.05}), reference)
+    assert close["covers"] is False and close["covers_with_reference"] is True
+    assert default["covers_with_reference"] is False  # 5 % + 2 % < 10 %
+
     # nothing stated (or only an infinite bound): unknown, neither covered nor not
     unknown = bench.accuracy_errors(_fake_answer(stated={"squeeze_depth": float("inf"),
                                                          "finger_force": float("inf")}), reference)

@@ -181,3 +181,39 @@ def test_the_adaptive_answer_at_a_coarser_target_follows_the_loop_s_own_rule():
     assert at["estimated_error"]["squeeze_depth"] == pytest.approx(0.02)  # the increment, 4e-5 / 2e-3
     assert at["estimated_error"]["finger_force"] == pytest.approx(3 * 0.008 + 0.02)
     assert adaptive_at({"levels": levels}, 0.03) is None  # the change plus the increment (2.8 %) would have met 3 %
+
+
+def test_the_references_written_from_the_study_are_read_back_by_the_benchmarks_where_the_cache_has_none(
+        tmp_path, monkeypatch):
+    """``--write-references`` keeps each object's reference from the analysis (not its w(ρ)) with the study's
+    source, merges it into the file without dropping the other objects, and the accuracy benchmark measures
+    against it when this machine's study cache has no reference of its own; the quick study's are refused."""
+    from verification.converge import references
+
+    recs = [_record("uniform", {"target": 600}, vertices=600, rho=0.0130, force=8.0),
+            _record("uniform", {"target": 4800}, vertices=4800, rho=0.0100, force=6.0, bracket=[0.0099, 0.0101])]
+    analysis = {"quick": False, "objects": {"orange": _study(recs), "tomato": {"reference": None}}}
+    path = tmp_path / "references.json"
+    other = {"success": True, "vertices": 9, "rho": {"value": 0.02, "error": None, "method": "band"},
+             "force": {"value": 1.0, "error": 0.1, "method": "band"}}
+    path.write_text(__import__("json").dumps({"objects": {"football": other}}))
+    assert references.write(analysis, path, machine="test machine") == ["orange"]
+    kept = references.load(path)
+    assert set(kept) == {"football", "orange"}
+    assert math.isinf(kept["football"]["rho"]["error"])  # null in the file: unknown
+    orange = kept["orange"]
+    assert orange["vertices"] == 4800 and orange["rho"]["value"] == pytest.approx(0.0100)
+    assert orange["source"]["machine"] == "test machine" and "liftable" not in orange
+    with pytest.raises(ValueError, match="quick"):
+        references.write(dict(analysis, quick=True), path)
+
+    from bench import bench
+    from verification import converge
+
+    monkeypatch.setattr(references, "REFERENCES", path)
+    monkeypatch.setattr(converge, "study", lambda quick=False, compute=True, **kw: analysis)
+    refs = bench.study_references(objects=("orange", "football", "tomato"))
+    assert refs["orange"]["source"] == "cache"  # this machine's study first
+    assert refs["football"]["vertices"] == 9  # the committed one
+    assert refs["tomato"] is None
+    assert bench.study_references(quick=True, objects=("football",))["football"] is None  # quick: the cache only

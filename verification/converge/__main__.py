@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from . import __doc__ as DOC
-from . import study
+from . import references, study
 from .report import markdown, print_scene_errors, print_tables
 from .runner import worker
 from .specs import DEFAULT_OUT, OBJECTS
@@ -27,10 +27,15 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--markdown", action="store_true", help="print the README's tables")
     ap.add_argument("--scene-errors", action="store_true",
                     help="print the shipped scenes' errors against the reference (their [solver] expected_error)")
+    ap.add_argument("--write-references", action="store_true",
+                    help="write the references the cache holds into verification/converge/references.json, which "
+                         "the benchmarks measure answers against on machines without the study (full study only)")
     ap.add_argument("--worker", help=argparse.SUPPRESS)
     ap.add_argument("--record", type=Path, help=argparse.SUPPRESS)
     ap.add_argument("--memory-gib", type=float, default=9.0, help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.write_references and args.quick:
+        ap.error("--write-references keeps the full study's references only (drop --quick)")
     if args.worker:
         return worker(args.worker, args.record, args.memory_gib)
     logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(name)s %(levelname)s %(message)s")
@@ -40,6 +45,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.scene_errors:
         print_scene_errors(analysis)
     print(f"\nwrote {args.out / 'converge.json'} and {', '.join(analysis['images'].values())}")
+    if args.write_references:
+        written = references.write(analysis)
+        print(f"wrote the references of {', '.join(written) or 'no object'} into {references.REFERENCES}")
     if args.docs:
         import shutil
 
