@@ -29,7 +29,7 @@ import numpy as np
 from ..errors import require
 
 __all__ = ["AUTO_MESHADAPT_MAX_VERTICES", "Builder", "GMSH_OPTIONS", "Refinement", "SLIVER_QUALITY",
-           "SURFACE_ALGORITHMS", "apply_refinement", "check_lengths", "extract_tets", "generate", "gmsh_model",
+           "SURFACE_ALGORITHMS", "apply_refinement", "embed_surface_points", "check_lengths", "extract_tets", "generate", "gmsh_model",
            "import_gmsh", "mesh_with_vertex_count", "orient_positive", "remove_boundary_slivers", "shape_quality",
            "surface_algorithm"]
 
@@ -94,6 +94,36 @@ def apply_refinement(gmsh: Any, refine: "Refinement | Sequence[Refinement] | Non
     smallest = field.add("Min")
     field.setNumbers(smallest, "FieldsList", balls)
     field.setAsBackgroundMesh(smallest)
+
+#: A point to embed may lie this share of the mesh size off the solid's surface (the surface's own round-off);
+#: farther, it is not embedded and the caller's nearest surface node stands in for it.
+EMBED_TOLERANCE = 1e-6
+
+
+def embed_surface_points(gmsh: Any, volume: int, points: np.ndarray | None, mesh_size: float) -> int:
+    """Make ``points`` (on the boundary of the OCC ``volume``) nodes of the mesh to come: each is added as an OCC
+    point and embedded in the boundary surface nearest it (gmsh puts a node there, curved surfaces included).
+    Call before :func:`apply_refinement` and :func:`generate`, with the OCC model not yet synchronised after the
+    volume was made.  Returns the number embedded (points off the surface by more than
+    :data:`EMBED_TOLERANCE` × ``mesh_size`` are not)."""
+    pts = np.zeros((0, 3)) if points is None else np.asarray(points, float).reshape(-1, 3)
+    occ = gmsh.model.occ
+    tags = [occ.addPoint(*map(float, p)) for p in pts]
+    occ.synchronize()
+    if not tags:
+        return 0
+    surfaces = [t for d, t in gmsh.model.getBoundary([(3, volume)], oriented=False) if d == 2]
+    done = 0
+    for tag, p in zip(tags, pts):
+        gap, best = min((float(np.linalg.norm(np.asarray(gmsh.model.getClosestPoint(2, s, list(p))[0]) - p)), s)
+                        for s in surfaces)
+        if gap <= EMBED_TOLERANCE * mesh_size:
+            gmsh.model.mesh.embed(0, [tag], 2, best)
+            done += 1
+        else:
+            log.debug("point %s lies %.3g m off the surface: not embedded", p.tolist(), gap)
+    return done
+
 
 #: gmsh options fixed for every session: quiet, single-threaded and reproducible.
 GMSH_OPTIONS: dict[str, float] = {

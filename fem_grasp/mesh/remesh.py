@@ -146,9 +146,8 @@ class Geometry:
               embed: np.ndarray | None = None) -> TetMesh:
         """A tetrahedral mesh at outer size ``size``, graded by ``refine``, with ``embed`` points as nodes.
 
-        Points that cannot be embedded exactly (curved or discrete surfaces) are
-        not: callers map them to the nearest surface node
-        (:func:`nearest_surface_nodes`).
+        Points that cannot be embedded exactly (a scan's or a mesh's discrete surface; points off the surface)
+        are not: callers map them to the nearest surface node (:func:`nearest_surface_nodes`).
         """
         raise NotImplementedError
 
@@ -206,7 +205,10 @@ class PaperGeometry(Geometry):
         refs = _refinements(refine)
         alg = "meshadapt" if _algorithm(self.volume, size, refs) == SURFACE_ALGORITHMS["meshadapt"] \
             else "frontal-delaunay"
-        points, tets = PAPER_SHAPES[self.name].build(size, alg, refine=refs or None)
+        if embed is not None and len(embed):
+            # MeshAdapt refines about an embedded vertex (twice the surface nodes of the football graded to 2 mm)
+            alg = "frontal-delaunay"
+        points, tets = PAPER_SHAPES[self.name].build(size, alg, refine=refs or None, embed=embed)
         return TetMesh(points, tets)
 
 

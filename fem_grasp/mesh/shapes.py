@@ -43,6 +43,7 @@ from .gmsh_session import (
     Refinement,
     apply_refinement,
     check_lengths,
+    embed_surface_points,
     extract_tets,
     generate,
     gmsh_model,
@@ -59,7 +60,7 @@ log = logging.getLogger(__name__)
 
 def ellipsoid(
     semi_axes: tuple[float, float, float], mesh_size: float, *, algorithm: str = "auto",
-    refine: "Refinement | Sequence[Refinement] | None" = None,
+    refine: "Refinement | Sequence[Refinement] | None" = None, embed: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Tetrahedral mesh of a solid ellipsoid centred on the origin.
 
@@ -73,6 +74,8 @@ def ellipsoid(
         gmsh's surface algorithm; see :data:`AUTO_MESHADAPT_MAX_VERTICES`.
     refine : Refinement or a sequence of them, optional
         A finer mesh around some points (``mesh_size`` elsewhere).
+    embed : (k, 3) points on the surface to make nodes of the mesh, optional
+        (:func:`~fem_grasp.mesh.gmsh_session.embed_surface_points`; the accuracy loop's grasp points)
 
     Returns
     -------
@@ -96,6 +99,7 @@ def ellipsoid(
         tag = occ.addSphere(0.0, 0.0, 0.0, 1.0)
         occ.dilate([(3, tag)], 0.0, 0.0, 0.0, a, b, c)
         occ.synchronize()
+        embed_surface_points(gmsh, tag, embed, mesh_size)
         apply_refinement(gmsh, refine, mesh_size)
         generate(gmsh, mesh_size)
         points, tets = extract_tets(gmsh)
@@ -146,7 +150,8 @@ def fused_spheres(radii: tuple[float, float], distance: float, mesh_size: float,
 
 
 def dome(radius: float, height: float, mesh_size: float, *, algorithm: str = "auto",
-         refine: "Refinement | Sequence[Refinement] | None" = None, equator: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+         refine: "Refinement | Sequence[Refinement] | None" = None, equator: float = 0.0,
+         embed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Tetrahedral mesh of a steam-bun dome: a spheroid cut flat at its base.
 
     The solid is ``x² / r² + y² / r² + (z − e)² / h² <= 1, z >= 0`` with
@@ -169,6 +174,7 @@ def dome(radius: float, height: float, mesh_size: float, *, algorithm: str = "au
         gmsh's surface algorithm, as for :func:`ellipsoid`.
     refine : Refinement or a sequence of them, optional
         A finer mesh around some points, as for :func:`ellipsoid`.
+    embed : (k, 3) points on the surface to make nodes of the mesh, optional, as for :func:`ellipsoid`
 
     Returns
     -------
@@ -195,6 +201,7 @@ def dome(radius: float, height: float, mesh_size: float, *, algorithm: str = "au
         if equator > 0.0:
             occ.translate([(3, tag)], 0.0, 0.0, float(equator))
         occ.synchronize()
+        embed_surface_points(gmsh, tag, embed, mesh_size)
         apply_refinement(gmsh, refine, mesh_size)
         generate(gmsh, mesh_size)
         points, tets = extract_tets(gmsh)
@@ -239,14 +246,16 @@ class PaperShape:
     weight: float
 
     def build(self, mesh_size: float, algorithm: str = "auto",
-              refine: "Refinement | Sequence[Refinement] | None" = None) -> tuple[np.ndarray, np.ndarray]:
-        """Mesh this shape with target edge length ``mesh_size`` (metres), finer where ``refine`` says."""
+              refine: "Refinement | Sequence[Refinement] | None" = None,
+              embed: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Mesh this shape with target edge length ``mesh_size`` (metres), finer where ``refine`` says, with the
+        surface points ``embed`` as nodes."""
         if self.kind == "ellipsoid":
             a, b, c = self.dimensions
-            return ellipsoid((a, b, c), mesh_size, algorithm=algorithm, refine=refine)
+            return ellipsoid((a, b, c), mesh_size, algorithm=algorithm, refine=refine, embed=embed)
         if self.kind == "dome":
             r, h, e = self.dimensions
-            return dome(r, h, mesh_size, algorithm=algorithm, refine=refine, equator=e)
+            return dome(r, h, mesh_size, algorithm=algorithm, refine=refine, equator=e, embed=embed)
         raise ValueError(f"unknown shape kind {self.kind!r}")
 
     @property

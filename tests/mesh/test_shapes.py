@@ -210,3 +210,24 @@ def test_bulging_dome_has_its_widest_point_at_the_equator(gmsh):
     assert shapes.dome_volume(r, h) == pytest.approx(2.0 / 3.0 * math.pi * r * r * h)
     with pytest.raises(ValueError, match="equator"):
         shapes.dome(r, h, 0.006, equator=h)
+
+
+@pytest.mark.parametrize("name", ["tomato", "steam_bun"])
+def test_points_on_a_paper_shapes_curved_surface_become_nodes_and_the_mesh_stays_as_fine(name, gmsh):
+    """The accuracy loop grasps at points of the surface on every level: on the ellipsoid and on the dome's side
+    they are embedded as nodes (the solid's volume kept), about as many vertices as without them; a point off
+    the surface is left to the nearest node."""
+    from fem_grasp.mesh.remesh import PaperGeometry, nearest_surface_nodes, patch_refinement
+
+    geo = PaperGeometry(name)
+    samples = geo.surface_points(0.5e-3)
+    points = samples[[int(np.argmin(samples[:, 1])), int(np.argmax(samples[:, 1]))]]
+    refine = patch_refinement(points, 2e-3, 6e-3, 8e-3)
+    plain, embedded = geo.build(8e-3, [refine]), geo.build(8e-3, [refine], embed=points)
+    at = embedded.points[nearest_surface_nodes(embedded, points)]
+    assert np.allclose(at, points, atol=1e-12)
+    assert embedded.volume == pytest.approx(geo.volume, rel=0.03)
+    assert 0.8 < len(embedded.points) / len(plain.points) < 1.25
+    off = points + [[0.0, -1e-3, 0.0], [0.0, 1e-3, 0.0]]  # a millimetre outside
+    mesh = geo.build(8e-3, [refine], embed=off)
+    assert np.linalg.norm(mesh.points[nearest_surface_nodes(mesh, off)] - off, axis=1).min() > 0.5e-3
