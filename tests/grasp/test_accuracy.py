@@ -157,6 +157,24 @@ def test_a_level_that_would_crowd_a_fingertip_with_contacts_is_not_run():
         assert res.body.n_nodes == body.n_nodes
 
 
+def test_a_level_that_would_crowd_the_table_with_contacts_is_not_run():
+    """A flat base rests on many table contacts, which the rest and the squeeze track: a level predicted to put
+    more than TABLE_CONTACT_SHARE × max_finger_contacts on the table is not run either."""
+    from fem_grasp.grasp.accuracy import TABLE_CONTACT_SHARE
+
+    body = Body(BOX.grid((2, 2, 2)), 2e4, 0.3, weight=0.3)
+    level0 = pickup(body, contacts=_centre_nodes(body.mesh), mu_finger=0.5, finger_radius=0.01, lift=False)
+    ans = answer_of(level0)
+    fingers, table = max(f["nodes"] for f in ans.fingers), ans.table_nodes
+    bound = 4 * fingers  # level 1's fingertips fit, its table does not
+    assert 4 * table > TABLE_CONTACT_SHARE * bound
+    res = pickup(body, accuracy=TARGET, geometry=BOX, max_finger_contacts=bound, contacts=_centre_nodes(body.mesh),
+                 mu_finger=0.5, finger_radius=0.01, lift=False)
+    acc = res.accuracy
+    assert len(acc["levels"]) == 1 and not acc["converged"]
+    assert "contacts on the table" in acc["note"] and "--max-finger-contacts" in acc["note"]
+
+
 def test_a_time_budget_stops_the_loop_before_a_level_that_would_overrun_it():
     """``max_seconds``: with a budget below what level 0 took, no finer level starts; the answer is level 0's, not
     converged, and the note says why and how to go on (as the loop's argument and as the option pickup passes)."""
