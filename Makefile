@@ -11,7 +11,7 @@ APT_PACKAGES := python3-dolfinx python3-gmsh python3-venv python3-pip python3-de
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 PYTEST_ARGS ?=
 
-.PHONY: setup test test-pip docs lint demo verify verify-quick meshes spectral-vs-sparse rest-table clean-venv paper-scenes converge
+.PHONY: setup test test-pip docs lint demo verify verify-quick meshes spectral-vs-sparse rest-table grasp-height clean-venv paper-scenes converge
 
 setup: $(STAMPS)/venv
 
@@ -121,6 +121,10 @@ meshes: setup
 
 spectral-vs-sparse: setup
 	$(PY) scripts/spectral_vs_sparse.py
+
+# How rho* depends on the grasp's height (the steam bun by default; GRASP_HEIGHT_ARGS="tomato --offsets -2 0 2").
+grasp-height: setup
+	$(PY) scripts/grasp_height.py $(GRASP_HEIGHT_ARGS)
 
 # The rest table of the guide: printed, and written between its markers in docs/physics.md.
 rest-table: setup
