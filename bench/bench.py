@@ -797,6 +797,8 @@ def accuracy_worker(name: str, run: str) -> None:
                       "answer": {k: answer[k] for k in ("success", "reason", "squeeze_depth", "finger_force",
                                                         "max_liftable", "weight")},
                       "stated": stated, "converged": acc.get("converged"), "levels": len(acc.get("levels", [])),
+                      "level_answers": [[lv["vertices"], lv["squeeze_depth"], lv["finger_force"], lv["success"]]
+                                        for lv in acc.get("levels", [])],
                       "note": acc.get("note", "")}, default=float), flush=True)
 
 
@@ -840,7 +842,7 @@ def accuracy_errors(raw: dict[str, Any], reference: dict[str, Any]) -> dict[str,
            "verdict_ok": verdict_ok, "rho": ans["squeeze_depth"], "force": ans["finger_force"], "error": error,
            "stated": stated or None, "covers": covers, "covers_with_reference": covers_with_reference,
            "converged": raw.get("converged"),
-           "levels": raw.get("levels"), "note": raw.get("note", "")}
+           "levels": raw.get("levels"), "level_answers": raw.get("level_answers"), "note": raw.get("note", "")}
     if not ans["success"] and not reference["success"] and reference.get("weight"):
         row["w_error"] = abs(ans["max_liftable"] - reference["max_liftable"]) / reference["weight"]
     return row
@@ -941,6 +943,10 @@ def print_accuracy(sec: dict[str, Any]) -> None:
                   f"{_pct(e['squeeze_depth']):>15} {r['force']:8.3f} {_pct(e['finger_force']):>15} {stated:>15} "
                   f"{covers:>7}" + (f"  {r['levels']} levels, {'converged' if r['converged'] else 'not converged'}"
                                     if (r.get("levels") or 0) > 1 else ""))
+            if (r.get("levels") or 0) > 1 and r.get("level_answers"):
+                print(f"{'':<11} {'':<28} levels: " + "; ".join(
+                    f"{v:,} v {1e3 * rho:.3f} mm {f:.3f} N" + ("" if ok else " (not picked up)")
+                    for v, rho, f, ok in r["level_answers"]))
 
 
 # -------------------------------------------------------------------- main

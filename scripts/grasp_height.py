@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from dataclasses import replace
 from typing import Sequence
 
 import numpy as np
@@ -30,7 +31,7 @@ from fem_grasp.elastic.body import Body
 from fem_grasp.grasp.pickup import pickup
 from fem_grasp.grasp.placement import extreme_points
 from fem_grasp.io.scene import load_scene, resolve_scene
-from fem_grasp.mesh.remesh import nearest_surface_nodes, patch_refinement
+from fem_grasp.mesh.remesh import BoxGeometry, PaperGeometry, nearest_surface_nodes, patch_refinement
 
 #: Offsets of the grasp's height from the rule's, millimetres.
 DEFAULT_OFFSETS = (-1.5, 0.0, 0.75, 1.5, 2.25, 3.0)
@@ -55,8 +56,10 @@ def main(argv: Sequence[str] | None = None) -> int:
 
     scene = load_scene(resolve_scene(args.scene))
     geometry = scene.geometry()
-    if geometry is None or not hasattr(geometry, "surface_points"):
+    if not isinstance(geometry, (PaperGeometry, BoxGeometry)):
         ap.error(f"{args.scene}: no geometry to place points on (a paper shape or a box is needed)")
+    if isinstance(geometry, PaperGeometry):
+        geometry = replace(geometry, embed_points=True)  # every level grasps at the points, as nodes
     body = scene.body(None)
     opts = scene.pickup_options()
     direction = np.asarray(opts.directions[0], float)

@@ -404,23 +404,3 @@ def test_the_accuracy_levels_are_shown_as_they_finish_unless_quiet(capsys):
         assert "rest: 12 iterations" not in err
     assert levels.level == before
 
-
-def test_the_summary_says_where_the_given_mesh_grasped_when_level_0_was_run_at_the_grasp_points():
-    """The given mesh's run is another grasp where its nodes lie off the points every level grasps at: the summary
-    names it as the placement, with its distance and its answer, before the levels."""
-    from fem_grasp.cli.run import _accuracy_lines
-
-    def level(k, n, rho, force):
-        return {"level": k, "vertices": n, "inner_size": 4.8e-3 / 2**k, "step": 2e-4, "step_divisions": 4,
-                "success": True, "squeeze_depth": rho, "finger_force": force, "seconds": 1.0, "mesh_seconds": 0.1}
-
-    acc = {"target": 0.05, "converged": False, "note": "stopped before level 3", "seconds": 30.0,
-           "estimated_error": {"squeeze_depth": 0.1, "finger_force": 0.12},
-           "placement": dict(level(0, 659, 13.6e-3, 6.26), grasp_offset=5.2e-3),
-           "levels": [level(0, 821, 4.4e-3, 1.44), level(1, 2401, 4.79e-3, 1.53), level(2, 6291, 4.62e-3, 1.45)]}
-    lines = _accuracy_lines(acc, quick=False)
-    place = [line for line in lines if "placement" in line]
-    assert len(place) == 1 and "659 vertices" in place[0] and "5.2 mm" in place[0] and "rho 13.6 mm" in place[0]
-    assert lines.index(place[0]) < next(i for i, line in enumerate(lines) if line.startswith("  level 0"))
-    del acc["placement"]
-    assert not any("placement" in line for line in _accuracy_lines(acc, quick=False))

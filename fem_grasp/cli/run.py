@@ -122,12 +122,6 @@ def _accuracy_lines(acc: dict[str, Any], quick: bool) -> list[str]:
                 f"finger force) is above the requested {100 * acc['target']:g} % ({acc.get('note', '')})"
                 + ("; run without --quick for the refined answer" if quick else ""))
     lines = [head]
-    place = acc.get("placement")
-    if place:
-        lines.append(f"  placement  the given mesh ({place['vertices']:,} vertices) has its nodes "
-                     f"{1e3 * place['grasp_offset']:.2g} mm from the grasp points: there "
-                     f"{'picked up' if place['success'] else 'not picked up'}, rho {1e3 * place['squeeze_depth']:.4g} mm "
-                     f"(another grasp); level 0 grasps at the points, at the given mesh's spacing")
     for lv in acc["levels"]:
         lines.append(f"  level {lv['level']}  {lv['vertices']:,} vertices, spacing {1e3 * lv['inner_size']:.3g} mm at "
                      f"the patches, increment {1e3 * lv['step']:.3g} mm"

@@ -21,11 +21,7 @@ the contact patches (fingertips and table); each next level remeshes the
 geometry (:mod:`fem_grasp.mesh.remesh`) with half the spacing at those patches
 (:data:`LEVEL_RATIO`), the table patch at four times that (:data:`TABLE_LAG`) and a
 finer outer mesh, grasps at the same points (the given contacts, or those the
-placement rule finds on the geometry's surface, embedded as nodes where the
-geometry allows — boxes and the paper's shapes — else each level's nearest
-surface nodes; where the given mesh's own nodes lie elsewhere, level 0 is run
-again at its spacing on a remesh with the points as nodes,
-:data:`REGRID_TOLERANCE`), and takes
+placement rule chose on level 0, each level's nearest surface nodes), and takes
 a squeeze increment small enough that the lift
 test's quantisation of ρ* (at most one increment) uses at most a quarter of the
 target, half where the last two levels predict that this one will not meet it
@@ -247,8 +243,6 @@ class AccuracyLevel:
     answer : the level's :class:`GraspAnswer`
     mesh_seconds : time to build the mesh
     change : relative change of ρ* and of the finger force from the previous level (None at level 0)
-    regrid : level 0 remeshed at the given mesh's spacing with the grasp points as nodes (the given mesh's own
-        nodes were elsewhere; :data:`REGRID_TOLERANCE`)
     """
 
     level: int
@@ -257,11 +251,10 @@ class AccuracyLevel:
     answer: GraspAnswer
     mesh_seconds: float = 0.0
     change: dict[str, float] | None = None
-    regrid: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         a = self.answer
-        return {"level": self.level, "regrid": self.regrid, "vertices": a.n_vertices, "inner_size": self.inner_size,
+        return {"level": self.level, "vertices": a.n_vertices, "inner_size": self.inner_size,
                 "outer_size": self.outer_size, "step": a.step, "step_divisions": a.step_divisions,
                 "resolution": a.resolution, "lift_test_step": a.lift_test_step,
                 "success": a.success, "squeeze_depth": a.squeeze_depth, "finger_force": a.finger_force,
@@ -287,8 +280,6 @@ class AccuracyReport:
         observed ``order``, ``contraction``, ``relative`` uncertainty), when they all lifted the object
     contact_points : (2, 3) the initial finger contact points every level grasps at, in the frame of the body as
         given (the given contacts, or those the placement rule chose on level 0), or None before a placement
-    placement : the run on the given mesh, as a level record with ``grasp_offset`` (m), where its nodes lay
-        farther from ``contact_points`` than :data:`REGRID_TOLERANCE` and level 0 was run again there; else None
     """
 
     target: float
@@ -300,13 +291,12 @@ class AccuracyReport:
     geometry: str = ""
     three_levels: dict[str, Any] = field(default_factory=dict)
     contact_points: list[list[float]] | None = None
-    placement: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         return {"target": self.target, "estimated_error": dict(self.estimated_error), "converged": self.converged,
                 "note": self.note, "geometry": self.geometry, "richardson": self.richardson,
                 "three_levels": self.three_levels, "contact_points": self.contact_points,
-                "placement": self.placement, "levels": [lv.to_dict() for lv in self.levels]}
+                "levels": [lv.to_dict() for lv in self.levels]}
 
     def summary_line(self) -> str:
         e = self.estimated_error
@@ -371,16 +361,10 @@ def placement_target(geometry: Any, result: Any, direction: Any, spacing: float)
 
 #: A level is not run when it would put more than this many times ``max_finger_contacts`` on the table (its count
 #: grown as from the level before): the rest and the squeeze track every table contact.  The steam bun's flat
-#: base had 300 table contacts at level 1 at 5 %, 572 at level 2 (25 s) and 1,115 at level 3, whose rest took
-#: 26 s and whose pickup 7 minutes, for a rho* within 3.5 % of level 2's.
+#: base, grasped at its equator on every level (``scripts/grasp_height.py``), had 300 table contacts at level 1
+#: at 5 %, 572 at level 2 (25 s) and 1,115 at level 3, whose rest took 26 s and whose pickup 7 minutes, for a
+#: rho* within 3.5 % of level 2's.
 TABLE_CONTACT_SHARE = 2.5
-
-#: Level 0 is run again, at the given mesh's spacing with the grasp points as nodes, where the given mesh's nodes
-#: lie farther than this share of its patch spacing from them: the levels then answer one grasp.  The steam
-#: bun's rho* grows by about 3 mm per mm of grasp height (3.05 mm at its equator, 5.0-5.7 mm 1.5 mm above,
-#: 13.6-15.3 mm 3.4 mm above, each converged over three levels at that height), and its 659-vertex mesh grasps
-#: 2.2 mm above the points the rule finds on the bun's surface.
-REGRID_TOLERANCE = 0.1
 
 #: A finer level runs its lift tests from this fraction below the coarser level's ρ* (:func:`first_lift_test`):
 #: further down w(ρ) is far below mg (on the tomato's finest level at 5 %, the tests below 0.85 ρ* took 35 % of
@@ -417,10 +401,6 @@ def _level_meshes(geometry: Any, fingers: np.ndarray, table: np.ndarray, inner: 
     refs = [patch_refinement(fingers, inner, radius, outer),
             patch_refinement(table, min(TABLE_LAG * inner, outer), max(radius, TABLE_LAG * inner), outer)]
     return geometry.build(outer, [r for r in refs if r is not None], embed=embed)
-
-
-class _NotNearer(Exception):
-    """A remesh at level 0's spacing would not grasp nearer the points than the given mesh does."""
 
 
 def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = DEFAULT_ACCURACY, geometry: Any = None,
@@ -505,41 +485,6 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
                           else points0[[int(k) for k in result.finger_nodes]])
     if contact_points is not None:
         report.contact_points = np.asarray(contact_points, float).tolist()
-        given = [int(k) for k in result.finger_nodes]
-        moved = (float(np.linalg.norm(np.asarray(contact_points, float) - points0[given], axis=1).max())
-                 if len(given) == 2 and min(given) >= 0 else 0.0)
-        if moved > REGRID_TOLERANCE * inner and ans.resolution > 0:
-            # Level 0's own nodes are not at the grasp points of the finer levels: its answer is that of
-            # another grasp (the steam bun's rho* grows by about 3 mm per mm of grasp height).  Level 0 is run
-            # again at its own spacing with the points as nodes; the given mesh's run stays as the placement.
-            t0 = time.perf_counter()
-            mesh = _level_meshes(geo, fingers, table, inner, PATCH_RADIUS * inner, outer, contact_points)
-            t_mesh = time.perf_counter() - t0
-            lv_body = Body(mesh, body.young, body.poisson, weight=body.weight, gravity=body.gravity)
-            near = nearest_surface_nodes(mesh, contact_points)
-            off = float(np.linalg.norm(mesh.points[near] - np.asarray(contact_points, float), axis=1).max())
-            t0 = time.perf_counter()
-            try:
-                if off > 0.5 * moved:  # a surface without embedding (a scan's) whose remesh is no nearer
-                    raise _NotNearer(f"its nodes lie {1e3 * off:.3g} mm from them")
-                regrid = pickup(lv_body, opts.replace(contacts=tuple(int(k) for k in near), step=ans.step,
-                                                      lift_test_step=result.lift_test_step), settings=settings)
-            except (RestConvergenceError, FrictionError, _NotNearer) as exc:
-                log.info("accuracy: level 0 at the grasp points not run again (%s); level 0 stays the given "
-                         "mesh's", exc)
-            else:
-                report.placement = report.levels[0].to_dict()
-                report.placement["grasp_offset"] = moved
-                ans0 = answer_of(regrid, time.perf_counter() - t0)
-                report.levels[0] = AccuracyLevel(0, inner, outer, ans0, t_mesh, regrid=True)
-                result = regrid
-                log.info("accuracy level 0 at the grasp points (%.3g mm from the given mesh's nodes): %d vertices, "
-                         "%s, rho* = %.4g mm, finger force %.4g N (%.1f s)", 1e3 * moved, ans0.n_vertices,
-                         "picked up" if ans0.success else "not picked up", 1e3 * ans0.squeeze_depth,
-                         ans0.finger_force, ans0.seconds + t_mesh)
-                if on_level is not None:
-                    on_level(report)
-                ans = ans0
     s0, h0 = ans.resolution, result.lift_test_step
     step_l = s0
     prev_inner = inner

@@ -91,16 +91,6 @@ def _accuracy_state(acc: dict[str, Any]) -> str:
     return f"the error estimate is above the requested {goal}" if goal else "the error estimate is above the target"
 
 
-def _placement_html(place: dict[str, Any] | None) -> str:
-    """The run on the given mesh, where its nodes lay off the grasp points (level 0 then grasps at the points)."""
-    if not place:
-        return ""
-    return (f"<p>The given mesh ({place['vertices']:,} vertices) has its nodes {1e3 * place['grasp_offset']:.2g} mm "
-            f"from the grasp points; grasped there it is {'picked up' if place['success'] else 'not picked up'} at "
-            f"ρ = {1e3 * place['squeeze_depth']:.4g} mm, another grasp. Level 0 grasps at the points, on a remesh at "
-            "the given mesh's spacing.</p>")
-
-
 def _accuracy_html(acc: dict[str, Any] | None) -> str:
     """The levels of ``pickup(..., accuracy=...)`` (:func:`fem_grasp.grasp.accuracy.converged_pickup`), as a table."""
     if not acc:
@@ -122,7 +112,7 @@ def _accuracy_html(acc: dict[str, Any] | None) -> str:
             f"{html.escape(acc.get('geometry', '') or 'the object')} with half the spacing at the contact patches, "
             "grasps at the same two points and resolves ρ* to a share of the target; the estimated error is three "
             "times the change of the last two levels, or from three levels on their uncertainty (Eça and Hoekstra), "
-            "plus the resolution of ρ*.</p>" + _placement_html(acc.get("placement")) +
+            "plus the resolution of ρ*.</p>"
             "<table><tr><th>level</th><th>vertices</th><th>spacing at the patches (mm)</th><th>outer (mm)</th>"
             "<th>increment (mm)</th><th>h (N)</th><th>verdict</th><th>ρ* (mm)</th><th>finger force (N)</th>"
             "<th>contacts finger 1 / 2 / table</th><th>change of ρ* / force</th><th>s</th></tr>"

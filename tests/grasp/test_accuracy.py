@@ -244,30 +244,6 @@ def test_on_a_paper_shape_the_finer_levels_grasp_where_the_rule_puts_a_fine_mesh
     assert np.linalg.norm(body.mesh.points[list(level0.finger_nodes)] - target, axis=1).max() > 1e-3
 
 
-def test_level_0_grasps_at_the_points_of_the_finer_levels_where_the_given_mesh_has_no_node_there():
-    """The steam bun's 659-vertex mesh grasps 2 mm above (and beside) the points the rule finds on the bun's
-    surface, and the bun's ρ* depends steeply on the grasp's height.  Level 0 is run again at the given mesh's
-    spacing with those points as nodes, so that the levels answer one grasp; the given mesh's run is kept as the
-    placement, and its answer — another grasp — lies far from the regridded level's."""
-    from fem_grasp.grasp.accuracy import REGRID_TOLERANCE
-    from fem_grasp.io.scene import load_scene, resolve_scene
-
-    scene = load_scene(resolve_scene("steam_bun"))
-    body = scene.body(None)
-    res = pickup(body, scene.pickup_options().replace(accuracy=TARGET, geometry=scene.geometry(), lift=False,
-                                                      max_finger_contacts=1))  # level 0 only
-    acc = res.accuracy
-    placement, level0 = acc["placement"], acc["levels"][0]
-    assert len(acc["levels"]) == 1 and level0["regrid"] and not placement["regrid"]
-    assert placement["vertices"] == body.n_nodes != level0["vertices"] == res.body.n_nodes
-    assert placement["grasp_offset"] > REGRID_TOLERANCE * level0["inner_size"]
-    assert level0["inner_size"] == placement["inner_size"]  # the given mesh's spacing at the patches
-    pose = res.rest.pose
-    grasped = (res.body.mesh.points[list(res.finger_nodes)] - pose.translation) @ pose.rotation
-    assert np.allclose(grasped, acc["contact_points"], atol=1e-9)  # the points are the regridded mesh's nodes
-    assert placement["squeeze_depth"] - level0["squeeze_depth"] > 3e-3  # 13.6 mm there, 5.6 mm here
-
-
 def test_halving_the_lift_test_step_does_not_move_the_answer():
     """Why every level of the loop keeps level 0's lift-test step h: the test passes when the ramp h, 2h, …
     reaches mg, so h does not quantise ρ*; it only sets how finely the load path is followed. On the tomato

@@ -214,12 +214,12 @@ def test_bulging_dome_has_its_widest_point_at_the_equator(gmsh):
 
 @pytest.mark.parametrize("name", ["tomato", "steam_bun"])
 def test_points_on_a_paper_shapes_curved_surface_become_nodes_and_the_mesh_stays_as_fine(name, gmsh):
-    """The accuracy loop grasps at points of the surface on every level: on the ellipsoid and on the dome's side
-    they are embedded as nodes (the solid's volume kept), about as many vertices as without them; a point off
-    the surface is left to the nearest node."""
+    """Asked to (``embed_points``), a paper shape makes points of its curved surface nodes, on the ellipsoid and
+    on the dome's side (the solid's volume kept), with about as many vertices as without them; a point off the
+    surface is left to the nearest node, and by default the points are not embedded."""
     from fem_grasp.mesh.remesh import PaperGeometry, nearest_surface_nodes, patch_refinement
 
-    geo = PaperGeometry(name)
+    geo = PaperGeometry(name, embed_points=True)
     samples = geo.surface_points(0.5e-3)
     points = samples[[int(np.argmin(samples[:, 1])), int(np.argmax(samples[:, 1]))]]
     refine = patch_refinement(points, 2e-3, 6e-3, 8e-3)
@@ -231,3 +231,5 @@ def test_points_on_a_paper_shapes_curved_surface_become_nodes_and_the_mesh_stays
     off = points + [[0.0, -1e-3, 0.0], [0.0, 1e-3, 0.0]]  # a millimetre outside
     mesh = geo.build(8e-3, [refine], embed=off)
     assert np.linalg.norm(mesh.points[nearest_surface_nodes(mesh, off)] - off, axis=1).min() > 0.5e-3
+    default = PaperGeometry(name).build(8e-3, [refine], embed=points)
+    assert np.linalg.norm(default.points[nearest_surface_nodes(default, points)] - points, axis=1).max() > 1e-6
