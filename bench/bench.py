@@ -155,12 +155,10 @@ def maxrss_mib() -> float:
 
 
 def machine() -> dict[str, Any]:
-    cpu = platform.processor() or ""
+    from verification._common.run import cpu_model
+
+    cpu = cpu_model()
     try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
         mem = next(int(line.split()[1]) for line in Path("/proc/meminfo").read_text().splitlines()
                    if line.startswith("MemTotal")) / 2**20
     except (OSError, StopIteration):

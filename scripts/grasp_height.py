@@ -46,6 +46,10 @@ def grasp_points(geometry, height: float, direction: np.ndarray, sample: float) 
     return pts[[i, j]]
 
 
+def pct(x: float | None) -> str:
+    return "unknown" if x is None or not np.isfinite(x) else f"{100 * x:.1f} %"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("scene", nargs="?", default="steam_bun", help="a shipped paper scene (default steam_bun)")
@@ -83,10 +87,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         levels = ", ".join(f"{1e3 * lv['squeeze_depth']:.2f}" + ("" if lv["success"] else " (not)")
                            for lv in acc["levels"])
         err = acc["estimated_error"]
-
-        def pct(x):
-            return "unknown" if x is None or not np.isfinite(x) else f"{100 * x:.1f} %"
-
         verdict = "" if res.success else " (not picked up)"
         print(f"{off:9.2f} {1e3 * pts[:, 2].mean():9.2f}  {levels:<34} {1e3 * res.squeeze_depth:8.3f} "
               f"{pct(err.get('squeeze_depth')):>7} {acc['levels'][-1]['finger_force']:8.3f} "

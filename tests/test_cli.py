@@ -403,4 +403,3 @@ def test_the_accuracy_levels_are_shown_as_they_finish_unless_quiet(capsys):
         assert ("accuracy level 1: 4985 vertices" in err) is not quiet
         assert "rest: 12 iterations" not in err
     assert levels.level == before
-

@@ -64,6 +64,17 @@ class Stages:
         self.bar.close()
 
 
+def cpu_model() -> str:
+    """The CPU's model name (Linux's /proc/cpuinfo), else the platform's word for it."""
+    import platform
+
+    try:
+        return next(line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
+                    if line.startswith("model name"))
+    except (OSError, StopIteration):
+        return platform.processor() or platform.machine()
+
+
 def finite_max(values: Any) -> float:
     """The largest of ``values`` ignoring None and NaN; NaN when none is left."""
     vals = [float(v) for v in values if v is not None and not (isinstance(v, float) and math.isnan(v))]

@@ -15,9 +15,12 @@ import datetime
 import json
 import math
 import os
-import platform
 from pathlib import Path
 from typing import Any
+
+from fem_grasp.io.output import json_safe
+
+from .._common.run import cpu_model
 
 __all__ = ["REFERENCES", "FIELDS", "extract", "load", "write"]
 
@@ -28,17 +31,6 @@ FIELDS = ("success", "vertices", "step", "h", "weight", "max_liftable", "rho", "
           "mesh_band")
 
 
-def _finite(x: Any) -> Any:
-    """JSON has no inf or NaN: None in their place, recursively."""
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    if isinstance(x, dict):
-        return {k: _finite(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_finite(v) for v in x]
-    return x
-
-
 def extract(analysis: dict[str, Any]) -> dict[str, dict[str, Any]]:
     """Per object with a reference in the study's ``analysis`` (:func:`verification.converge.study`), the
     :data:`FIELDS` of it."""
@@ -46,7 +38,7 @@ def extract(analysis: dict[str, Any]) -> dict[str, dict[str, Any]]:
     for name, obj in analysis.get("objects", {}).items():
         ref = (obj or {}).get("reference")
         if ref:
-            out[name] = _finite({k: ref[k] for k in FIELDS if k in ref})
+            out[name] = json_safe({k: ref[k] for k in FIELDS if k in ref})
     return out
 
 
@@ -68,17 +60,6 @@ def load(path: Path | None = None) -> dict[str, dict[str, Any]]:
     return out
 
 
-def _machine() -> str:
-    """The CPU's model name and core count (Linux), else the platform's word for it."""
-    cpu = platform.processor() or platform.machine()
-    try:
-        cpu = next(line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines()
-                   if line.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    return f"{cpu}, {os.cpu_count()} cores"
-
-
 def write(analysis: dict[str, Any], path: Path | None = None, machine: str | None = None) -> list[str]:
     """Merge the references of ``analysis`` into ``path`` (default :data:`REFERENCES`; objects the analysis has
     none for keep their entry); returns the objects written.  Each entry records the study, the date and the
@@ -89,7 +70,7 @@ def write(analysis: dict[str, Any], path: Path | None = None, machine: str | Non
     data = json.loads(path.read_text()) if path.exists() else {}
     objects = data.get("objects", {})
     source = {"study": "python -m verification converge", "date": datetime.date.today().isoformat(),
-              "machine": machine or _machine()}
+              "machine": machine or f"{cpu_model()}, {os.cpu_count()} cores"}
     new = extract(analysis)
     for name, ref in new.items():
         objects[name] = dict(ref, source=source)
