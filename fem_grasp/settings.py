@@ -152,10 +152,6 @@ class EngineSettings:
         weight counts as not held (3, steps down to h/8: they resolve the load path near the weight a finger lets
         go; with none, 6 of the tomato's 64 search placements lift one or two squeeze increments later, 4 of
         them by more than one: ``python -m bench.tracker --against settings.load_halvings=0 --search tomato``).
-    lift_test_stride : int
-        Lift test: below the weight held at the previous squeeze increment the load ramp takes this many steps h
-        at a time, a stride not held being taken again in steps of h (4; 1: steps of h throughout, the ramp as
-        first written; :mod:`~fem_grasp.grasp.lift_test`, "Strides").
     """
 
     # events A-D (contact.event_location)
@@ -201,7 +197,6 @@ class EngineSettings:
     polish_adoptions: int = 4
     # the lift test (grasp.lift_test)
     load_halvings: int = 3
-    lift_test_stride: int = 4
 
     def __post_init__(self) -> None:
         for f in fields(self):

@@ -47,31 +47,12 @@ never passed the jump's test, a verdict flip of the convergence study).  The
 paper assumes w grows with ρ; here w(ρ_l) may also fall (the contact
 configuration changed).  The test passes once w(ρ_l) ≥ mg.  The step h
 defaults to mg/20.
-
-Strides
--------
-The ramp is most of a fine mesh's lift test: about mg/h hangs at every
-increment near ρ*.  Below w(ρ_{l−1}), the weight held at the deepest
-squeeze tested before (in a passing increment squeezed again in
-sub-increments, the sub-increment before), the ramp takes ``lift_test_stride`` steps h at a time
-(:class:`~fem_grasp.settings.EngineSettings`, four by default), each stride
-settled from the state held before it; a stride not held is taken again in
-steps of h (with the halvings), and so is every weight above w(ρ_{l−1}),
-where a finger lets go.  While the contacts stick, the hanging response is
-linear in the weight and the friction cones are convex, so a stride that
-holds at its end holds along the way and ends where its steps would;
-sliding contacts make the two paths differ by a little slip.  On the
-tomato graded to R/4 at the fingertips and the table, w(ρ) is the same at
-every increment and the lift test takes 35 % less time; the answers of
-the shipped scenes, the graded routes and the placement searches with
-steps h throughout (``lift_test_stride = 1``) are compared in one run by
-``python -m bench.tracker --against settings.lift_test_stride=1``.
 """
 
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -178,68 +159,41 @@ class LiftTest:
     tracker : Tracker without a table
     weight : the object's real weight mg, newtons
     step : h, newtons (default mg/20)
-    stride : steps h per stride below the weight held at the deepest squeeze tested before (default the tracker's
-        ``settings.lift_test_stride``; module notes, "Strides")
-    liftable : w at the last test
-    held : (ρ, w(ρ)) of every test so far
     """
 
     tracker: Tracker
     weight: float
     step: float | None = None
-    stride: int | None = None
     liftable: float = 0.0
     tests: int = 0
-    held: list[tuple[float, float]] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         if self.step is None:
             self.step = DEFAULT_STEP_FRACTION * self.weight
         if not self.step > 0:
             raise ValueError(f"the lift-test step must be positive, got {self.step!r}")
-        if self.stride is None:
-            self.stride = self.tracker.settings.lift_test_stride if self.tracker is not None else 1
-        if not (isinstance(self.stride, (int, np.integer)) and self.stride >= 1):
-            raise ValueError(f"the lift-test stride must be a whole number >= 1, got {self.stride!r}")
 
     def update(self, state: ContactState) -> float:
         """w(ρ_l) from the squeeze state at ρ_l; returns it.
 
         The finger configuration is hung at zero weight, then loaded with h, 2h, … (module notes), each
         weight from the configuration held at the one before; the ramp stops at the first weight not held or
-        at mg.  Below the weight held at the previous test the ramp strides ``stride`` steps h at a time; a
-        stride not held is taken again in steps of h (module notes, "Strides").
+        at mg.
         """
         self.tests += 1
-        guide = self.guide(state.squeeze_depth)
-        self.liftable = 0.0
         base = hanging_state(self.tracker, state)
         if not base.held:
-            self.held.append((state.squeeze_depth, 0.0))
+            self.liftable = 0.0
             return 0.0
-        h, stride = float(self.step), int(self.stride)
         held, k, st = 0.0, 1, base.state
         while held < self.weight * PASS_FRACTION:
             self.tests += 1
-            far = k - 1 + stride
-            if stride > 1 and far * h <= guide * (1.0 + 1e-12):
-                res = hang(self.tracker, st, far * h, max_depth=0)
-                if res.held:
-                    held, st, k = far * h, res.state, far + 1
-                    continue
-                stride = 1  # not held in one stride: the rest of this ramp in steps of h
-            res = hang(self.tracker, st, k * h)
+            res = hang(self.tracker, st, k * self.step)
             if not res.held:
                 break
-            held, st, k = k * h, res.state, k + 1
+            held, st, k = k * self.step, res.state, k + 1
         self.liftable = held
-        self.held.append((state.squeeze_depth, held))
         return held
-
-    def guide(self, depth: float) -> float:
-        """The weight held at the deepest squeeze tested below ``depth`` (0 if none): the ramp strides up to it."""
-        below = [(r, w) for r, w in self.held if r < depth * (1.0 - 1e-12)]
-        return max(below)[1] if below else 0.0
 
     @property
     def passed(self) -> bool:
