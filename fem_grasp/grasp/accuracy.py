@@ -367,23 +367,21 @@ def placement_target(geometry: Any, result: Any, direction: Any, spacing: float)
 TABLE_CONTACT_SHARE = 2.5
 
 #: A finer level runs its lift tests from this fraction below the coarser level's ρ* (:func:`first_lift_test`):
-#: further down w(ρ) is far below mg (on the tomato's finest level at 5 %, the tests below 0.85 ρ* took 35 % of
-#: its lift tests' time), and should the first test pass after all, the increments below it are tested in order.
-FIRST_TEST_MARGIN = 0.15
+#: further down w(ρ) is far below mg, and should the first test pass, the increments below it are tested from the
+#: deepest down to the first that fails, so a first test on either side of the finer level's ρ* costs one test per
+#: increment between them.
+FIRST_TEST_MARGIN = 0.05
 #: A level costs at least this many times the one before (its patches hold about four times the contacts).
 LEVEL_COST_GROWTH = 4.0
 
 
 def first_lift_test(levels: Sequence[AccuracyLevel]) -> float | None:
     """The depth from which the next level runs its lift tests (``PickupOptions.first_lift_test``): the last level's
-    ρ* less :data:`FIRST_TEST_MARGIN` of it, or less three times the last two levels' relative change of ρ* where
-    that is larger; None (every increment) when the last level was not picked up."""
+    ρ* less :data:`FIRST_TEST_MARGIN` of it; None (every increment) when the last level was not picked up."""
     last = levels[-1]
     if not _passed(last.answer) or not last.answer.squeeze_depth > 0:
         return None
-    change = last.change.get("squeeze_depth", 0.0) if last.change else 0.0
-    margin = max(FIRST_TEST_MARGIN, 3.0 * change if math.isfinite(change) else 1.0)
-    return last.answer.squeeze_depth * (1.0 - margin) if margin < 1.0 else None
+    return last.answer.squeeze_depth * (1.0 - FIRST_TEST_MARGIN)
 
 
 def predicted_level_seconds(levels: Sequence[AccuracyLevel]) -> float:

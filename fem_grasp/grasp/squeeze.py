@@ -100,8 +100,9 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
         tests, as with that increment throughout wherever w(ρ) crosses mg once within the increment
         (default 1: Algorithm 1 as printed)
     first_test : (``PickupOptions.first_lift_test``) no lift test at the increments that end below this squeeze
-        depth, metres; if the first test passes, those increments are tested after all, in order, and the first
-        that passes is the answer, as if every increment had been tested (default 0: every increment)
+        depth, metres; if the first test passes, those increments are tested after all, from the deepest down to
+        the first that fails, and the last that passes is the answer, as if every increment had been tested
+        wherever w(ρ) crosses mg once (default 0: every increment)
     on_event : called with the state after every event (of the increments kept: a passing increment squeezed
         again reports its events once, from the second pass)
     """
@@ -117,7 +118,7 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
     pending: list[tuple[ContactState, list[ContactEvent]]] = []
     tested = [state]  # where the increment in which the test passes begins: the last failing test, or the start
     again = [False]
-    # Increments ended below ``first_test``, untested; a pass at the first test runs their tests (in order).
+    # Increments ended below ``first_test``, untested; a pass at the first test runs their tests (deepest first).
     skipped: list[ContactState] = []
     passing = [state]  # the end of the increment in which the test passes
 
@@ -162,13 +163,14 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
         if not passed:
             skipped.clear()  # w(ρ) below mg at the first test: the increments below it are not tested
         if passed and skipped:
-            # The first test passed: the increments below it are tested after all, and the first that passes
-            # is where the squeeze stops (its events reported, the later ones dropped).
-            for earlier in skipped:
-                if test(earlier):
-                    passing[0] = earlier
+            # The first test passed: the increments below it are tested after all, from the deepest down to the
+            # first that fails, and the last that passed is where the squeeze stops (its events reported, the
+            # later ones dropped). Below a failing test w(ρ) is taken to stay below mg, as when the first test fails.
+            for earlier in reversed(skipped):
+                if not test(earlier):
+                    tested[0] = earlier
                     break
-                tested[0] = earlier
+                passing[0] = earlier
             skipped.clear()
             if not (divisions > 1 and not again[0]):
                 keep_to(passing[0].squeeze_depth)

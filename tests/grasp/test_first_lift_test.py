@@ -1,6 +1,7 @@
 """Lift tests from a given depth on (``PickupOptions.first_lift_test``, what the accuracy loop's finer levels use):
 the same answer as testing every increment, fewer tests where w(ρ) is far below mg, and, should the first test
-pass, the increments below it tested after all so that ρ* is still the first increment that passes."""
+pass, the increments below it tested after all, from the deepest down, so that ρ* is still the first increment
+that passes where w(ρ) crosses mg once."""
 
 import pytest
 
@@ -43,11 +44,20 @@ def test_tests_from_below_rho_star_give_the_same_answer_with_fewer_tests(tomato)
             assert abs(w - w_every[r]) <= later.lift_test_step * (1 + 1e-9)
 
 
-def test_a_first_test_that_passes_tests_the_increments_below_it_in_order(tomato):
+def test_a_first_test_that_passes_tests_the_increments_below_it_from_the_deepest_down(tomato):
+    """The increments below a first test that passes are tested from the deepest down to the first that fails
+    (the last failing increment of a run that tests every one): the same ρ*, and no test further down."""
     body, opts, every = tomato
     late = pickup(body, opts.replace(first_lift_test=1.3 * every.squeeze_depth))
     _same_answer(every, late)
-    assert [r for r, _ in late.liftable] == pytest.approx([r for r, _ in every.liftable], rel=1e-9)
+    mg = late.body.weight
+    lowest, w = min(late.liftable)
+    # the lowest test fails, at an increment where testing every one also failed, and it is the one just below
+    # the passing increment: every test above it passed, but those of a passing increment squeezed again
+    assert w < mg and any(abs(r - lowest) <= 1e-9 * lowest and we < mg for r, we in every.liftable)
+    whole = [(r, wl) for r, wl in late.liftable if r > lowest and not (r < late.squeeze_depth and late.step_divisions > 1)]
+    assert all(wl >= mg * (1 - 1e-12) for _, wl in whole)
+    assert len(late.liftable) < len(every.liftable)
 
 
 @pytest.mark.parametrize("bad", [0.0, -1e-3, float("nan")])
