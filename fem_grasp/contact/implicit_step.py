@@ -138,7 +138,11 @@ class ImplicitStep:
                     continue
                 added.append((k, int(o), self.obstacles(centers)[int(o)].project_point(surface[s_pos]) - self.points[k]))
                 record("A", k, int(o))
-            if not added and not released.any():
+            if not added:
+                # Released contacts carried no force in the relaxation, so the others' static state is the same
+                # without them: no second relaxation, only the check that the remaining set still fixes the body.
+                if released.any():
+                    _check_held(self.points, nodes, param, at)
                 break
             self.prefetch_columns([a[0] for a in added], surface, centers)
             nodes = np.concatenate([nodes, [a[0] for a in added]]).astype(np.int64)
@@ -150,11 +154,7 @@ class ImplicitStep:
             start = (np.concatenate([start[0], np.full(len(added), STICK)]),
                      np.vstack([start[1], np.zeros((len(added), 3))]),
                      np.vstack([start[2], np.zeros((len(added), 2))]))
-            try:
-                check_contact_set(self.points, nodes)
-            except CollinearContactError as exc:
-                raise TrackingError(f"the object is no longer held at {_where(param, at)}: "
-                                    f"{exc}") from None
+            _check_held(self.points, nodes, param, at)
         else:
             raise TrackingError(f"contacts keep being made and released at {_where(param, at)} "
                                 f"({max_rounds} rounds)")
@@ -169,3 +169,11 @@ class ImplicitStep:
         log.debug("implicit step to %s = %.6g: %d contacts, %d sliding, events %s", param, getattr(at, param),
                   len(nodes), int(sliding.sum()), "".join(e.kind for e in events))
         return state, events
+
+
+def _check_held(points: np.ndarray, nodes: np.ndarray, param: Parameter, at: ContactState) -> None:
+    """A changed contact set must still fix the body (Theorem 3), else the object is no longer held."""
+    try:
+        check_contact_set(points, nodes)
+    except CollinearContactError as exc:
+        raise TrackingError(f"the object is no longer held at {_where(param, at)}: {exc}") from None
