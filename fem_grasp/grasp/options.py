@@ -101,8 +101,9 @@ class PickupOptions:
         No lift test at the squeeze increments that end below this depth ρ, metres (None: at every increment,
         Algorithm 1 as printed).  If the first test passes, the increments below it are tested after all, from
         the deepest down to the first that fails, and ρ* is the last that passed, as if every one had been tested
-        wherever w(ρ) crosses mg once; w(ρ) (``result.liftable``) then has no entries below the tests made.  The accuracy loop sets it below the coarser level's ρ*
-        (:data:`~fem_grasp.grasp.accuracy.FIRST_TEST_MARGIN`), where w(ρ) is far from mg.
+        wherever w(ρ) crosses mg once; w(ρ) (``result.liftable``) then has no entries below the tests made.  The
+        accuracy loop sets it below the coarser level's ρ* (:data:`~fem_grasp.grasp.accuracy.FIRST_TEST_MARGIN`),
+        where w(ρ) is far from mg.
     max_lift : float or None
         The lift height at which a lift that has not left the table fails, metres.  None: the object's height.
     lift : bool

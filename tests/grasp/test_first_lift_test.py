@@ -55,8 +55,9 @@ def test_a_first_test_that_passes_tests_the_increments_below_it_from_the_deepest
     # the lowest test fails, at an increment where testing every one also failed, and it is the one just below
     # the passing increment: every test above it passed, but those of a passing increment squeezed again
     assert w < mg and any(abs(r - lowest) <= 1e-9 * lowest and we < mg for r, we in every.liftable)
-    whole = [(r, wl) for r, wl in late.liftable if r > lowest and not (r < late.squeeze_depth and late.step_divisions > 1)]
-    assert all(wl >= mg * (1 - 1e-12) for _, wl in whole)
+    divided = late.step_divisions > 1
+    whole = [wl for r, wl in late.liftable if r > lowest and not (divided and r < late.squeeze_depth)]
+    assert all(wl >= mg * (1 - 1e-12) for wl in whole)
     assert len(late.liftable) < len(every.liftable)
 
 
