@@ -771,7 +771,7 @@ def accuracy_worker(name: str, run: str) -> None:
     """Run in a subprocess: one of :data:`ACCURACY_RUNS` of a shipped scene, one JSON line with its answer, its
     wall time (``Scene.run()`` with no mesh or rest cache: loading the mesh, the rest, the pickup; the numba
     kernels loaded before) and the error it states."""
-    from fem_grasp.grasp.accuracy import answer_of
+    from fem_grasp.grasp.answer import answer_of
     from fem_grasp.io.scene import Scene
 
     scene = Scene.load(name)

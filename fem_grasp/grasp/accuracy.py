@@ -51,18 +51,8 @@ not held), and a ramp's cost is in proportion to 1/h.  The convergence study
 halved and quartered h at a fixed mesh and increment on all five objects:
 ρ* and the finger force did not change (``make converge``, series ``h``).
 
-Definitions (:class:`GraspAnswer`)
-----------------------------------
-* ρ*: ``result.squeeze_depth``, the squeeze depth when the successful lift
-  started (or where the squeeze stopped, on failure);
-* per finger, at the final snapshot (lift-off on success): the resultant
-  F_f = Σ f_k of its contact forces on the object — its norm |F_f|, its
-  component F_f·d̂_f along the finger's own squeeze direction (the grip) and
-  F_f·ẑ (the part of the weight it carries) — and its contact-node count;
-* the finger force: Σ f·n̂ over both patches (Table III's total normal force,
-  ``result.finger_normal_force``);
-* the table's contact-node count at the lift start;
-* w(ρ): ``result.liftable``.
+The answer a level gives is a :class:`~fem_grasp.grasp.answer.GraspAnswer` (the quantities and their definitions:
+:mod:`fem_grasp.grasp.answer`).
 """
 
 from __future__ import annotations
@@ -75,11 +65,12 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from .answer import GraspAnswer, answer_of, failure_kind, finger_nodes, passed, patch_points
 from .estimates import estimate, relative_change, sequence_uncertainty
 from .options import MAX_FINGER_CONTACTS as _MAX_FINGER_CONTACTS
 from .options import PickupOptions
 
-__all__ = ["GraspAnswer", "AccuracyLevel", "AccuracyReport", "answer_of", "patch_points", "single_run_report",
+__all__ = ["AccuracyLevel", "AccuracyReport", "single_run_report",
            "next_step", "predicted_mesh_error", "predicted_level_seconds", "first_lift_test", "FIRST_TEST_MARGIN", "placement_target", "estimated_error",
            "three_level_errors", "converged_pickup", "TWO_LEVEL_SAFETY", "LEVEL_COST_GROWTH", "LEVEL_RATIO",
            "STEP_SHARE", "FINE_STEP_SHARE", "STEP_DIVISIONS", "DEFAULT_ACCURACY", "MAX_LEVELS",
@@ -98,116 +89,6 @@ MAX_LEVELS = 4
 #: algebra is dense in them (the (3m)² reduced stiffness, its factorisations, the hanging patch's return mappings).
 #: The loop then stops with the last level's answer and its estimated error.
 MAX_FINGER_CONTACTS = _MAX_FINGER_CONTACTS
-
-
-# =============================================================== the answer
-@dataclass(frozen=True)
-class GraspAnswer:
-    """The quantities a pickup answers (module notes, "Definitions").
-
-    Attributes
-    ----------
-    success : the object was lifted off the table
-    reason : why not (empty on success)
-    squeeze_depth : ρ*, metres
-    finger_force : Σ f·n̂ over both fingers' contacts at the final snapshot, newtons
-    fingers : per finger, {"resultant", "along_squeeze", "vertical", "nodes"} (newtons; count)
-    table_nodes : table contacts at the lift start (at the end of the squeeze on failure)
-    max_liftable : the largest w(ρ) of the lift test, newtons
-    weight : mg, newtons
-    liftable : [(ρ, w)] of the lift test
-    n_vertices : vertices of the mesh
-    step, lift_test_step : squeeze increment (m) and lift-test step h (N) used
-    seconds : wall time of the pickup (rest included)
-    step_divisions : sub-increments of the passing increment (``PickupOptions.step_divisions``)
-    """
-
-    success: bool
-    reason: str
-    squeeze_depth: float
-    finger_force: float
-    fingers: tuple[dict[str, float], dict[str, float]]
-    table_nodes: int
-    max_liftable: float
-    weight: float
-    liftable: tuple[tuple[float, float], ...]
-    n_vertices: int
-    step: float
-    lift_test_step: float
-    seconds: float
-    step_divisions: int = 1
-
-    @property
-    def resolution(self) -> float:
-        """The resolution of ρ*, metres: the increment in which the lift test passed, divided as it was."""
-        return self.step / self.step_divisions
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"success": self.success, "reason": self.reason, "squeeze_depth": self.squeeze_depth,
-                "finger_force": self.finger_force, "fingers": [dict(f) for f in self.fingers],
-                "table_nodes": self.table_nodes, "max_liftable": self.max_liftable, "weight": self.weight,
-                "liftable": [list(x) for x in self.liftable], "n_vertices": self.n_vertices, "step": self.step,
-                "lift_test_step": self.lift_test_step, "seconds": self.seconds,
-                "step_divisions": self.step_divisions}
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> "GraspAnswer":
-        return cls(bool(d["success"]), d.get("reason", ""), float(d["squeeze_depth"]), float(d["finger_force"]),
-                   tuple(dict(f) for f in d["fingers"]), int(d["table_nodes"]), float(d["max_liftable"]),
-                   float(d["weight"]), tuple(tuple(x) for x in d["liftable"]), int(d["n_vertices"]),
-                   float(d["step"]), float(d["lift_test_step"]), float(d["seconds"]),
-                   int(d.get("step_divisions", 1)))
-
-
-def answer_of(result: Any, seconds: float | None = None) -> GraspAnswer:
-    """The :class:`GraspAnswer` of a :class:`~fem_grasp.grasp.pickup.PickupResult`."""
-    from ..contact.obstacles import FINGER1, FINGER2
-
-    fin = result.final
-    fingers = []
-    table_nodes = 0
-    if fin is not None:
-        for f, name in ((FINGER1, "finger1"), (FINGER2, "finger2")):
-            total = np.asarray(fin.contact_forces[name], float).sum(axis=0) if len(fin.contact_nodes[name]) \
-                else np.zeros(3)
-            d = np.asarray(result.directions[f], float)
-            d = d / np.linalg.norm(d)
-            fingers.append({"resultant": float(np.linalg.norm(total)), "along_squeeze": float(total @ d),
-                            "vertical": float(total[2]), "nodes": int(len(fin.contact_nodes[name]))})
-        start = next((s for s in reversed(result.snapshots) if s.label.startswith("lift start")), fin)
-        table_nodes = int(len(start.contact_nodes["table"]))
-    else:
-        fingers = [{"resultant": 0.0, "along_squeeze": 0.0, "vertical": 0.0, "nodes": 0}] * 2
-    lt = float(getattr(result, "lift_test_step", 0.0) or 0.0)
-    return GraspAnswer(bool(result.success), str(result.reason), float(result.squeeze_depth),
-                       float(result.finger_normal_force), (fingers[0], fingers[1]), table_nodes,
-                       float(max((w for _, w in result.liftable), default=0.0)), float(result.body.weight),
-                       tuple((float(r), float(w)) for r, w in result.liftable), int(result.body.n_nodes),
-                       float(result.step), lt,
-                       float(result.timings.get("total", 0.0) if seconds is None else seconds),
-                       int(getattr(result, "step_divisions", 1)))
-
-
-def patch_points(result: Any) -> tuple[np.ndarray, np.ndarray]:
-    """Where the contacts were: (finger points (k, 3), table points (l, 3)) in the frame of the body's mesh.
-
-    Every node that touched a fingertip in any snapshot of the squeeze and the
-    lift, and every node that touched the table at rest or later, at its
-    reference position (node indices are shared by the posed and the given
-    body, so no pose is needed).
-    """
-    pts = result.body.mesh.points  # the posed body: same numbering, posed frame
-    rs = result.rest
-    # Positions in the frame of the body as given: undo the rest's rigid motion (posed = R p + t).
-    rot, trans = rs.pose.rotation, rs.pose.translation
-    ref = (pts - trans) @ rot  # R^T (q - t), row-wise
-    fingers, table = set(), set(int(k) for k in rs.contact_nodes)
-    for s in list(result.snapshots) + ([result.final] if result.final is not None else []):
-        fingers.update(int(k) for k in s.contact_nodes["finger1"])
-        fingers.update(int(k) for k in s.contact_nodes["finger2"])
-        table.update(int(k) for k in s.contact_nodes["table"])
-    fingers.update(int(k) for k in result.finger_nodes if k >= 0)
-    return ref[sorted(fingers)], ref[sorted(table)]
 
 
 # ============================================================== estimation
@@ -379,7 +260,7 @@ def first_lift_test(levels: Sequence[AccuracyLevel]) -> float | None:
     """The depth from which the next level runs its lift tests (``PickupOptions.first_lift_test``): the last level's
     ρ* less :data:`FIRST_TEST_MARGIN` of it; None (every increment) when the last level was not picked up."""
     last = levels[-1]
-    if not _passed(last.answer) or not last.answer.squeeze_depth > 0:
+    if not passed(last.answer) or not last.answer.squeeze_depth > 0:
         return None
     return last.answer.squeeze_depth * (1.0 - FIRST_TEST_MARGIN)
 
@@ -463,7 +344,7 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
     t0 = time.perf_counter()
     result = pickup(body, opts, rest_state=rest_state, settings=settings)
     ans = answer_of(result, time.perf_counter() - t0)
-    fin_nodes = _finger_nodes(result)
+    fin_nodes = finger_nodes(result)
     inner = spacing(body.mesh, fin_nodes)
     outer = spacing(body.mesh)
     report.levels.append(AccuracyLevel(0, inner, outer, ans))
@@ -547,11 +428,11 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         ans = answer_of(result, time.perf_counter() - t0)
         change = {"squeeze_depth": relative_change(before.squeeze_depth, ans.squeeze_depth),
                   "finger_force": relative_change(before.finger_force, ans.finger_force)}
-        if not (_passed(ans) or _passed(before)):
+        if not (passed(ans) or passed(before)):
             # Two failures agree only when they fail the same way and the fingers could hold as much:
             # where a squeeze stops says little (both at the maximum depth agree trivially).
             change["max_liftable"] = abs(ans.max_liftable - before.max_liftable) / ans.weight
-            if _failure_kind(ans.reason) != _failure_kind(before.reason):
+            if failure_kind(ans.reason) != failure_kind(before.reason):
                 change["max_liftable"] = math.inf
         report.levels.append(AccuracyLevel(level, inner_l, outer_l, ans, t_mesh, change))
         log.info("accuracy level %d: %d vertices (spacing %.3g mm at the patches), %s, rho* = %.4g mm (change %.2g), "
@@ -564,7 +445,7 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         report.estimated_error = estimated_error(change, ans, three)
         report.three_levels = {k: {"method": u["method"], "order": u["order"], "contraction": u["contraction"],
                                    "spread": u["spread"], "relative": u["relative"]} for k, u in three.items()}
-        if _passed(ans) != _passed(before):
+        if passed(ans) != passed(before):
             report.estimated_error = {"squeeze_depth": math.inf, "finger_force": math.inf}
             report.note = f"the verdict changed between levels {level - 1} and {level}"
         elif max(report.estimated_error.values()) <= accuracy:
@@ -579,7 +460,7 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
     else:
         report.note = report.note or f"not converged to {100 * accuracy:g} % in {max_levels} refinements"
     if len(report.levels) >= 3:
-        ok = [lv for lv in report.levels if _passed(lv.answer) == _passed(report.levels[-1].answer)]
+        ok = [lv for lv in report.levels if passed(lv.answer) == passed(report.levels[-1].answer)]
         if len(ok) >= 3:
             h = [lv.inner_size for lv in ok]
             est = {"squeeze_depth": estimate([lv.answer.squeeze_depth for lv in ok], h),
@@ -615,7 +496,7 @@ def predicted_mesh_error(levels: Sequence[AccuracyLevel]) -> float | None:
     if len(levels) < 2 or levels[-1].change is None:
         return None
     a, b = levels[-2].answer, levels[-1].answer
-    if not (_passed(a) and _passed(b)) or not b.squeeze_depth > 0:
+    if not (passed(a) and passed(b)) or not b.squeeze_depth > 0:
         return None
     res = a.resolution / b.squeeze_depth
     return max(max(0.0, levels[-1].change[q] - res) for q in ("squeeze_depth", "finger_force")) / LEVEL_RATIO
@@ -630,7 +511,7 @@ def next_step(step: float, before: GraspAnswer, accuracy: float, predicted: floa
     larger than the last, so that a level expected to converge follows one resolved as finely (two levels at
     different resolutions differ by the coarser one's quantisation); halved when the level before found no ρ*
     (its verdict: not lifted)."""
-    if not _passed(before) or not before.squeeze_depth > 0:
+    if not passed(before) or not before.squeeze_depth > 0:
         return step / LEVEL_RATIO
     if predicted is None or predicted <= (1.0 - FINE_STEP_SHARE) * accuracy:
         return min(step, FINE_STEP_SHARE * accuracy * before.squeeze_depth)
@@ -659,7 +540,7 @@ def estimated_error(change: dict[str, float], ans: GraspAnswer,
     reference) that spread is nil although the levels drift; levels that show no convergence cannot vouch for
     less than two levels would.
     """
-    q = ans.resolution / ans.squeeze_depth if _passed(ans) and ans.squeeze_depth > 0 else 0.0
+    q = ans.resolution / ans.squeeze_depth if passed(ans) and ans.squeeze_depth > 0 else 0.0
     three = three_levels or {}
     out = {}
     for k in ("squeeze_depth", "finger_force"):
@@ -675,36 +556,13 @@ def estimated_error(change: dict[str, float], ans: GraspAnswer,
     return out
 
 
-def _passed(ans: GraspAnswer) -> bool:
-    """Picked up, or (``lift=False``) stopped because the lift test passed: the verdict the levels compare."""
-    return ans.success or "lift was not run" in ans.reason
-
-
-def _failure_kind(reason: str) -> str:
-    """The class of a failed pickup's reason: where Algorithm 1 stopped."""
-    for key in ("no initial finger placement", "not force closure", "cannot be placed", "squeeze failed",
-                "lift test did not pass", "lift failed", "slides on the finger", "still on the table",
-                "lift was not run"):
-        if key in reason:
-            return key
-    return reason.split(":")[0]
-
-
-def _finger_nodes(result: Any) -> np.ndarray:
-    fin = result.final
-    if fin is None:
-        return np.asarray([k for k in result.finger_nodes if k >= 0], dtype=np.int64)
-    nodes = np.concatenate([fin.contact_nodes["finger1"], fin.contact_nodes["finger2"]])
-    return nodes if len(nodes) else np.asarray([k for k in result.finger_nodes if k >= 0], dtype=np.int64)
-
-
 def single_run_report(result: Any, target: float | None, expected_error: float | None, note: str) -> dict[str, Any]:
     """The ``accuracy`` block of a run made without the loop (``--quick``): one level, not converged, and the
     error the scene states for such a run (``[solver] expected_error``, measured by the convergence study)."""
     from ..mesh.remesh import spacing
 
     ans = answer_of(result)
-    nodes = _finger_nodes(result)
+    nodes = finger_nodes(result)
     level = AccuracyLevel(0, spacing(result.body.mesh, nodes) if len(nodes) else math.nan,
                           spacing(result.body.mesh), ans)
     err = math.inf if expected_error is None else float(expected_error)

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from fem_grasp import Body, box_mesh
-from fem_grasp.grasp.accuracy import STEP_SHARE, answer_of, converged_pickup
+from fem_grasp.grasp.accuracy import STEP_SHARE, converged_pickup
+from fem_grasp.grasp.answer import answer_of
 from fem_grasp.grasp.estimates import relative_change
 from fem_grasp.grasp.pickup import pickup
 from fem_grasp.grasp.rest import rest
@@ -194,7 +195,8 @@ def test_a_time_budget_stops_the_loop_before_a_level_that_would_overrun_it():
 
 
 def test_the_next_levels_time_grows_as_the_last_two_levels_did_and_at_least_fourfold():
-    from fem_grasp.grasp.accuracy import LEVEL_COST_GROWTH, AccuracyLevel, GraspAnswer, predicted_level_seconds
+    from fem_grasp.grasp.accuracy import LEVEL_COST_GROWTH, AccuracyLevel, predicted_level_seconds
+    from fem_grasp.grasp.answer import GraspAnswer
 
     def level(seconds, mesh_seconds=0.0):
         ans = GraspAnswer(True, "", 0.01, 1.0, ({}, {}), 10, 1.0, 1.0, (), 100, 1e-3, 0.05, seconds)

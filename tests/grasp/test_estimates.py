@@ -173,7 +173,7 @@ def test_levels_that_drift_within_their_quantisation_state_no_less_than_two_leve
 
 # ---------------------------------------------------------------- what the next level's resolution costs
 def _answer(rho_mm: float, force: float, resolution_mm: float):
-    from fem_grasp.grasp.accuracy import GraspAnswer
+    from fem_grasp.grasp.answer import GraspAnswer
 
     f = {"resultant": force / 2, "along_squeeze": force / 2, "vertical": 0.1, "nodes": 10}
     return GraspAnswer(True, "", 1e-3 * rho_mm, force, (f, f), 20, 1.0, 1.0, (), 1000, 4e-3 * resolution_mm, 0.05,

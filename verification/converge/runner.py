@@ -39,6 +39,7 @@ def _bracket(liftable: list) -> list[float] | None:
 def run_case(spec: dict[str, Any], record_path: Path | None = None) -> dict[str, Any]:
     """Build the mesh and run the pickup of one case; its record (module notes)."""
     from fem_grasp.grasp import accuracy
+    from fem_grasp.grasp.answer import answer_of
     from fem_grasp.grasp.pickup import pickup
     from fem_grasp.mesh import remesh
 
@@ -60,7 +61,7 @@ def run_case(spec: dict[str, Any], record_path: Path | None = None) -> dict[str,
                                         max_levels=spec.get("max_levels", accuracy.MAX_LEVELS), on_level=partial,
                                         **scene.pickup_kwargs())
         rec["seconds"] = time.perf_counter() - t0
-        rec["answer"] = accuracy.answer_of(res, rec["seconds"]).to_dict()
+        rec["answer"] = answer_of(res, rec["seconds"]).to_dict()
         rec["accuracy"] = res.accuracy
         rec["vertices"] = res.body.n_nodes
         rec["peak_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
@@ -77,7 +78,7 @@ def run_case(spec: dict[str, Any], record_path: Path | None = None) -> dict[str,
     res = pickup(body, **kw)
     rec["pickup_seconds"] = time.perf_counter() - t0
     rec["seconds"] = rec["mesh_seconds"] + rec["pickup_seconds"]
-    ans = accuracy.answer_of(res, rec["pickup_seconds"])
+    ans = answer_of(res, rec["pickup_seconds"])
     rec["answer"] = ans.to_dict()
     rec["vertices"] = mesh.n_points
     rec["tets"] = mesh.n_tets

@@ -26,7 +26,7 @@ QUANTITIES = ("squeeze_depth", "finger_force")
 
 
 def _answer_row(res: Any, seconds: float) -> dict[str, Any]:
-    from fem_grasp.grasp.accuracy import answer_of
+    from fem_grasp.grasp.answer import answer_of
 
     ans = answer_of(res, seconds)
     return {"status": "ok", "success": ans.success, "outcome": getattr(res, "outcome", ""), "reason": ans.reason,
@@ -64,7 +64,8 @@ def run_object(seed: int, config: dict[str, Any], send: Callable[[tuple[str, Any
     does.
     """
     from fem_grasp import Body
-    from fem_grasp.grasp.accuracy import _level_meshes, converged_pickup, patch_points
+    from fem_grasp.grasp.accuracy import _level_meshes, converged_pickup
+    from fem_grasp.grasp.answer import patch_points
     from fem_grasp.grasp.pickup import pickup
     from fem_grasp.mesh.remesh import geometry_of_mesh, nearest_surface_nodes
 
