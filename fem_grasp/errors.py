@@ -14,7 +14,8 @@ Bad input (``ValueError`` subclasses):
 * :class:`SceneError` — scene files and pickup settings, with ``file`` and ``key``; its subclasses
   :class:`DirectionError` (squeeze directions), :class:`ContactNodeError` (contact node indices) and
   :class:`PlacementError` (fingertips that miss the object or start inside it) and :class:`UnitsError` (a mesh
-  whose size or density says it is in another length unit);
+  whose size or density says it is in another length unit), :class:`SearchError` (a placement search that cannot
+  run as asked) and its :class:`SchedulerError` (a Dask scheduler out of reach or without workers);
 * :class:`CollinearContactError` — contact sets that leave a rotation free (Theorem 3).
 
 Computations that cannot go on (``RuntimeError`` subclasses): :class:`FrictionError` (a slip system
@@ -39,8 +40,8 @@ from types import ModuleType
 
 __all__ = ["EXTRAS", "CollinearContactError", "ContactNodeError", "DirectionError", "FrictionError", "LockingWarning",
            "MainGuardError", "MaterialError", "MeshError", "MissingExtraError", "OutputError", "PickupCheckError",
-           "PlacementError", "RelaxationFailure", "RestCheckError", "RestConvergenceError", "SceneError", "SurfaceError",
-           "TrackingError", "UnitsError", "UnitsWarning", "require"]
+           "PlacementError", "RelaxationFailure", "RestCheckError", "RestConvergenceError", "SceneError", "SchedulerError",
+           "SearchError", "SurfaceError", "TrackingError", "UnitsError", "UnitsWarning", "require"]
 
 
 # ------------------------------------------------------------------ bad input
@@ -84,6 +85,14 @@ class ContactNodeError(SceneError):
 
 class PlacementError(SceneError):
     """A fingertip that misses the object, starts inside it, or goes through the table or the other finger."""
+
+
+class SearchError(SceneError):
+    """A search that cannot run as asked (a folder of another search to resume, no candidate, …)."""
+
+
+class SchedulerError(SearchError):
+    """The Dask scheduler cannot be reached, or has no worker, within the connection timeout."""
 
 
 class CollinearContactError(ValueError):

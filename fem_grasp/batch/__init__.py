@@ -7,6 +7,8 @@ and runs them where there is room:
 * :mod:`~fem_grasp.batch.engine` — :func:`search`: a plain loop, a ``dask.distributed.LocalCluster`` of
   worker processes, or an existing Dask scheduler; the shared state sent once per worker, failures recorded,
   dying workers' candidates retried elsewhere;
+* :mod:`~fem_grasp.batch.cluster` — where the candidates run: a plain loop, or tasks on a Dask cluster;
+* :mod:`~fem_grasp.batch.ranking` — the grasps ranked, and those that could be the best within their errors;
 * :mod:`~fem_grasp.batch.store` — the result table written as rows arrive (``results.parquet``,
   ``results.csv``), read back to resume;
 * :mod:`~fem_grasp.batch.report` — the search's ``report.html``.
@@ -15,7 +17,9 @@ dask, pandas and pyarrow are the ``search`` extra (``pip install "fem_grasp[sear
 when a search runs, not with fem_grasp.
 """
 
-from .engine import RANKINGS, SchedulerError, SearchError, SearchResult, rank_table, search
+from ..errors import SchedulerError, SearchError
+from .engine import SearchResult, search
+from .ranking import RANKINGS, rank_table
 from .report import write_search_report
 from .store import ResultStore, read_results, table_of
 

@@ -34,21 +34,21 @@ import datetime
 import json
 import logging
 import math
-import os
 import sys
 import time
-import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable, Iterator, Sequence
 
 from ..elastic.body import Body
-from ..errors import SceneError, require
+from ..errors import SceneError, SchedulerError, SearchError, require
 from ..grasp.candidates import Candidate, CandidateSet, placement_candidates
-from ..grasp.evaluation import SearchSetup, error_row, evaluate, evaluator_for
+from ..grasp.evaluation import SearchSetup, evaluator_for
 from ..grasp.options import PickupOptions
 from ..io.cache import cached_rest, rest_code_digest
 from ..io.output import MARKER, add_to_marker, atomic_write_text, json_safe, package_version, prepare_out_dir
+from .cluster import dask_client, run_on_dask, run_serial
+from .ranking import ERROR_COLUMNS, RANKINGS, rank_table
 from .store import CSV_FILE, FILE_COLUMNS, PARQUET_FILE, ResultStore, read_results
 
 __all__ = ["ERROR_COLUMNS", "MANIFEST", "RANKINGS", "SCHEMA", "SchedulerError", "SearchError", "SearchResult", "rank_table",
@@ -60,20 +60,6 @@ log = logging.getLogger(__name__)
 MANIFEST = "search.json"
 SCHEMA = "fem_grasp.search"
 SCHEMA_VERSION = 1
-#: How grasps that pick the object up are ranked: column, ascending.
-RANKINGS = {
-    "force": ("finger_normal_force", True),   # the least finger normal force at lift-off (Table III's measure)
-    "squeeze": ("rho_star", True),            # the least squeeze depth ρ*
-    "margin": ("margin", False),              # the largest w(ρ*)/mg when the lift starts
-}
-
-
-class SearchError(SceneError):
-    """A search that cannot run as asked (a folder of another search to resume, no candidate, …)."""
-
-
-class SchedulerError(SearchError):
-    """The Dask scheduler cannot be reached, or has no worker, within the connection timeout."""
 
 
 @dataclass
@@ -131,60 +117,6 @@ class SearchResult:
     @property
     def n_errors(self) -> int:
         return int((self.table["status"] == "error").sum())
-
-
-#: The rankings whose quantity a scene's stated error (``solver.expected_error``: of ρ* and the finger force) covers.
-_STATED = {"force", "squeeze"}
-#: Each ranking's column of per-candidate estimated relative errors (the accuracy loop's).
-ERROR_COLUMNS = {"force": "error_finger_force", "squeeze": "error_rho_star"}
-
-
-def rank_table(table: Any, by: str = "force", error: float | None = None, *, per_row: bool = False) -> Any:
-    """``table`` ranked: the grasps (``grasped``: picked up, or the lift test passed when the lift is not
-    simulated) first, best first by :data:`RANKINGS` ``[by]``; then the others by how close they came (margin,
-    largest first); errors last.  Adds ``rank`` (1, 2, … for the grasps, 0 for the rest) and ``within_error``: the
-    grasps whose ranking quantity q could be the best one's q₁ given their errors, so that the best one itself and
-    every grasp flagged could be the best.
-
-    * ``per_row``: each answer carries its own estimated relative error e (the columns ``error_finger_force`` and
-      ``error_rho_star`` of a search with an accuracy target, :data:`ERROR_COLUMNS`), and a grasp overlaps the best
-      when |q − q₁| ≤ e·|q| + e₁·|q₁|; a grasp whose error, or the best one's, is not known (NaN) or unbounded (inf)
-      is flagged: it could be the best;
-    * else ``error``, the one relative error every answer carries (the scene's stated ``expected_error`` of ρ* and
-      the finger force, one run on its mesh): the same rule with e = e₁, |q − q₁| ≤ e (|q| + |q₁|); all flagged when
-      it is inf, none when it is not known (None).
-
-    No grasp is flagged for a ranking the errors do not cover (``margin``)."""
-    if by not in RANKINGS:
-        raise SearchError(f"unknown ranking {by!r}; choose one of {sorted(RANKINGS)}")
-    col, ascending = RANKINGS[by]
-    ok = table[table["grasped"]].sort_values([col, "candidate"], ascending=[ascending, True], kind="stable")
-    rest = table[~table["grasped"] & (table["status"] == "ok")].sort_values(
-        ["margin", "candidate"], ascending=[False, True], kind="stable")
-    err = table[table["status"] != "ok"].sort_values("candidate", kind="stable")
-    import numpy as np
-    import pandas as pd
-
-    ranked = pd.concat([ok, rest, err]).reset_index(drop=True)
-    ranked.insert(0, "rank", [k + 1 if k < len(ok) else 0 for k in range(len(ranked))])
-    within = np.zeros(len(ranked), dtype=bool)
-    if by in _STATED and len(ok):
-        q = ranked[col].to_numpy(float)[:len(ok)]
-        if per_row:
-            if ERROR_COLUMNS[by] not in ranked:
-                raise SearchError(f"per-row errors: the table has no column {ERROR_COLUMNS[by]!r}")
-            e = ranked[ERROR_COLUMNS[by]].to_numpy(float)[:len(ok)]
-        elif error is not None and error >= 0:
-            e = np.full(len(ok), float(error))
-        else:
-            e = None
-        if e is not None:
-            unknown = ~np.isfinite(e) | ~np.isfinite(e[0])
-            with np.errstate(invalid="ignore"):
-                near = np.abs(q - q[0]) <= e * np.abs(q) + e[0] * abs(q[0])
-            within[:len(ok)] = unknown | near
-    ranked["within_error"] = within
-    return ranked
 
 
 # ------------------------------------------------------------------ the object
@@ -260,87 +192,6 @@ def _stamp(row: dict[str, Any], error: float | None) -> dict[str, Any]:
         if not int(row.get("levels", -1)) >= 1:
             row["levels"] = 1
     return row
-
-
-# ------------------------------------------------------------------ the engine
-def _identity(x: Any) -> Any:
-    """The task that hands the setup to the workers (recomputable if the worker holding it dies)."""
-    return x
-
-
-@contextlib.contextmanager
-def _dask(client: Any, scheduler: str | None, workers: int | None, connect_timeout: float
-          ) -> Iterator[tuple[Any, str, float]]:
-    """A Dask client: the caller's, one connected to ``scheduler``, or one of a LocalCluster; with its name and
-    its start-up time."""
-    t0 = time.perf_counter()
-    distributed = require("dask.distributed", "search", "A search on Dask (workers=0, --workers 0: a plain loop)")
-    Client, LocalCluster = distributed.Client, distributed.LocalCluster
-    if client is not None:
-        yield client, f"the given client ({client.scheduler.address})", 0.0
-        return
-    if scheduler:
-        try:
-            c = Client(scheduler, timeout=connect_timeout)
-        except (OSError, TimeoutError) as exc:
-            raise SchedulerError(f"cannot reach the Dask scheduler at {scheduler} within {connect_timeout:g} s "
-                                 f"({type(exc).__name__}: {exc}); start one with `dask scheduler` and workers with "
-                                 f"`dask worker {scheduler}`") from None
-        try:
-            try:
-                c.wait_for_workers(1, timeout=connect_timeout)
-            except (OSError, TimeoutError):
-                raise SchedulerError(f"the Dask scheduler at {scheduler} has no worker after {connect_timeout:g} s; "
-                                     f"start some with `dask worker {scheduler} --nthreads 1`") from None
-            n = len(c.scheduler_info(n_workers=-1)["workers"])
-            yield c, f"scheduler {scheduler} ({n} workers)", time.perf_counter() - t0
-        finally:
-            c.close()
-        return
-    n = int(workers) if workers else (os.cpu_count() or 1)
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, host="127.0.0.1",
-                           dashboard_address=None, silence_logs=logging.ERROR)
-    c = Client(cluster)
-    try:
-        yield c, f"local cluster of {n} worker process{'es' if n != 1 else ''}", time.perf_counter() - t0
-    finally:
-        c.close()
-        cluster.close()
-
-
-def _killed_message(exc: BaseException) -> str:
-    name = type(exc).__name__
-    if name == "KilledWorker":
-        return (f"KilledWorker: the workers evaluating this candidate died (Dask gave up after "
-                f"distributed.scheduler.allowed-failures deaths): {exc}")
-    return f"{name}: {exc}"
-
-
-def _run_dask(client: Any, setup: SearchSetup, todo: Sequence[Candidate], on_row: Callable[[dict], None]) -> None:
-    from dask.distributed import as_completed
-
-    token = uuid.uuid4().hex[:8]
-    shared = client.submit(_identity, setup, key=f"fem-grasp-setup-{setup.key[:12]}-{token}", pure=False)
-    futures = {client.submit(evaluate, shared, c, key=f"fem-grasp-{c.key}-{token}", pure=False, retries=1): c
-               for c in todo}
-    try:
-        for fut in as_completed(futures):
-            cand = futures[fut]
-            if fut.status == "finished":
-                row = fut.result()
-            else:
-                exc = fut.exception()
-                row = error_row(cand, _killed_message(exc))
-                row["worker"] = "?"
-            fut.release()
-            on_row(row)
-    finally:
-        client.cancel(list(futures) + [shared])
-
-
-def _run_serial(setup: SearchSetup, todo: Sequence[Candidate], on_row: Callable[[dict], None]) -> None:
-    for c in todo:
-        on_row(evaluate(setup, c))
 
 
 # ------------------------------------------------------------------ the folder
@@ -574,12 +425,12 @@ def search(scene: Any, out: str | Path | None = None, *, candidates: int = 64, h
         if todo and workers == 0 and client is None and not scheduler:
             timings["engine start"] = 0.0
             t0 = time.perf_counter()
-            _run_serial(setup, todo, arrived)
+            run_serial(setup, todo, arrived)
         elif todo:
-            with _dask(client, scheduler, workers, connect_timeout) as (c, engine, started):
+            with dask_client(client, scheduler, workers, connect_timeout) as (c, engine, started):
                 timings["engine start"] = started
                 t0 = time.perf_counter()
-                _run_dask(c, setup, todo, arrived)
+                run_on_dask(c, setup, todo, arrived)
         else:
             timings["engine start"] = 0.0
             engine = "none (every candidate was done)"
