@@ -9,7 +9,8 @@ reach 300).  :func:`lu_factor` calls LAPACK's dgetrf — scipy's ``lu_factor``
 itself without numba, numba's own binding of the same routine (the one behind
 its ``np.linalg.inv``) when compiled — so the factors are scipy's (bit for bit at the same BLAS thread count;
 OpenBLAS blocks the factorisation by its threads, so across processes they agree to round-off);
-:func:`lu_solve` applies them (row swaps and two triangular solves, O(n²)).
+:func:`lu_solve` applies them (row swaps and two triangular solves, O(n²)), :func:`lu_solve_transposed` solves
+with Aᵀ, and :func:`inverse_norm1_estimate` estimates ‖A⁻¹‖₁ from them as LAPACK's condition estimate does.
 """
 
 from __future__ import annotations
@@ -19,10 +20,10 @@ import scipy.linalg
 
 from .jit import ENABLED, jit
 
-__all__ = ["ENTRY_POINTS", "lu_factor", "lu_solve"]
+__all__ = ["ENTRY_POINTS", "inverse_norm1_estimate", "lu_factor", "lu_solve", "lu_solve_transposed"]
 
 #: The kernel the warm-up must reach (through the kernels that call it; :func:`lu_factor` is compiled into them).
-ENTRY_POINTS = ("lu_solve",)
+ENTRY_POINTS = ("lu_solve", "lu_solve_transposed", "inverse_norm1_estimate")
 
 
 def lu_factor(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
@@ -62,7 +63,10 @@ if ENABLED:
 
 @jit
 def lu_solve(lu, piv, b):
-    """x with A x = b from :func:`lu_factor`'s factors of A (scipy's ``lu_solve``: the row swaps, then L and U)."""
+    """x with A x = b from :func:`lu_factor`'s factors of A (scipy's ``lu_solve``: the row swaps, then L and U).
+
+    Column by column, as LAPACK's reference dtrsv: the factors are in Fortran order, so each step reads one column
+    contiguously (four times faster than row by row at 840 unknowns, where the polish of a fine patch solves)."""
     n = lu.shape[0]
     x = b.copy()
     for k in range(n):
@@ -71,14 +75,81 @@ def lu_solve(lu, piv, b):
             tmp = x[k]
             x[k] = x[q]
             x[q] = tmp
-    for i in range(n):
-        s = x[i]
-        for k in range(i):
-            s -= lu[i, k] * x[k]
-        x[i] = s
-    for i in range(n - 1, -1, -1):
-        s = x[i]
-        for k in range(i + 1, n):
-            s -= lu[i, k] * x[k]
-        x[i] = s / lu[i, i]
+    for k in range(n):  # L, unit diagonal
+        xk = x[k]
+        for i in range(k + 1, n):
+            x[i] -= lu[i, k] * xk
+    for k in range(n - 1, -1, -1):  # U
+        x[k] /= lu[k, k]
+        xk = x[k]
+        for i in range(k):
+            x[i] -= lu[i, k] * xk
     return x
+
+
+@jit
+def lu_solve_transposed(lu, piv, b):
+    """x with Aᵀ x = b from :func:`lu_factor`'s factors of A (PA = LU: Uᵀ, then Lᵀ, then the row swaps undone)."""
+    n = lu.shape[0]
+    x = b.copy()
+    for k in range(n):  # Uᵀ: lower triangular, column k of U is row k of Uᵀ (contiguous)
+        s = x[k]
+        for i in range(k):
+            s -= lu[i, k] * x[i]
+        x[k] = s / lu[k, k]
+    for k in range(n - 1, -1, -1):  # Lᵀ, unit diagonal
+        s = x[k]
+        for i in range(k + 1, n):
+            s -= lu[i, k] * x[i]
+        x[k] = s
+    for k in range(n - 1, -1, -1):
+        q = piv[k]
+        if q != k:
+            tmp = x[k]
+            x[k] = x[q]
+            x[q] = tmp
+    return x
+
+
+@jit
+def inverse_norm1_estimate(lu, piv):
+    """An estimate of ‖A⁻¹‖₁ from :func:`lu_factor`'s factors of A: Hager's method with Higham's refinements, as
+    LAPACK's dlacn2 (what dgecon, and so scipy's condition estimate, uses): at most five solves with A and with
+    Aᵀ and one more, O(n²), against n solves for ‖A⁻¹‖₁ itself.  A lower bound, in practice within a factor of a
+    few and most often exact (N. J. Higham, ACM TOMS 14, 1988)."""
+    n = lu.shape[0]
+    if n == 0:
+        return 0.0
+    x = np.full(n, 1.0 / n)
+    est = 0.0
+    j_prev = -1
+    for it in range(5):
+        y = lu_solve(lu, piv, x)
+        norm = 0.0
+        for i in range(n):
+            norm += abs(y[i])
+        if it > 0 and norm <= est:
+            break
+        est = norm
+        xi = np.empty(n)
+        for i in range(n):
+            xi[i] = 1.0 if y[i] >= 0.0 else -1.0
+        z = lu_solve_transposed(lu, piv, xi)
+        j = 0
+        for i in range(1, n):
+            if abs(z[i]) > abs(z[j]):
+                j = i
+        if it > 0 and (j == j_prev or abs(z[j]) <= abs(z[j_prev])):
+            break
+        j_prev = j
+        x = np.zeros(n)
+        x[j] = 1.0
+    # Higham's alternating vector guards against the cases where the iteration stops early.
+    alt = np.empty(n)
+    for i in range(n):
+        alt[i] = (-1.0) ** i * (1.0 + i / max(n - 1, 1))
+    y = lu_solve(lu, piv, alt)
+    norm = 0.0
+    for i in range(n):
+        norm += abs(y[i])
+    return max(est, 2.0 * norm / (3.0 * n))

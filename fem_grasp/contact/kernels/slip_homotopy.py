@@ -37,9 +37,9 @@ CORRECTOR_ITERS = 6
 @jit
 def _lin_solve(a, b):
     """``homotopy._lin_solve``: (detail code, x), code 0 when solved; singular when the matrix or right-hand side is
-    not finite, the matrix is zero, or its 1-norm condition number exceeds 1e14 (here ‖A‖₁‖A⁻¹‖₁ itself, where
-    LAPACK's gecon estimates ‖A⁻¹‖₁ from below: a matrix within a factor of a few of the limit may be judged
-    singular here and not there)."""
+    not finite, the matrix is zero, or its 1-norm condition number exceeds 1e14, ‖A‖₁ times ‖A⁻¹‖₁ estimated from
+    the LU factors as LAPACK's gecon estimates it (:func:`~fem_grasp.contact.kernels.dense.inverse_norm1_estimate`,
+    O(n²))."""
     n = a.shape[0]
     if not (np.isfinite(a).all() and np.isfinite(b).all()):
         return 1, b
@@ -54,16 +54,7 @@ def _lin_solve(a, b):
     lu, piv, info = dense.lu_factor(a)
     if info > 0:
         return 3, b
-    inv_norm = 0.0
-    e = np.zeros(n)
-    for col in range(n):
-        e[:] = 0.0
-        e[col] = 1.0
-        z = dense.lu_solve(lu, piv, e)
-        s = 0.0
-        for i in range(n):
-            s += abs(z[i])
-        inv_norm = max(inv_norm, s)
+    inv_norm = dense.inverse_norm1_estimate(lu, piv)
     if not (np.isfinite(inv_norm) and anorm * inv_norm < COND_MAX):
         return 3, b
     return 0, dense.lu_solve(lu, piv, b)
