@@ -268,10 +268,16 @@ class ContactResponse:
 
     @cached_property
     def _inverse(self) -> np.ndarray:
-        """M⁻¹ ((3m+6)-square): from the LU factors, or kept up to date by :meth:`neighbour`."""
+        """M⁻¹ ((3m+6)-square): from the LU factors (LAPACK's getri: a third of the time of n solves at 850 rows), or
+        kept up to date by :meth:`neighbour`."""
         n = len(self.dofs) + 6
+        lu, piv = self._lu
+        getri, getri_lwork = la.lapack.get_lapack_funcs(("getri", "getri_lwork"), (lu,))
         with blas_threads_for(n):
-            return la.lu_solve(self._lu, np.eye(n), check_finite=False)
+            inverse, info = getri(lu, piv, lwork=max(int(getri_lwork(n)[0]), 1))
+        if info != 0:  # a zero pivot: the constructor's condition test refuses such a set before this is asked
+            raise np.linalg.LinAlgError(f"M is singular (getri info {info})")
+        return inverse
 
     @cached_property
     def reduced_stiffness(self) -> np.ndarray:
