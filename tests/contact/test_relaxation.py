@@ -308,3 +308,24 @@ def test_the_static_state_does_not_depend_on_where_the_sweeps_start():
         moved = relax_contacts(c, f0, q0, centers, UP, mu_k, fs, start=(wrong.status, wrong.displacements,
                                                                         wrong.motions))
         assert_same_relaxation(outcome(moved, fs), outcome(held, fs))
+
+
+def test_a_contact_whose_own_block_is_singular_still_slides_onto_its_cone():
+    """With exactly three contacts each one's own stiffness block C_kk is singular (a rigid turn about the line
+    through the other two moves that contact alone), so its smallest eigenvalue, which bounds the slide's ray
+    search, is zero up to round-off and may be exactly zero: the sweep must not divide by it.  A table contact
+    pressed with 10 N and pushed sideways with 30 N (μ = 0.5), its record's smallest eigenvalue set to 0, slides
+    until its tangential force is μ times its normal force."""
+    from fem_grasp.contact.kernels import gauss_seidel as gs
+
+    stiffness = 1e4 * np.eye(3)
+    rec = gs.contact_records(np.zeros((1, 3)), [None], np.array([0.0, 0.0, 1.0]), stiffness[None])
+    rec[0, gs.REC_KMIN] = 0.0
+    f = np.array([[30.0, 0.0, 10.0]])
+    d, u = np.zeros((1, 3)), np.zeros((1, 2))
+    has_u, status = np.zeros(1, np.int64), np.full(1, gs.STICK, np.int64)
+    code, _, _, _, unsolved = gs.sweep(rec, stiffness.T.copy(), f, d, u, has_u, status, np.array([0.5]), 1e-12,
+                                       1e-12, 0.1, np.zeros((1, 10)), np.zeros(3))
+    assert code == gs.OK and unsolved == -1 and status[0] == gs.SLIDE
+    assert f[0, 2] == pytest.approx(10.0, rel=1e-12)
+    assert np.hypot(f[0, 0], f[0, 1]) == pytest.approx(0.5 * f[0, 2], rel=1e-9)

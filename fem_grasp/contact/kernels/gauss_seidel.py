@@ -362,8 +362,10 @@ def sweep(rec, ct, f, d, u, has_u, status, mu, stick_tol, local_tol, max_slip, m
             if x0 * n0 + x1 * n1 + x2 * n2 >= 0.0:
                 st = RELEASE
             else:
-                amax = max(abs(fs0), abs(fs1), abs(fs2)) * 1e3 / g[REC_KMIN]
-                amax = min(max_slip, amax)
+                # With three contacts each C_kk is singular (a rigid turn about the line through the other two
+                # moves k alone): its smallest eigenvalue is zero up to round-off, and bounds nothing.
+                kmin = g[REC_KMIN]
+                amax = min(max_slip, max(abs(fs0), abs(fs1), abs(fs2)) * 1e3 / kmin) if kmin > 0.0 else max_slip
                 if g[REC_SPHERE] != 0.0:
                     amax = min(amax, g[REC_RADIUS])
                 warm = has_u[k] != 0
