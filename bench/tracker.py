@@ -305,7 +305,8 @@ def compare_search(base: dict[str, dict[str, Any]], new: dict[str, dict[str, Any
         same_events &= all(a.get(c) == b.get(c) for c in SEARCH_EVENTS)
         rho = gap(a["rho_star"], b["rho_star"]) / max(abs(a["rho_star"] or 0.0), 1e-300)
         steps = _steps_apart(a["rho_star"], b["rho_star"], a.get("step"), b.get("step"))
-        force = max(gap(a[c], b[c]) for c in SEARCH_FORCES) / a["weight"]
+        weight = a["weight"] or b["weight"]  # none on a placement whose pickup raised (an error row)
+        force = max(gap(a[c], b[c]) for c in SEARCH_FORCES) / (weight or 1.0)
         rho_max, steps_max, force_max = max(rho_max, rho), max(steps_max, steps), max(force_max, force)
         if unequal or steps > SAME_RHO_STEPS or force > SAME_FORCE:
             what = [f"{c} {a[c]} -> {b[c]}" for c in unequal]
