@@ -12,8 +12,12 @@ kinds of solve inside it are the opposite case, and get the threads back:
 * dense factorisations and solves of :data:`DENSE_THREADS_MIN` rows or more
   (the contact responses of large contact sets): under
   ``python -m bench.profile --orange 30000`` their LU solves took 0.80 s
-  against 1.34 s on one thread; by hand, two threads start to pay at about
-  400 rows.
+  against 1.34 s on one thread.  On the idle 2-core AMD EPYC an LU takes as
+  long on two threads as on one up to 840 rows (12 ms; at 400 rows 2.0
+  against 1.6 ms) and pays from about 1,200 (26 against 31 ms; 78 against
+  129 ms at 2,000); with the other core busy, two threads took 28 against
+  17 ms at 840 rows and 20 against 0.2 ms at 150 (the second thread waits
+  for a core), so they are kept for sizes where they pay.
 
 threadpoolctl is optional: without it nothing is limited.
 """
@@ -26,7 +30,7 @@ from typing import Any, Iterator
 __all__ = ["one_blas_thread", "outer_blas_threads", "blas_threads_for", "DENSE_THREADS_MIN"]
 
 #: Dense systems of at least this many rows are solved on every BLAS thread, also while tracking (module notes).
-DENSE_THREADS_MIN = 400
+DENSE_THREADS_MIN = 1200
 
 #: (controller, BLAS threads before the limit) of each active :func:`one_blas_thread`, outermost first.
 _LIMITS: list[tuple[Any, int]] = []
