@@ -125,9 +125,7 @@ def inverse_norm1_estimate(lu, piv):
     j_prev = -1
     for it in range(5):
         y = lu_solve(lu, piv, x)
-        norm = 0.0
-        for i in range(n):
-            norm += abs(y[i])
+        norm = _norm1(y)
         if it > 0 and norm <= est:
             break
         est = norm
@@ -148,8 +146,12 @@ def inverse_norm1_estimate(lu, piv):
     alt = np.empty(n)
     for i in range(n):
         alt[i] = (-1.0) ** i * (1.0 + i / max(n - 1, 1))
-    y = lu_solve(lu, piv, alt)
-    norm = 0.0
-    for i in range(n):
-        norm += abs(y[i])
-    return max(est, 2.0 * norm / (3.0 * n))
+    return max(est, 2.0 * _norm1(lu_solve(lu, piv, alt)) / (3.0 * n))
+
+
+@jit
+def _norm1(v):
+    out = 0.0
+    for x in v:
+        out += abs(x)
+    return out
