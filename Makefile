@@ -11,7 +11,7 @@ APT_PACKAGES := python3-dolfinx python3-gmsh python3-venv python3-pip python3-de
 SUDO := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 PYTEST_ARGS ?=
 
-.PHONY: setup test test-pip docs lint demo verify verify-quick meshes spectral-vs-sparse rest-table grasp-height clean-venv paper-scenes converge
+.PHONY: setup test test-pip docs lint demo verify verify-quick meshes spectral-vs-sparse rest-table grasp-height pinned-reference clean-venv paper-scenes converge
 
 setup: $(STAMPS)/venv
 
@@ -125,6 +125,11 @@ spectral-vs-sparse: setup
 # How rho* depends on the grasp's height (the steam bun by default; GRASP_HEIGHT_ARGS="tomato --offsets -2 0 2").
 grasp-height: setup
 	$(PY) scripts/grasp_height.py $(GRASP_HEIGHT_ARGS)
+
+# The answer at the placement rule's own grasp points: uniform meshes with them as nodes, the loop beside
+# (the tomato by default; PINNED_ARGS="orange --vertices 19200 38400 --divisions 4 --write-reference").
+pinned-reference: setup
+	$(PY) scripts/pinned_reference.py $(PINNED_ARGS)
 
 # The rest table of the guide: printed, and written between its markers in docs/physics.md.
 rest-table: setup
