@@ -82,12 +82,16 @@ Sections (``--only NAME``, repeatable; default all):
     (``pickup(..., accuracy=0.05)``, needs gmsh); with the error each run
     states (the scene's ``expected_error``, the loop's estimate, or
     "unknown") and whether it covers the actual one.  One subprocess per run
-    (``--accuracy-cap`` seconds, beyond which the row says "not run");
-    references are read from the study's cache (``--converge-quick``: its
-    quick study), else from the full study's committed references
+    (``--accuracy-cap`` seconds, beyond which the row says "not run").
+    Each run is measured against the object's pinned reference where it
+    has one (the answer at the placement rule's own grasp points, on uniform
+    meshes with those points as nodes: ``scripts/pinned_reference.py``),
+    with its error against the study's beside it; else against the study's
+    reference, read from its cache (``--converge-quick``: its quick study),
+    else from the full study's committed references
     (``verification/converge/references.json``); an object with neither is
-    skipped (``--accuracy-compute`` computes it: hours, minutes for the
-    quick study).
+    skipped (``--accuracy-compute`` computes the study's: hours, minutes for
+    the quick study).
 ``divisions``
     Per shipped scene, the pickup at its squeeze increment s, at s with the
     increment in which the lift test passes divided in four
@@ -733,7 +737,8 @@ def study_references(quick: bool = False, compute: bool = False,
     """Each object's reference answer: the analysis's ``reference`` from the cache of ``python -m verification
     converge`` (``quick``: its quick study), or — for the full study, where the cache holds none — the committed
     one (:mod:`verification.converge.references`, written by the study on the machine that ran it); None where
-    neither has one.  Each carries ``source``: "cache", or the committed entry's study, date and machine.  Its
+    neither has one.  An object's committed pinned reference (the answer at the placement rule's own grasp
+    points, ``references.PINNED``) is kept under that key beside either.  Each carries ``source``: "cache", or the committed entry's study, date and machine.  Its
     verdict is ``success``; on a pickup ``rho`` and ``force`` are each a ``{"value", "error", "method"}``.
 
     Reading analyses the cached records without computing any (as ``--report-only``, which also rewrites the
@@ -750,12 +755,13 @@ def study_references(quick: bool = False, compute: bool = False,
     out: dict[str, dict[str, Any] | None] = {}
     for name in objects:
         ref = (analysis["objects"].get(name) or {}).get("reference")
+        pinned = (committed.get(name) or {}).get(references.PINNED)
         if ref:
-            out[name] = dict(ref, source="cache")
-        elif name in committed:
+            out[name] = dict(ref, source="cache", **({references.PINNED: pinned} if pinned else {}))
+        elif name in committed and "rho" in committed[name]:
             out[name] = committed[name]
         else:
-            out[name] = None
+            out[name] = {references.PINNED: pinned} if pinned else None
     return out
 
 
@@ -764,7 +770,8 @@ def _source(ref: dict[str, Any]) -> str:
     src = ref.get("source")
     if not isinstance(src, dict):
         return "this machine's study cache"
-    return f"verification/converge/references.json: the study of {src.get('date')} on {src.get('machine')}"
+    made = f"`{src['command']}`" if src.get("command") else "the study"
+    return f"verification/converge/references.json: {made} of {src.get('date')} on {src.get('machine')}"
 
 
 def accuracy_worker(name: str, run: str) -> None:
@@ -864,8 +871,11 @@ def run_accuracy_worker(name: str, run: str, cap: float) -> dict[str, Any]:
 
 def section_accuracy(cap: float = 600.0, quick: bool = False, compute: bool = False,
                      objects: tuple[str, ...] = ACCURACY_OBJECTS) -> dict[str, Any]:
-    """Per shipped object, the wall time and the actual error against the convergence study's reference of the one
-    level run, the default and the adaptive loop (module notes); objects without a cached reference are skipped."""
+    """Per shipped object, the wall time and the actual error of the one level run, the default and the adaptive
+    loop (module notes) against the object's reference: its pinned one (the placement rule's own grasp points,
+    :mod:`verification.converge.references`) where it has one, with the error against the study's (each mesh
+    grasping at its own nodes) beside it as ``error_study``; else the study's.  Objects without either are
+    skipped."""
     refs = study_references(quick=quick, compute=compute, objects=objects)
     out: dict[str, Any] = {"study": "quick" if quick else "full", "cap_s": cap, "target": ACCURACY_TARGET,
                            "objects": {}}
@@ -876,14 +886,18 @@ def section_accuracy(cap: float = 600.0, quick: bool = False, compute: bool = Fa
                         "(python -m verification converge%s --objects %s computes it); skipped", name, " --quick" if quick else "", name)
             out["objects"][name] = {"reference": None}
             continue
-        reference = {k: ref.get(k) for k in ("success", "vertices", "rho", "force", "max_liftable", "weight",
-                                             "step", "source")}
+        keys = ("success", "vertices", "rho", "force", "max_liftable", "weight", "step", "source")
+        pinned = ref.get("pinned")
+        study = {k: ref.get(k) for k in keys} if "rho" in ref else None
+        reference = dict({k: pinned.get(k) for k in keys}, kind="pinned") if pinned else dict(study, kind="study")
         rows: dict[str, Any] = {}
         for run, _ in ACCURACY_RUNS:
             raw = run_accuracy_worker(name, run, cap)
             rows[run] = accuracy_errors(raw, reference) if "answer" in raw else raw
+            if "answer" in raw and pinned and study:
+                rows[run]["error_study"] = accuracy_errors(raw, study)["error"]
             log.info("accuracy %s, %s: %s", name, run, rows[run].get("status"))
-        out["objects"][name] = {"reference": reference, "rows": rows}
+        out["objects"][name] = {"reference": reference, "study_reference": study if pinned else None, "rows": rows}
     return out
 
 
@@ -898,8 +912,9 @@ def _pct(x: float | None) -> str:
 
 
 def print_accuracy(sec: dict[str, Any]) -> None:
-    print(f"\n== accuracy: each shipped scene's answer against the convergence study's reference ({sec['study']} "
-          f"study); adaptive at {100 * sec['target']:g} %, cap {sec['cap_s']:g} s per run")
+    print(f"\n== accuracy: each shipped scene's answer against its reference (at the placement rule's grasp points "
+          f"where it has one, else the convergence study's, {sec['study']} study); adaptive at "
+          f"{100 * sec['target']:g} %, cap {sec['cap_s']:g} s per run")
     print("    error: relative to the reference (or 'wrong verdict'); stated: the run's own estimate of its error in "
           "rho* / force\n    (the scene's expected_error, or the adaptive loop's); covers: stated >= actual for both "
           "('NO, ref' where only\n    the stated error plus the reference's own uncertainty covers the difference)")
@@ -917,11 +932,17 @@ def print_accuracy(sec: dict[str, Any]) -> None:
             def band(q: dict[str, Any]) -> str:  # the reference's own uncertainty (inf: a single level, none known)
                 return f"±{_pct(q['error'])} {q['method']}" if math.isfinite(q["error"]) else q["method"]
 
-            print(f"{name:<11} {'reference':<28} {'':>8} {ref['vertices']:8d} {verdict:<22} "
+            label = "reference, rule's grasp" if ref.get("kind") == "pinned" else "reference"
+            print(f"{name:<11} {label:<28} {'':>8} {ref['vertices']:8d} {verdict:<22} "
                   f"{1e3 * rho['value']:8.3f} {band(rho):>15} {force['value']:8.3f} {band(force):>15}"
                   f"  ({_source(ref)})")
         else:
             print(f"{name:<11} {'reference':<28} {'':>8} {ref['vertices']:8d} {verdict:<22}  ({_source(ref)})")
+        study = obj.get("study_reference")
+        if study and study.get("success"):
+            print(f"{'':<11} {'study, grasps at own nodes':<28} {'':>8} {study['vertices']:8d} {'':<22} "
+                  f"{1e3 * study['rho']['value']:8.3f} {'':>15} {study['force']['value']:8.3f} {'':>15}"
+                  f"  ({_source(study)})")
         for run, label in ACCURACY_RUNS:
             r = obj["rows"][run]
             if r["status"] == "cap":
@@ -940,7 +961,9 @@ def print_accuracy(sec: dict[str, Any]) -> None:
             print(f"{'':<11} {label:<28} {r['seconds']:8.1f} {r['vertices']:8d} {v:<22} {1e3 * r['rho']:8.3f} "
                   f"{_pct(e['squeeze_depth']):>15} {r['force']:8.3f} {_pct(e['finger_force']):>15} {stated:>15} "
                   f"{covers:>7}" + (f"  {r['levels']} levels, {'converged' if r['converged'] else 'not converged'}"
-                                    if (r.get("levels") or 0) > 1 else ""))
+                                    if (r.get("levels") or 0) > 1 else "")
+                  + (f"  (study's: {_pct(r['error_study']['squeeze_depth'])} / "
+                     f"{_pct(r['error_study']['finger_force'])})" if r.get("error_study") else ""))
             if (r.get("levels") or 0) > 1 and r.get("level_answers"):
                 print(f"{'':<11} {'':<28} levels: " + "; ".join(
                     f"{v:,} v {1e3 * rho:.3f} mm {f:.3f} N" + ("" if ok else " (not picked up)")

@@ -381,6 +381,38 @@ def test_the_accuracy_section_measures_each_run_against_the_study_reference(monk
     assert "10 %" in text and "yes" in text and "NO" in text
 
 
+def test_the_accuracy_section_measures_against_the_pinned_reference_where_an_object_has_one(monkeypatch, capsys):
+    """Where an object has a reference at the placement rule's own grasp points (pinned), every run's error and
+    whether its statement covers it are against that one; the study's reference (each mesh grasping at its own
+    nodes) gives the second error beside it, and both references are printed."""
+    from bench import bench
+
+    study = {"success": True, "vertices": 50000, "rho": {"value": 0.0107, "error": 0.01, "method": "bracket"},
+             "force": {"value": 6.1, "error": 0.02, "method": "band"}, "max_liftable": 2.0, "weight": 2.0,
+             "step": 1e-4}
+    pinned = {"success": True, "vertices": 31000, "rho": {"value": 0.0100, "error": 0.03, "method": "two meshes"},
+              "force": {"value": 5.6, "error": 0.02, "method": "two meshes"}, "max_liftable": 2.0, "weight": 2.0,
+              "step": 1.5e-4, "source": {"command": "python scripts/pinned_reference.py orange --write-reference",
+                                         "date": "2026-12-04", "machine": "test"}}
+    monkeypatch.setattr(bench, "study_references", lambda quick, compute, objects: {
+        "orange": dict(study, pinned=pinned), "tomato": {"pinned": pinned}})
+    monkeypatch.setattr(bench, "run_accuracy_worker", lambda name, run, cap: _fake_answer(
+        rho=0.0102, force=5.88, stated={"squeeze_depth": 0.03, "finger_force": 0.06}))
+    sec = bench.section_accuracy(cap=7.0, objects=("orange", "tomato"))
+    orange, tomato = sec["objects"]["orange"], sec["objects"]["tomato"]
+    assert orange["reference"]["kind"] == "pinned" and orange["study_reference"]["vertices"] == 50000
+    row = orange["rows"]["default"]
+    assert row["error"]["squeeze_depth"] == pytest.approx(0.02) and row["error"]["finger_force"] == pytest.approx(0.05)
+    assert row["covers"] is True  # 3 % / 6 % stated against 2 % / 5 % off the rule's grasp
+    assert row["error_study"]["squeeze_depth"] == pytest.approx(0.5 / 10.7, rel=1e-6)
+    # an object with only a pinned reference is measured against it, with no study error beside
+    assert tomato["study_reference"] is None and "error_study" not in tomato["rows"]["default"]
+    bench.print_accuracy(sec)
+    text = capsys.readouterr().out
+    assert "reference, rule's grasp" in text and "study, grasps at own nodes" in text
+    assert "pinned_reference.py orange" in text and "(study's: 4.7 % / 3.6 %)" in text
+
+
 def test_the_accuracy_section_runs_a_shipped_scene_in_a_subprocess_within_its_cap():
     """The accuracy section's worker runs the shipped foam block once on its own grid (accuracy off): it picks the
     block up, on the scene's mesh, and states the error the scene states for such a run; a cap shorter than the

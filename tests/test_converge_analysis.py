@@ -217,3 +217,17 @@ def test_the_references_written_from_the_study_are_read_back_by_the_benchmarks_w
     assert refs["football"]["vertices"] == 9  # the committed one
     assert refs["tomato"] is None
     assert bench.study_references(quick=True, objects=("football",))["football"] is None  # quick: the cache only
+
+    # a pinned reference (the rule's grasp) joins the object's entry; the study's rewrite keeps it
+    pinned = {"success": True, "vertices": 31000, "rho": {"value": 0.0101, "error": None, "method": "a single mesh"},
+              "force": {"value": 5.6, "error": 0.03, "method": "a single mesh"}, "points": [[0, 0.03, 0]]}
+    references.write_pinned("orange", pinned, path, machine="test machine")
+    references.write_pinned("steam_bun", pinned, path, machine="test machine")
+    references.write(analysis, path, machine="test machine")
+    kept = references.load(path)
+    assert kept["orange"]["vertices"] == 4800 and kept["orange"]["pinned"]["vertices"] == 31000
+    assert math.isinf(kept["orange"]["pinned"]["rho"]["error"])
+    assert "pinned_reference.py orange" in kept["orange"]["pinned"]["source"]["command"]
+    refs = bench.study_references(objects=("orange", "steam_bun"))
+    assert refs["orange"]["source"] == "cache" and refs["orange"]["pinned"]["force"]["value"] == 5.6
+    assert refs["steam_bun"] == {"pinned": kept["steam_bun"]["pinned"]}  # no study reference, the pinned one
