@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -43,3 +44,12 @@ def test_pinned_reference_grasps_exactly_at_the_rules_points(capsys):
     out = capsys.readouterr().out
     row = next(line for line in out.splitlines() if line.strip().startswith(f"{runs[0]['vertices']:,d}"))
     assert float(row.split()[3]) == pytest.approx(1e3 * runs[0]["answer"].squeeze_depth, abs=1e-3)
+    # its reference: the finest run, uncertain by the next finest mesh's difference (ρ*: at least the increment)
+    entry = module.reference_entry(runs, points, scene.weight)
+    assert entry["rho"]["value"] == runs[-1]["answer"].squeeze_depth and entry["rho"]["error"] is None
+    assert entry["points"] == points.tolist() and len(entry["runs"]) == 2
+    coarse, fine = (dict(runs[1], answer=replace(runs[1]["answer"], squeeze_depth=rho, finger_force=f))
+                    for rho, f in ((0.0100, 5.0), (0.0096, 5.2)))
+    two = module.reference_entry([coarse, fine], points, scene.weight)
+    assert two["rho"]["error"] == pytest.approx(max(0.0004 / 0.0096, fine["increment"] / 0.0096))
+    assert two["force"]["error"] == pytest.approx(0.2 / 5.2) and two["rho"]["value"] == 0.0096
