@@ -216,7 +216,7 @@ def test_bulging_dome_has_its_widest_point_at_the_equator(gmsh):
 def test_points_on_a_paper_shapes_curved_surface_become_nodes_and_the_mesh_stays_as_fine(name, gmsh):
     """Asked to (``embed_points``), a paper shape makes points of its curved surface nodes, on the ellipsoid and
     on the dome's side (the solid's volume kept), with about as many vertices as without them; a point off the
-    surface is left to the nearest node, and by default the points are not embedded."""
+    surface is left to the nearest node, and unless asked not to (``embed_points=False``) the points are embedded."""
     from fem_grasp.mesh.remesh import PaperGeometry, nearest_surface_nodes, patch_refinement
 
     geo = PaperGeometry(name, embed_points=True)
@@ -231,5 +231,6 @@ def test_points_on_a_paper_shapes_curved_surface_become_nodes_and_the_mesh_stays
     off = points + [[0.0, -1e-3, 0.0], [0.0, 1e-3, 0.0]]  # a millimetre outside
     mesh = geo.build(8e-3, [refine], embed=off)
     assert np.linalg.norm(mesh.points[nearest_surface_nodes(mesh, off)] - off, axis=1).min() > 0.5e-3
-    default = PaperGeometry(name).build(8e-3, [refine], embed=points)
-    assert np.linalg.norm(default.points[nearest_surface_nodes(default, points)] - points, axis=1).max() > 1e-6
+    assert PaperGeometry(name).embeds_points and not PaperGeometry(name, embed_points=False).embeds_points
+    plain = PaperGeometry(name, embed_points=False).build(8e-3, [refine], embed=points)
+    assert np.linalg.norm(plain.points[nearest_surface_nodes(plain, points)] - points, axis=1).max() > 1e-6
