@@ -108,8 +108,9 @@ def _accuracy_lines(acc: dict[str, Any], quick: bool) -> list[str]:
         bound = e["squeeze_depth"]
         how = ("the convergence study found that such a run can even reach another verdict than a finer mesh"
                if stated and not np.isfinite(bound) else
-               f"the convergence study for this scene puts such a run within about {pct(bound)} of the converged "
-               "rho* and finger force" if stated else "how far it is from the converged answer is not known")
+               f"measured against this scene's converged answer, such a run is within about {pct(bound)} of its rho* "
+               "and finger force (--accuracy 5% refines it)" if stated
+               else "how far it is from the converged answer is not known (--accuracy 5% refines it)")
         head = (f"accuracy   {acc.get('note', '')}; {how}"
                 + (f"; run without --quick for the answer to {100 * acc['target']:g} %"
                    if quick and acc.get("target") is not None and np.isfinite(acc["target"]) else ""))
