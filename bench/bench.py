@@ -908,7 +908,7 @@ def _pct(x: float | None) -> str:
         return "wrong verdict"
     if math.isnan(x):
         return "n/a"
-    return f"{100 * x:.2g} %"
+    return f"{100 * x:.0f} %" if x >= 1 else f"{100 * x:.2g} %"
 
 
 def print_accuracy(sec: dict[str, Any]) -> None:

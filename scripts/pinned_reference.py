@@ -96,7 +96,7 @@ def reference_entry(runs: Sequence[dict[str, Any]], points: np.ndarray, weight: 
     if same and a.success and same[-1].success:
         rho_err = max(rel(same[-1].squeeze_depth, a.squeeze_depth), inc / a.squeeze_depth)
         force_err = rel(same[-1].finger_force, a.finger_force)
-    method = "the two finest meshes at the finest increment" if same else "a single mesh"
+    method = "two finest meshes" if same else "a single mesh"
     return {"success": bool(a.success), "vertices": int(a.n_vertices), "step": inc, "weight": float(weight),
             "max_liftable": float(a.max_liftable),
             "rho": {"value": float(a.squeeze_depth), "error": rho_err, "method": method},
