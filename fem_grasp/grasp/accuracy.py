@@ -17,11 +17,16 @@ answer depends on the discretisation:
 
 :func:`converged_pickup` (what ``pickup(..., accuracy=...)`` calls) therefore
 runs Algorithm 1 on a sequence of levels: level 0 on the body as given finds
-the contact patches (fingertips and table); each next level remeshes the
+the contact patches (fingertips and table) and the grasp points (the given
+contacts, or those the placement rule gives on the geometry's surface,
+:func:`placement_target`); where the body's own finger nodes lie away from the
+points and the geometry can make them nodes, level 0 is the body remeshed at
+its spacing with them as nodes (:data:`GRASP_TOLERANCE`: the answer moves with
+the grasp); each next level remeshes the
 geometry (:mod:`fem_grasp.mesh.remesh`) with half the spacing at those patches
 (:data:`LEVEL_RATIO`), the table patch at four times that (:data:`TABLE_LAG`) and a
-finer outer mesh, grasps at the same points (the given contacts, or those the
-placement rule chose on level 0, each level's nearest surface nodes), and takes
+finer outer mesh, grasps at the same points (as nodes where the geometry can
+embed them, else at each level's nearest surface nodes), and takes
 a squeeze increment small enough that the lift
 test's quantisation of ρ* (at most one increment) uses at most a quarter of the
 target, half where the last two levels predict that this one will not meet it
