@@ -8,10 +8,10 @@ answers against (``python -m bench.bench --only accuracy``).  ``python -m verifi
 theirs), so that a machine without the study measures against the same numbers; the file says which machine and
 which study wrote each object's entry.
 
-Every mesh of the study grasps at its own nodes, which lie up to half a spacing — 1.4-4.6 mm on the tomato and
-the orange — from the points where the placement rule grasps on the object's surface, and the answer moves by
-about 10 % per millimetre of grasp height there.  An object's entry may therefore also hold a **pinned**
-reference (:data:`PINNED`): the answer at the rule's own points, on uniform meshes that have those points as
+Every mesh of the study grasps at its own nodes, up to half a spacing from the points where the placement rule
+grasps on the object's surface, and the answer moves with the grasp: the study's references are 4-13 % in ρ*
+and 8-21 % in Σ f·n̂ from the pinned ones on the tomato, the orange and the football.  An object's entry may
+therefore also hold a **pinned** reference (:data:`PINNED`): the answer at the rule's own points, on uniform meshes that have those points as
 nodes, written by ``python scripts/pinned_reference.py NAME --write-reference`` (:func:`write_pinned`).  It is
 the reference of the question a run answers (the rule's grasp), and the benchmarks measure against it where an
 object has one.
