@@ -277,6 +277,13 @@ def test_level_0_grasps_at_the_points_too_where_the_given_meshs_nodes_lie_elsewh
     fixed = converged_pickup(body, solve=pickup, accuracy=0.05, geometry=scene.geometry(), max_levels=0,
                              options=opts.replace(contacts=tuple(int(k) for k in plain.finger_nodes)))
     assert fixed.accuracy["given_mesh"] is None and fixed.body.n_nodes == body.n_nodes
+    # the command line shows the given mesh's run beside the levels, saying that it is another grasp
+    from fem_grasp.cli.run import _accuracy_lines
+
+    lines = _accuracy_lines(acc, quick=False)
+    row = next(line for line in lines if line.strip().startswith("given"))
+    assert f"{body.n_nodes:,} vertices" in row and f"rho {1e3 * given['squeeze_depth']:.4g} mm" in row
+    assert "another grasp" in row and lines.index(row) < next(i for i, x in enumerate(lines) if x.startswith("  level 0"))
 
 
 def test_halving_the_lift_test_step_does_not_move_the_answer():
