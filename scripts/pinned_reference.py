@@ -5,8 +5,8 @@ only grasp at its nodes, which lie up to half a spacing from those points, and t
 grasp: the fingertips' normals tilt, and the friction must carry a different share of the weight.  A reference
 for the rule's grasp therefore has the points as nodes of every mesh.  The convergence study's references
 (``python -m verification converge``) grasp at each mesh's own nodes instead, 1.4-2.3 mm from the points on the
-tomato and 4.1-4.6 mm on the orange, and differ from the references this script computes by 3.8 % / 7.8 %
-(ρ* / Σ f·n̂) and 9.2 % / 13 %.
+tomato and 4.1-4.6 mm on the orange, and differ from the references this script computes by 5.3 % / 11 %
+(ρ* / Σ f·n̂) and 7.6 % / 12 %.
 
 For one shipped paper scene this script takes the rule's points as the accuracy loop finds them (its level 0 on
 the shipped mesh, :func:`fem_grasp.grasp.accuracy.placement_target`), meshes the object uniformly at a few vertex
