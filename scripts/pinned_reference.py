@@ -36,6 +36,7 @@ import numpy as np
 
 from fem_grasp.elastic.body import Body
 from fem_grasp.grasp.answer import answer_of
+from fem_grasp.grasp.estimates import relative_change
 from fem_grasp.grasp.pickup import pickup
 from fem_grasp.io.scene import load_scene, resolve_scene
 from fem_grasp.mesh.remesh import PaperGeometry, nearest_surface_nodes
@@ -49,10 +50,6 @@ DEFAULT_DIVISIONS = (1, 4)
 
 def pct(x: float | None) -> str:
     return "unknown" if x is None or not np.isfinite(x) else f"{100 * x:.1f} %"
-
-
-def rel(a: float, ref: float) -> float:
-    return abs(a - ref) / abs(ref)
 
 
 def rule_points(scene: Any, accuracy: float) -> tuple[np.ndarray, float]:
@@ -94,8 +91,8 @@ def reference_entry(runs: Sequence[dict[str, Any]], points: np.ndarray, weight: 
     same = [r["answer"] for r in runs[:-1] if r["increment"] == inc]
     rho_err = force_err = None
     if same and a.success and same[-1].success:
-        rho_err = max(rel(same[-1].squeeze_depth, a.squeeze_depth), inc / a.squeeze_depth)
-        force_err = rel(same[-1].finger_force, a.finger_force)
+        rho_err = max(relative_change(same[-1].squeeze_depth, a.squeeze_depth), inc / a.squeeze_depth)
+        force_err = relative_change(same[-1].finger_force, a.finger_force)
     method = "two finest meshes" if same else "a single mesh"
     return {"success": bool(a.success), "vertices": int(a.n_vertices), "step": inc, "weight": float(weight),
             "max_liftable": float(a.max_liftable),
@@ -168,8 +165,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         stated = f"{pct(err.get('squeeze_depth'))} / {pct(err.get('finger_force'))}"
         verdict = "" if res.success == ref.success else "  wrong verdict"
         print(f"{label:>25} {levels:<28} {1e3 * res.squeeze_depth:8.3f} "
-              f"{pct(rel(res.squeeze_depth, ref.squeeze_depth)):>7} {last['finger_force']:8.3f} "
-              f"{pct(rel(last['finger_force'], ref.finger_force)):>7} {stated:>15} {seconds:5.0f}{verdict}",
+              f"{pct(relative_change(res.squeeze_depth, ref.squeeze_depth)):>7} {last['finger_force']:8.3f} "
+              f"{pct(relative_change(last['finger_force'], ref.finger_force)):>7} {stated:>15} {seconds:5.0f}{verdict}",
               flush=True)
     return 0
 
