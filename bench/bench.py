@@ -738,8 +738,8 @@ def study_references(quick: bool = False, compute: bool = False,
     converge`` (``quick``: its quick study), or — for the full study, where the cache holds none — the committed
     one (:mod:`verification.converge.references`, written by the study on the machine that ran it); None where
     neither has one.  An object's committed pinned reference (the answer at the placement rule's own grasp
-    points, ``references.PINNED``) is kept under that key beside either.  Each carries ``source``: "cache", or the committed entry's study, date and machine.  Its
-    verdict is ``success``; on a pickup ``rho`` and ``force`` are each a ``{"value", "error", "method"}``.
+    points, ``references.PINNED``) is kept under that key beside either.  Each carries ``source``: "cache", or
+    the committed entry's study, date and machine.  Its verdict is ``success``; on a pickup ``rho`` and ``force`` are each a ``{"value", "error", "method"}``.
 
     Reading analyses the cached records without computing any (as ``--report-only``, which also rewrites the
     study's converge.json and plots).  ``compute``: first run the cases a missing reference needs (the uniform
@@ -876,6 +876,8 @@ def section_accuracy(cap: float = 600.0, quick: bool = False, compute: bool = Fa
     :mod:`verification.converge.references`) where it has one, with the error against the study's (each mesh
     grasping at its own nodes) beside it as ``error_study``; else the study's.  Objects without either are
     skipped."""
+    from verification.converge import references
+
     refs = study_references(quick=quick, compute=compute, objects=objects)
     out: dict[str, Any] = {"study": "quick" if quick else "full", "cap_s": cap, "target": ACCURACY_TARGET,
                            "objects": {}}
@@ -887,7 +889,7 @@ def section_accuracy(cap: float = 600.0, quick: bool = False, compute: bool = Fa
             out["objects"][name] = {"reference": None}
             continue
         keys = ("success", "vertices", "rho", "force", "max_liftable", "weight", "step", "source")
-        pinned = ref.get("pinned")
+        pinned = ref.get(references.PINNED)
         study = {k: ref.get(k) for k in keys} if "rho" in ref else None
         reference = dict({k: pinned.get(k) for k in keys}, kind="pinned") if pinned else dict(study, kind="study")
         rows: dict[str, Any] = {}

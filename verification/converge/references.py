@@ -11,8 +11,8 @@ which study wrote each object's entry.
 Every mesh of the study grasps at its own nodes, up to half a spacing from the points where the placement rule
 grasps on the object's surface, and the answer moves with the grasp: the study's references are 5-13 % in ρ*
 and 11-22 % in Σ f·n̂ from the pinned ones on the tomato, the orange and the football.  An object's entry may
-therefore also hold a **pinned** reference (:data:`PINNED`): the answer at the rule's own points, on uniform meshes that have those points as
-nodes, written by ``python scripts/pinned_reference.py NAME --write-reference`` (:func:`write_pinned`).  It is
+therefore also hold a **pinned** reference (:data:`PINNED`): the answer at the rule's own points, on uniform
+meshes that have those points as nodes, written by ``python scripts/pinned_reference.py NAME --write-reference`` (:func:`write_pinned`).  It is
 the reference of the question a run answers (the rule's grasp), and the benchmarks measure against it where an
 object has one.
 """
@@ -105,8 +105,8 @@ def write_pinned(name: str, entry: dict[str, Any], path: Path | None = None, mac
 
 def write(analysis: dict[str, Any], path: Path | None = None, machine: str | None = None) -> list[str]:
     """Merge the references of ``analysis`` into ``path`` (default :data:`REFERENCES`; objects the analysis has
-    none for keep their entry, and every object its pinned reference); returns the objects written.  Each entry records the study, the date and the
-    machine."""
+    none for keep their entry, and every object its pinned reference); returns the objects written.  Each entry
+    records the study, the date and the machine."""
     path = REFERENCES if path is None else path
     if analysis.get("quick"):
         raise ValueError("the quick study's references are coarse meshes: only the full study's are kept")
