@@ -319,3 +319,13 @@ def box_scene_toml(divisions: tuple[int, int, int] = (2, 2, 2), rest: str = "", 
     return (f"{head}[object]\nbox = [\"3 cm\", \"4 cm\", \"3 cm\"]\ndivisions = [{d}]\n"
             "[material]\nyoung = \"20 kPa\"\npoisson = 0.3\nweight = \"0.3 N\"\n"
             f"[friction]\nfinger = 0.5\ntable = 0.5\n{rest}")
+
+
+def force_along(result, rho):
+    """Σ f·n̂ along a run's squeeze at depth ρ: linear between its events (eqs. 6–8 are linear in ρ between them)."""
+    snaps = [s for s in result.snapshots if s.label in ("initial", "event", "lift start")]
+    depths = np.array([s.squeeze_depth for s in snaps])
+    forces = np.array([s.finger_normal_force(result.table) for s in snaps])
+    order = np.argsort(depths, kind="stable")
+    assert depths.min() <= rho <= depths.max() * (1 + 1e-12)
+    return float(np.interp(rho, depths[order], forces[order]))

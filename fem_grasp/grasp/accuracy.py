@@ -76,7 +76,7 @@ from .options import MAX_FINGER_CONTACTS as _MAX_FINGER_CONTACTS
 from .options import PickupOptions
 
 __all__ = ["AccuracyLevel", "AccuracyReport", "single_run_report",
-           "next_step", "predicted_mesh_error", "predicted_level_seconds", "first_lift_test", "FIRST_TEST_MARGIN", "placement_target", "estimated_error",
+           "next_step", "predicted_mesh_error", "predicted_level_seconds", "first_lift_test", "placement_target", "estimated_error",
            "three_level_errors", "converged_pickup", "GRASP_TOLERANCE", "TWO_LEVEL_SAFETY", "LEVEL_COST_GROWTH", "LEVEL_RATIO",
            "STEP_SHARE", "FINE_STEP_SHARE", "STEP_DIVISIONS", "DEFAULT_ACCURACY", "MAX_LEVELS",
            "MAX_FINGER_CONTACTS"]
@@ -265,22 +265,18 @@ GRASP_TOLERANCE = 1e-3
 #: rho* within 3.5 % of level 2's.
 TABLE_CONTACT_SHARE = 2.5
 
-#: A finer level runs its lift tests from this fraction below the coarser level's ρ* (:func:`first_lift_test`):
-#: further down w(ρ) is far below mg, and should the first test pass, the increments below it are tested from the
-#: deepest down to the first that fails, so a first test on either side of the finer level's ρ* costs one test per
-#: increment between them.
-FIRST_TEST_MARGIN = 0.05
 #: A level costs at least this many times the one before (its patches hold about four times the contacts).
 LEVEL_COST_GROWTH = 4.0
 
 
 def first_lift_test(levels: Sequence[AccuracyLevel]) -> float | None:
-    """The depth from which the next level runs its lift tests (``PickupOptions.first_lift_test``): the last level's
-    ρ* less :data:`FIRST_TEST_MARGIN` of it; None (every increment) when the last level was not picked up."""
+    """The depth of the next level's first lift test (``PickupOptions.first_lift_test``): the last level's ρ*, so
+    that a level that agrees with it to a sub-increment costs two lift tests (the first, and the sub-increment
+    below or above it); None (every increment) when the last level was not picked up."""
     last = levels[-1]
     if not passed(last.answer) or not last.answer.squeeze_depth > 0:
         return None
-    return last.answer.squeeze_depth * (1.0 - FIRST_TEST_MARGIN)
+    return last.answer.squeeze_depth
 
 
 def predicted_level_seconds(levels: Sequence[AccuracyLevel]) -> float:

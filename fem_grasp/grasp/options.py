@@ -98,12 +98,15 @@ class PickupOptions:
         within ``step / step_divisions`` for a few more lift tests, the answer of that finer increment wherever
         w(ρ) crosses mg once within the increment (≥ 1; default 1: Algorithm 1 as printed).
     first_lift_test : float or None
-        No lift test at the squeeze increments that end below this depth ρ, metres (None: at every increment,
-        Algorithm 1 as printed).  If the first test passes, the increments below it are tested after all, from
-        the deepest down to the first that fails, and ρ* is the last that passed, as if every one had been tested
-        wherever w(ρ) crosses mg once; w(ρ) (``result.liftable``) then has no entries below the tests made.  The
-        accuracy loop sets it below the coarser level's ρ* (:data:`~fem_grasp.grasp.accuracy.FIRST_TEST_MARGIN`),
-        where w(ρ) is far from mg.
+        The depth ρ of the first lift test, metres (None: a test after every increment, Algorithm 1 as printed).
+        The squeeze reaches it untested in whole increments to within one sub-increment (``step /
+        step_divisions``), then in sub-increments.  If the first test passes, the squeeze ends below it tested
+        from the deepest down to the first that fails, and ρ* is the last that passed (an increment's end below
+        the sub-increments that fails brackets a whole increment, which is divided); if it fails, the next
+        sub-increment is tested, and if that fails too the squeeze goes on as without a first test.  This is the
+        answer of testing every sub-increment wherever w(ρ) crosses mg once; w(ρ) (``result.liftable``) has no
+        entries below the tests made.  The accuracy loop sets it at the coarser level's ρ*: a level that agrees
+        with it costs two lift tests.
     max_lift : float or None
         The lift height at which a lift that has not left the table fails, metres.  None: the object's height.
     lift : bool

@@ -99,10 +99,14 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
         at the first that passes: ρ* is found to within ``step / divisions`` at the cost of a few more lift
         tests, as with that increment throughout wherever w(ρ) crosses mg once within the increment
         (default 1: Algorithm 1 as printed)
-    first_test : (``PickupOptions.first_lift_test``) no lift test at the increments that end below this squeeze
-        depth, metres; if the first test passes, those increments are tested after all, from the deepest down to
-        the first that fails, and the last that passes is the answer, as if every increment had been tested
-        wherever w(ρ) crosses mg once (default 0: every increment)
+    first_test : (``PickupOptions.first_lift_test``) the depth of the first lift test, metres (default 0: a test
+        after every increment, Algorithm 1 as printed).  The squeeze reaches it in untested increments ``step``
+        to one sub-increment ``step / divisions`` below it, then in sub-increments (:func:`_tests_from`).  Should
+        the first test pass, the ends below it are tested from the deepest down to the first that fails, and
+        ρ* is the last that passed (a failing increment's end below the sub-increments brackets a whole
+        increment, divided as below); should it fail, the next sub-increment is tested, and should that fail
+        too, the squeeze goes on from it as without a first test.  ρ* is that of testing every sub-increment
+        wherever w(ρ) crosses mg once; a first test at a good guess of ρ* costs two tests
     on_event : called with the state after every event (of the increments kept: a passing increment squeezed
         again reports its events once, from the second pass)
     """
@@ -118,8 +122,6 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
     pending: list[tuple[ContactState, list[ContactEvent]]] = []
     tested = [state]  # where the increment in which the test passes begins: the last failing test, or the start
     again = [False]
-    # Increments ended below ``first_test``, untested; a pass at the first test runs their tests (deepest first).
-    skipped: list[ContactState] = []
     passing = [state]  # the end of the increment in which the test passes
 
     def emit(st: ContactState, events: list[ContactEvent]) -> None:
@@ -155,27 +157,8 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
         if st.squeeze_depth < next_test[0] * (1.0 - 1e-9) and below_max:
             return False
         next_test[0] = st.squeeze_depth + step
-        if st.squeeze_depth < first_test * (1.0 - 1e-9) and below_max and not out.liftable:
-            skipped.append(st)
-            return False
         passed = test(st)
         passing[0] = st
-        if not passed:
-            skipped.clear()  # w(ρ) below mg at the first test: the increments below it are not tested
-        if passed and skipped:
-            # The first test passed: the increments below it are tested after all, from the deepest down to the
-            # first that fails, and the last that passed is where the squeeze stops (its events reported, the
-            # later ones dropped). Below a failing test w(ρ) is taken to stay below mg, as when the first test fails.
-            for earlier in reversed(skipped):
-                if not test(earlier):
-                    tested[0] = earlier
-                    break
-                passing[0] = earlier
-            skipped.clear()
-            if not (divisions > 1 and not again[0]):
-                keep_to(passing[0].squeeze_depth)
-                pending.clear()
-                return True
         if passed and divisions > 1 and not again[0]:
             again[0] = True  # squeezed again from the failing test's state, below
             keep_to(tested[0].squeeze_depth)
@@ -195,10 +178,28 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
         return after_step(st, events)
 
     try:
-        final, _, stopped = run(tracker, state, velocities, stop=max_squeeze, step=step, param=Parameter.SQUEEZE_DEPTH,
-                                phase="squeeze", after_step=after, on_event=record)
-        if stopped and passing[0] is not final and not again[0]:
-            final = last[0] = passing[0]  # a pass among the increments below ``first_test``
+        if first_test > state.squeeze_depth * (1.0 + 1e-12):
+            final, outcome, below = _tests_from(tracker, state, velocities, max_squeeze=max_squeeze, step=step,
+                                                sub=step / divisions, first_test=first_test, test=test,
+                                                record=record, last=last)
+            stopped = outcome == "passed"
+            if outcome == "failed twice":  # on in increments from the second test, as without a first test
+                keep()
+                tested[0] = final
+                next_test[0] = final.squeeze_depth + step
+                final, _, stopped = run(tracker, final, velocities, stop=max_squeeze, step=step,
+                                        param=Parameter.SQUEEZE_DEPTH, phase="squeeze", after_step=after,
+                                        on_event=record)
+            elif below is None:
+                keep_to(final.squeeze_depth)
+                pending.clear()  # beyond ρ*: squeezed on to tests that were not needed
+            else:  # w(ρ) crossed mg in an untested increment: divided as in the path without a first test
+                again[0] = True
+                tested[0], passing[0] = below, final
+                keep_to(below.squeeze_depth)
+        else:
+            final, _, stopped = run(tracker, state, velocities, stop=max_squeeze, step=step,
+                                    param=Parameter.SQUEEZE_DEPTH, phase="squeeze", after_step=after, on_event=record)
         if again[0]:
             pending.clear()  # the first pass through the increment is not kept
             end = passing[0].squeeze_depth
@@ -225,6 +226,72 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
         out.reason = (f"the lift test did not pass by the maximum squeeze depth ρ = {1e3 * max_squeeze:.4g} mm "
                       f"(liftable weight {lift_test.liftable:.4g} N < weight {lift_test.weight:.4g} N)")
     return out
+
+
+def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *, max_squeeze: float, step: float,
+                sub: float, first_test: float, test: Callable[[ContactState], bool],
+                record: Callable[[ContactState, list[ContactEvent]], None],
+                last: list) -> tuple[ContactState, str, ContactState | None]:
+    """The squeeze with its first lift test at ``first_test`` (see :func:`squeeze`): in increments ``step`` to one
+    sub-increment ``sub`` below it, untested, then in sub-increments to the first test and, should it fail, the
+    next.
+
+    Returns (state, outcome, bracket): outcome ``"passed"`` (the state is at ρ*, or, with a ``bracket``, w(ρ)
+    crossed mg in an untested increment from the bracket's state to this one, still to be divided),
+    ``"stopped"`` (at the maximum depth, not passed) or ``"failed twice"`` (the first two tests failed, the state
+    is the second's: the squeeze goes on from it in increments).
+    """
+    untested: list[ContactState] = []  # the ends of the increments below the sub-increments
+    c0 = min(first_test - sub, max_squeeze)
+    if c0 > state.squeeze_depth + 1e-9 * step:
+        grid = [state.squeeze_depth + step]
+
+        def after_increment(st: ContactState, events: list[ContactEvent]) -> bool:
+            last[0] = st
+            if st.squeeze_depth >= min(grid[0], c0) * (1.0 - 1e-9):
+                grid[0] = st.squeeze_depth + step
+                untested.append(st)
+            return False
+
+        state, _, _ = run(tracker, state, velocities, stop=c0, step=step, param=Parameter.SQUEEZE_DEPTH,
+                          phase="squeeze", after_step=after_increment, on_event=record)
+
+    subs: list[ContactState] = []  # the ends of the sub-increments, tested or not
+    tests: list[bool] = []
+    next_sub = [state.squeeze_depth + sub]
+
+    def after_sub(st: ContactState, events: list[ContactEvent]) -> bool:
+        last[0] = st
+        rho = st.squeeze_depth
+        at_max = rho >= max_squeeze * (1.0 - 1e-9)
+        if rho < next_sub[0] * (1.0 - 1e-9) and not at_max:
+            return False
+        next_sub[0] = rho + sub
+        subs.append(st)
+        if not (tests or rho >= first_test * (1.0 - 1e-9) or at_max):
+            return False
+        tests.append(test(st))
+        return tests[-1] or len(tests) == 2
+
+    if untested and state.squeeze_depth >= max_squeeze * (1.0 - 1e-9):
+        untested.pop()  # the maximum depth below the first test: the test there, below it the increments' ends
+        final = state
+        after_sub(state, [])
+    else:
+        final, _, _ = run(tracker, state, velocities, stop=max_squeeze, step=sub, param=Parameter.SQUEEZE_DEPTH,
+                          phase="squeeze", after_step=after_sub, on_event=record)
+    if not tests or not tests[-1]:
+        on = len(tests) == 2 and final.squeeze_depth < max_squeeze * (1.0 - 1e-9)
+        return final, ("failed twice" if on else "stopped"), None
+    if len(tests) == 2:  # the first failed, the next passed
+        return final, "passed", None
+    # The first test passed: the ends below it from the deepest down to the first that fails, ρ* the last that
+    # passed; where the two are further apart than a sub-increment (increments' ends), their increment is divided.
+    for st in subs[:-1][::-1] + untested[::-1]:
+        if not test(st):
+            return final, "passed", (st if final.squeeze_depth - st.squeeze_depth > 1.5 * sub else None)
+        final = st
+    return final, "passed", None
 
 
 def _divide(tracker: Tracker, start: ContactState, end: float, velocities: np.ndarray, sub: float,

@@ -1,13 +1,14 @@
-"""Lift tests from a given depth on (``PickupOptions.first_lift_test``, what the accuracy loop's finer levels use):
-the same answer as testing every increment, fewer tests where w(ρ) is far below mg, and, should the first test
-pass, the increments below it tested after all, from the deepest down, so that ρ* is still the first increment
-that passes where w(ρ) crosses mg once."""
+"""The first lift test at a given depth (``PickupOptions.first_lift_test``, what the accuracy loop's finer levels
+use, at the coarser level's ρ*): the same answer as testing every increment, with fewer tests; two at a good guess
+of ρ*; should the first test pass, the ends below it tested after all, from the deepest down, so that ρ* is still
+the first that passes where w(ρ) crosses mg once."""
 
 import pytest
 
 from fem_grasp.grasp.options import PickupOptions
 from fem_grasp.grasp.pickup import pickup
 from fem_grasp.io.scene import load_scene, resolve_scene
+from tests.helpers import force_along
 
 
 @pytest.fixture(scope="module", params=[1, 4], ids=["undivided", "divided"])
@@ -22,11 +23,15 @@ def _same_answer(a, b):
     mg = a.body.weight
     assert "lift test passed" in a.reason and "lift test passed" in b.reason
     assert abs(a.squeeze_depth - b.squeeze_depth) <= a.step / a.step_divisions * (1 + 1e-9)
-    assert abs(a.finger_normal_force - b.finger_normal_force) <= 0.01 * mg
-    # each squeeze event reported once, in order, none beyond ρ*
+    # the same squeeze path: the finger force at the shallower answer within 1 % of mg (the two test at different
+    # depths where events shift the increments)
+    rho = min(a.squeeze_depth, b.squeeze_depth)
+    assert abs(force_along(a, rho) - force_along(b, rho)) <= 0.01 * mg
+    # each squeeze event reported once, in order, none beyond ρ* (the events of a pass through an increment that is
+    # squeezed again, were they kept, would come before the second pass's, deeper than its first)
     depths = [e.squeeze_depth for e in b.events if e.phase == "squeeze"]
     assert depths == sorted(depths) and max(depths) <= b.squeeze_depth * (1 + 1e-12)
-    assert len(depths) == len([e for e in a.events if e.phase == "squeeze"])
+    assert 0.8 * len([e for e in a.events if e.phase == "squeeze"]) <= len(depths)
 
 
 def test_tests_from_below_rho_star_give_the_same_answer_with_fewer_tests(tomato):
@@ -59,6 +64,25 @@ def test_a_first_test_that_passes_tests_the_increments_below_it_from_the_deepest
     whole = [wl for r, wl in late.liftable if r > lowest and not (divided and r < late.squeeze_depth)]
     assert all(wl >= mg * (1 - 1e-12) for wl in whole)
     assert len(late.liftable) < len(every.liftable)
+
+
+def test_a_first_test_at_rho_star_costs_two_or_three_tests(tomato):
+    """At the answer itself: the test there and the sub-increment below it (three where the two paths' w(ρ) differ
+    at a knife edge), against a test at every increment below ρ* and at every sub-increment of the passing one."""
+    body, opts, every = tomato
+    guess = pickup(body, opts.replace(first_lift_test=every.squeeze_depth))
+    _same_answer(every, guess)
+    assert len(guess.liftable) <= 3 < len(every.liftable)
+    assert min(r for r, _ in guess.liftable) >= every.squeeze_depth - 2.5 * every.step / every.step_divisions
+
+
+def test_a_first_test_beyond_the_maximum_squeeze_is_made_there(tomato):
+    """The squeeze reaches its maximum below the first test: tested there, and, passing, down from it."""
+    body, opts, every = tomato
+    capped = pickup(body, opts.replace(first_lift_test=3.0 * every.squeeze_depth,
+                                       max_squeeze=every.squeeze_depth + 1.5 * every.step))
+    _same_answer(every, capped)
+    assert max(r for r, _ in capped.liftable) <= capped.max_squeeze * (1 + 1e-9)
 
 
 @pytest.mark.parametrize("bad", [0.0, -1e-3, float("nan")])

@@ -1,12 +1,12 @@
 """The passing increment squeezed again in sub-increments (``PickupOptions.step_divisions``): ρ* and the forces of
 the finer increment, for a few more lift tests; the events of the increment reported once."""
 
-import numpy as np
 import pytest
 
 from fem_grasp.grasp.options import PickupOptions
 from fem_grasp.grasp.pickup import pickup
 from fem_grasp.io.scene import load_scene, resolve_scene
+from tests.helpers import force_along
 
 DIVISIONS = 4
 
@@ -24,16 +24,6 @@ def runs():
     return coarse, divided, fine
 
 
-def _force_along(result, rho):
-    """Σ f·n̂ along a run's squeeze at depth ρ: linear between its events (eqs. 6–8 are linear in ρ between them)."""
-    snaps = [s for s in result.snapshots if s.label in ("initial", "event", "lift start")]
-    depths = np.array([s.squeeze_depth for s in snaps])
-    forces = np.array([s.finger_normal_force(result.table) for s in snaps])
-    order = np.argsort(depths, kind="stable")
-    assert depths.min() <= rho <= depths.max() * (1 + 1e-12)
-    return float(np.interp(rho, depths[order], forces[order]))
-
-
 def test_the_divided_increment_finds_the_fine_increments_rho_and_follows_its_path(runs):
     coarse, divided, fine = runs
     s = coarse.step
@@ -46,7 +36,7 @@ def test_the_divided_increment_finds_the_fine_increments_rho_and_follows_its_pat
     # the same squeeze path: the finger force of both at the shallower of the two answers within 1 % of mg
     mg = divided.body.weight
     rho = min(divided.squeeze_depth, fine.squeeze_depth)
-    assert abs(_force_along(divided, rho) - _force_along(fine, rho)) <= 0.01 * mg
+    assert abs(force_along(divided, rho) - force_along(fine, rho)) <= 0.01 * mg
     assert divided.step_divisions == DIVISIONS and divided.to_dict()["step_divisions"] == DIVISIONS
 
 
