@@ -80,6 +80,21 @@ def contact_dofs(nodes: np.ndarray) -> np.ndarray:
     return (3 * np.asarray(nodes, dtype=np.int64)[:, None] + np.arange(3)).ravel()
 
 
+def principal_submatrix(a: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """``a[np.ix_(rows, rows)]``, with zero rows and columns where ``rows`` is negative: copied block by block
+    over the runs of consecutive indices (a contact set that changes by a few nodes keeps long runs; 0.2 against
+    1.6 ms at 800 rows)."""
+    n = len(rows)
+    out = np.zeros((n, n)) if (rows < 0).any() else np.empty((n, n))
+    cut = np.flatnonzero((np.diff(rows) != 1) | (rows[1:] < 0) | (rows[:-1] < 0)) + 1
+    starts, ends = np.concatenate([[0], cut]), np.concatenate([cut, [n]])
+    runs = [(int(s), int(rows[s]), int(e - s)) for s, e in zip(starts, ends) if rows[s] >= 0]
+    for i0, a0, length in runs:
+        for j0, b0, width in runs:
+            out[i0:i0 + length, j0:j0 + width] = a[a0:a0 + length, b0:b0 + width]
+    return out
+
+
 def check_contact_set(points: np.ndarray, nodes: np.ndarray) -> np.ndarray:
     """Validate a contact index set and return it as an int array.
 
@@ -321,44 +336,54 @@ class ContactResponse:
         at = {k: i for i, k in enumerate(nodes.tolist())}
         to_kept = np.concatenate([contact_dofs([at[k] for k in kept]), np.arange(n3, n3 + 6)])  # ... and the new one
         to_added = contact_dofs([at[k] for k in added])
-        inv = self._inverse
+        # Everything in the new set's order at once: one gather of this M⁻¹ (the added rows and columns zero
+        # until set below), then the removal's and the addition's low-rank terms together,
+        # inv_KK − G X Gᵀ + W S⁻¹ Wᵀ with G = M⁻¹_KG, X = (M⁻¹_GG)⁻¹ and W = (M⁻¹_KK − G X Gᵀ) V.
+        src = np.full(n3 + 6, -1, dtype=np.int64)
+        src[to_kept] = keep
+        inv = principal_submatrix(self._inverse, src)
+        mat = principal_submatrix(self._matrix, src)
+        factors, weights = [], []
         with warnings.catch_warnings():
             warnings.simplefilter("error", la.LinAlgWarning)
             try:
-                inv_kk = inv[np.ix_(keep, keep)]
                 if removed_pos:  # M⁻¹ of the kept rows: the Schur complement of the removed ones
                     gone = contact_dofs(removed_pos)
-                    inv_kg = inv[np.ix_(keep, gone)]
-                    inv_kk -= inv_kg @ la.solve(inv[np.ix_(gone, gone)], inv_kg.T, assume_a="sym",
-                                                check_finite=False)
-                if added:  # bordered by the added rows: [[M_k, V], [Vᵀ, D]]
+                    g = np.zeros((n3 + 6, len(gone)))
+                    g[to_kept] = self._inverse[np.ix_(keep, gone)]
+                    x = la.solve(self._inverse[np.ix_(gone, gone)], np.eye(len(gone)), assume_a="sym",
+                                 check_finite=False)
+                    factors.append(g)
+                    weights.append(-0.5 * (x + x.T))
+                if added:  # bordered by the added rows: [[M_K, V], [Vᵀ, D]]
                     comp = self.body.compliance
                     added_arr, kept_arr = np.asarray(added, dtype=np.int64), np.asarray(kept, dtype=np.int64)
                     x_ka = comp.node_columns(added_arr, rows=kept_arr) if kept else np.zeros((0, 3 * len(added)))
                     x_ak = comp.node_columns(kept_arr, rows=added_arr) if kept else np.zeros((3 * len(added), 0))
                     x_aa = comp.contact_block(added_arr)
-                    v = np.vstack([0.5 * (x_ka + x_ak.T), self._scale * self._null[contact_dofs(added_arr)].T])
+                    v = np.zeros((n3 + 6, 3 * len(added)))
+                    v[to_kept] = np.vstack([0.5 * (x_ka + x_ak.T), self._scale * self._null[contact_dofs(added_arr)].T])
                     d = 0.5 * (x_aa + x_aa.T)
-                    w = inv_kk @ v
+                    w = inv @ v
+                    if removed_pos:
+                        w += g @ (weights[0] @ (g.T @ v))
                     s_inv = la.inv(d - v.T @ w, check_finite=False)
-                    ws = w @ s_inv
-                    inv_kk += ws @ w.T
+                    factors.append(w)
+                    weights.append(0.5 * (s_inv + s_inv.T))
             except (np.linalg.LinAlgError, la.LinAlgWarning, ValueError):
                 return None
-        if not added and np.array_equal(to_kept, np.arange(len(to_kept))):  # (releases keep the order)
-            inv, mat = inv_kk, self._matrix[np.ix_(keep, keep)]
-        else:
-            inv, mat = np.empty((n3 + 6, n3 + 6)), np.zeros((n3 + 6, n3 + 6))
-            inv[np.ix_(to_kept, to_kept)] = inv_kk
-            mat[np.ix_(to_kept, to_kept)] = self._matrix[np.ix_(keep, keep)]
-            if added:
-                inv[np.ix_(to_kept, to_added)] = -ws
-                inv[np.ix_(to_added, to_kept)] = -ws.T
-                inv[np.ix_(to_added, to_added)] = s_inv
-                mat[np.ix_(to_kept, to_added)] = v
-                mat[np.ix_(to_added, to_kept)] = v.T
-                mat[np.ix_(to_added, to_added)] = d
-        inv += inv.T  # M⁻¹ is symmetric: without this its round-off drifts along a chain of updates
+        if factors:
+            u = np.hstack(factors)
+            inv += u @ (la.block_diag(*weights) @ u.T)
+        if added:
+            ws = w @ s_inv
+            inv[:, to_added] = -ws
+            inv[to_added, :] = -ws.T
+            inv[np.ix_(to_added, to_added)] = s_inv
+            mat[:, to_added] = v
+            mat[to_added, :] = v.T
+            mat[np.ix_(to_added, to_added)] = d
+        inv = inv + inv.T  # M⁻¹ is symmetric: without this its round-off drifts along a chain of updates
         inv *= 0.5
         condition = float(np.abs(mat).sum(axis=0).max() * np.abs(inv).sum(axis=0).max())
         if not condition < WARN_CONDITION:

@@ -3,7 +3,7 @@ import pytest
 import scipy.sparse.linalg as spla
 
 from fem_grasp import Body, CollinearContactError, ContactResponse, TetMesh, solve_contact
-from fem_grasp.elastic.response import contact_dofs
+from fem_grasp.elastic.response import contact_dofs, principal_submatrix
 from tests.helpers import perturbed_box
 
 
@@ -305,3 +305,13 @@ def test_a_neighbour_is_refused_where_it_would_not_pay_or_is_not_a_contact_set(b
     assert ContactResponse(body, nodes, backend="spectral").neighbour(nodes[:4]) is None
     monkeypatch.setattr(response, "NEIGHBOUR_UPDATES", False)
     assert resp.neighbour(nodes[:4]) is None
+
+
+@pytest.mark.parametrize("rows", [[0, 1, 2, 3], [3, 4, 0, 1, 2], [-1, 0, 1, -1, 4, 5, 2], [5, -1, -1, 6], [2]])
+def test_principal_submatrix_is_fancy_indexing_with_zero_placeholders(rows, rng):
+    a = rng.standard_normal((7, 7))
+    rows = np.array(rows)
+    got = principal_submatrix(a, rows)
+    ok = rows >= 0
+    assert np.array_equal(got[np.ix_(ok, ok)], a[np.ix_(rows[ok], rows[ok])])
+    assert not got[~ok].any() and not got[:, ~ok].any()
