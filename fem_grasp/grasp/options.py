@@ -98,9 +98,10 @@ class PickupOptions:
         within ``step / step_divisions`` for a few more lift tests, the answer of that finer increment wherever
         w(ρ) crosses mg once within the increment (≥ 1; default 1: Algorithm 1 as printed).
     first_lift_test : float or None
-        The depth ρ of the first lift test, metres (None: a test after every increment, Algorithm 1 as printed).
-        The squeeze reaches it untested in whole increments to within one sub-increment (``step /
-        step_divisions``), then in sub-increments.  If the first test passes, the squeeze ends below it tested
+        The depth ρ of the first lift test, metres (None: a test after every increment, Algorithm 1 as printed),
+        made at the first end of a sub-increment (``step / step_divisions``, counted from the start) at or past
+        it: the squeeze reaches the increment in which that falls untested, then goes on in sub-increments.  If
+        the first test passes, the squeeze ends below it tested
         from the deepest down to the first that fails, and ρ* is the last that passed (an increment's end below
         the sub-increments that fails brackets a whole increment, which is divided); if it fails, the next
         sub-increment is tested, and if that fails too the squeeze goes on as without a first test.  This is the

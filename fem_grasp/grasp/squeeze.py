@@ -19,6 +19,7 @@ zero force (they only touch).
 from __future__ import annotations
 
 import logging
+import math
 import time
 from dataclasses import dataclass, field
 from typing import Callable
@@ -100,8 +101,9 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
         tests, as with that increment throughout wherever w(ρ) crosses mg once within the increment
         (default 1: Algorithm 1 as printed)
     first_test : (``PickupOptions.first_lift_test``) the depth of the first lift test, metres (default 0: a test
-        after every increment, Algorithm 1 as printed).  The squeeze reaches it in untested increments ``step``
-        to one sub-increment ``step / divisions`` below it, then in sub-increments (:func:`_tests_from`).  Should
+        after every increment, Algorithm 1 as printed), made at the first end of a sub-increment ``step /
+        divisions`` at or past it: the squeeze reaches the increment in which that falls in untested increments,
+        then goes on in sub-increments (:func:`_tests_from`).  Should
         the first test pass, the ends below it are tested from the deepest down to the first that fails, and
         ρ* is the last that passed (a failing increment's end below the sub-increments brackets a whole
         increment, divided as below); should it fail, the next sub-increment is tested, and should that fail
@@ -180,7 +182,7 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
     try:
         if first_test > state.squeeze_depth * (1.0 + 1e-12):
             final, outcome, below = _tests_from(tracker, state, velocities, max_squeeze=max_squeeze, step=step,
-                                                sub=step / divisions, first_test=first_test, test=test,
+                                                divisions=divisions, first_test=first_test, test=test,
                                                 record=record, last=last)
             stopped = outcome == "passed"
             if outcome == "failed twice":  # on in increments from the second test, as without a first test
@@ -229,12 +231,12 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
 
 
 def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *, max_squeeze: float, step: float,
-                sub: float, first_test: float, test: Callable[[ContactState], bool],
+                divisions: int, first_test: float, test: Callable[[ContactState], bool],
                 record: Callable[[ContactState, list[ContactEvent]], None],
                 last: list) -> tuple[ContactState, str, ContactState | None]:
-    """The squeeze with its first lift test at ``first_test`` (see :func:`squeeze`): in increments ``step`` to one
-    sub-increment ``sub`` below it, untested, then in sub-increments to the first test and, should it fail, the
-    next.
+    """The squeeze with its first lift test at ``first_test`` (see :func:`squeeze`): in increments ``step`` to the
+    start of the one in which it falls, untested, then in sub-increments (``step / divisions``) to the first test
+    and, should it fail, the next.
 
     Returns (state, outcome, bracket): outcome ``"passed"`` (the state is at ρ*, or, with a ``bracket``, w(ρ)
     crossed mg in an untested increment from the bracket's state to this one, still to be divided),
@@ -242,9 +244,15 @@ def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *
     is the second's: the squeeze goes on from it in increments).
     """
     untested: list[ContactState] = []  # the ends of the increments below the sub-increments
-    c0 = min(first_test - sub, max_squeeze)
-    if c0 > state.squeeze_depth + 1e-9 * step:
-        grid = [state.squeeze_depth + step]
+    # The first test at the first end of a sub-increment (on the grid of sub-increments from the start) at or past
+    # ``first_test``, the sub-increments from the end of the increment before it: the depths tested are those of
+    # testing every sub-increment, whatever ``first_test`` is (the accuracy loop's levels compare answers on
+    # grids of their own, not on one that a coarser answer chose).
+    start, sub = state.squeeze_depth, step / divisions
+    first_sub = math.ceil((first_test - start) / sub * (1.0 - 1e-9))
+    c0 = min(start + (first_sub - 1) // divisions * step, max_squeeze)
+    if c0 > start + 1e-9 * step:
+        grid = [start + step]
 
         def after_increment(st: ContactState, events: list[ContactEvent]) -> bool:
             last[0] = st
