@@ -169,8 +169,8 @@ def test_the_reference_is_on_the_mesh_its_increments_were_refined_on():
 
 def test_the_adaptive_answer_at_a_coarser_target_follows_the_loop_s_own_rule():
     """A level "meets" a target as the loop decides: three times its change from the level before (two levels may
-    agree by chance) plus one squeeze increment (relative to ρ*), not the change alone — two levels that find ρ*
-    at the same increment are still only known to within it."""
+    agree by chance) plus one squeeze increment (relative to ρ*), not the change alone — and for ρ* that part at
+    least one increment: two levels that find ρ* at the same increment are only known to agree within it."""
     from verification.converge.analysis import adaptive_at
 
     levels = [{"success": True, "squeeze_depth": 0.002, "finger_force": 0.60, "step": 2e-4, "seconds": 1.0},
@@ -178,7 +178,7 @@ def test_the_adaptive_answer_at_a_coarser_target_follows_the_loop_s_own_rule():
                "change": {"squeeze_depth": 0.0, "finger_force": 0.008}}]
     at = adaptive_at({"levels": levels}, 0.05)
     assert at is not None and at["seconds"] == pytest.approx(3.0)
-    assert at["estimated_error"]["squeeze_depth"] == pytest.approx(0.02)  # the increment, 4e-5 / 2e-3
+    assert at["estimated_error"]["squeeze_depth"] == pytest.approx(0.04)  # twice the increment, 4e-5 / 2e-3
     assert at["estimated_error"]["finger_force"] == pytest.approx(3 * 0.008 + 0.02)
     assert adaptive_at({"levels": levels}, 0.03) is None  # the change plus the increment (2.8 %) would have met 3 %
 

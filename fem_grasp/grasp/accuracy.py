@@ -44,7 +44,8 @@ Hoekstra, :mod:`fem_grasp.grasp.estimates`: 1.25 × the extrapolated error
 where they converge monotonically, at least 1.25 × their spread where faster
 than order 2, three times their spread where they swing, but no less than
 the two-level estimate where they do not converge), plus the resolution
-of ρ* (one increment).  Where three levels are
+of ρ* (one increment); for ρ* the part before the resolution is at least one
+resolution too (two levels that find the same ρ* agree only to within it).  Where three levels are
 monotone with an observed order, the Richardson estimate is reported too
 (:func:`estimate`).
 
@@ -497,7 +498,8 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
             report.converged = True
             report.note = (f"levels {level - 1} and {level} agree within {100 * accuracy:g} %: the estimated error is "
                            + ("the larger of their difference and the uncertainty of the last three levels"
-                              if three else "three times their difference") + " plus the resolution of rho*")
+                              if three else "three times their difference") + " plus the resolution of rho* "
+                           "(for rho*, at least twice the resolution)")
             break
         f2, t2 = patch_points(result)
         fingers, table = np.vstack([fingers, f2]), np.vstack([table, t2])
@@ -577,7 +579,9 @@ def estimated_error(change: dict[str, float], ans: GraspAnswer,
     where the last three levels lifted the object and converge (monotonically with an order, or oscillating and
     contracting), the larger of that change and their uncertainty (``three_levels``, :func:`three_level_errors`)
     — plus, for a level that found ρ*, its resolution (ρ* is found up to one increment, or sub-increment, late,
-    and the finger force grows with ρ*, about in proportion near the lift-off).
+    and the finger force grows with ρ*, about in proportion near the lift-off).  For ρ* the change itself is
+    known only to a resolution (two levels on one grid of depths find the same ρ* wherever theirs lie within one
+    step of it), so its part is at least one resolution: ρ*'s estimate is at least two.
 
     Three levels that do not converge ("scatter") state the larger of three times their spread and the
     two-level estimate: their spread is net of each level's quantisation of ρ*, and where every difference lies
@@ -591,11 +595,14 @@ def estimated_error(change: dict[str, float], ans: GraspAnswer,
     for k in ("squeeze_depth", "finger_force"):
         two = TWO_LEVEL_SAFETY * change[k]
         if k not in three:
-            out[k] = two + q
+            mesh = two
         elif three[k]["method"] == "scatter":
-            out[k] = max(two, three[k]["relative"]) + q
+            mesh = max(two, three[k]["relative"])
         else:
-            out[k] = max(change[k], three[k]["relative"]) + q
+            mesh = max(change[k], three[k]["relative"])
+        # Two levels whose ρ* differ by less than a resolution may find the same one (on a common grid of
+        # depths they do): the mesh's part of ρ*'s error is stated as at least one resolution.
+        out[k] = (max(mesh, q) if k == "squeeze_depth" else mesh) + q
     if "max_liftable" in change:
         out["max_liftable"] = change["max_liftable"]
     return out
