@@ -171,6 +171,23 @@ def test_levels_that_drift_within_their_quantisation_state_no_less_than_two_leve
                                                     three["finger_force"]["relative"]) + res)
 
 
+def test_levels_that_find_the_same_rho_state_at_least_twice_its_resolution():
+    """The football at 5 %: its finer levels, on one grid of depths, both found 4.781 mm (0.058 mm steps), 1.8 %
+    from its reference; their change is nil, but their true crossings may lie up to a step apart.  ρ* states at
+    least one resolution for the change besides the answer's own; the force, not quantised, its change as ever."""
+    ans = _Answer(4.781e-3)
+    ans.resolution = 0.058e-3
+    res = 0.058 / 4.781
+    for change in ({"squeeze_depth": 0.0, "finger_force": 0.017}, {"squeeze_depth": 0.002, "finger_force": 0.0}):
+        est = estimated_error(change, ans)
+        assert est["squeeze_depth"] == pytest.approx(max(TWO_LEVEL_SAFETY * change["squeeze_depth"], res) + res)
+        assert est["squeeze_depth"] >= relative_change(4.867, 4.781)
+        assert est["finger_force"] == pytest.approx(TWO_LEVEL_SAFETY * change["finger_force"] + res)
+    # a change larger than the resolution keeps its factor of three
+    big = estimated_error({"squeeze_depth": 0.05, "finger_force": 0.0}, ans)
+    assert big["squeeze_depth"] == pytest.approx(0.15 + res)
+
+
 # ---------------------------------------------------------------- what the next level's resolution costs
 def _answer(rho_mm: float, force: float, resolution_mm: float):
     from fem_grasp.grasp.answer import GraspAnswer
