@@ -299,6 +299,8 @@ class ContactResponse:
         """C (3m×3m): the top-left block of M⁻¹ (eq. 5), symmetric with the rigid modes in its null space."""
         m3 = len(self.dofs)
         c = self._inverse[:m3, :m3]
+        if self._lu is None:  # derived by neighbour(), which leaves M⁻¹ exactly symmetric: 0.5 (c + cᵀ) is c
+            return np.array(c)
         return 0.5 * (c + c.T)
 
     def neighbour(self, nodes: np.ndarray) -> "ContactResponse | None":

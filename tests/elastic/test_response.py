@@ -277,6 +277,7 @@ def test_a_neighbouring_sets_response_is_the_fresh_one_to_round_off(body, rng):
         derived += 1
         np.testing.assert_array_equal(new.nodes, nodes)
         assert rel(new.reduced_stiffness, fresh.reduced_stiffness) <= NEIGHBOUR_AGREEMENT
+        assert np.array_equal(new.reduced_stiffness, new.reduced_stiffness.T)  # C symmetric, exactly
         assert rel(new.gravity_forces, fresh.gravity_forces) <= NEIGHBOUR_AGREEMENT
         d = rng.standard_normal((len(nodes), 3)) * 1e-3
         assert rel(new.forces(d), fresh.forces(d)) <= NEIGHBOUR_AGREEMENT
