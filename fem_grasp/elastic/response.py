@@ -35,7 +35,7 @@ if TYPE_CHECKING:
     from .body import Body
 
 __all__ = ["BACKENDS", "COLLINEAR_TOLERANCE", "CollinearContactError", "ContactResponse", "ContactSolution",
-           "MAX_CONDITION", "NEIGHBOUR_BACKWARD_ERROR", "NEIGHBOUR_NODES", "NEIGHBOUR_UPDATES", "WARN_CONDITION",
+           "MAX_CONDITION", "NEIGHBOUR_BACKWARD_ERROR", "NEIGHBOUR_NODES", "NEIGHBOUR_SHARE", "NEIGHBOUR_UPDATES", "WARN_CONDITION",
            "check_contact_set", "contact_dofs", "contact_response", "equilibrium_residual", "solve_contact"]
 
 log = logging.getLogger(__name__)
@@ -61,10 +61,18 @@ WARN_CONDITION = 1e9
 SURFACE_BLOCK_BYTES = 2 * 2**20
 SURFACE_BLOCK_AFTER = 2
 #: A contact response is derived from a neighbouring set's (:meth:`ContactResponse.neighbour`) when the two sets
-#: differ by at most this many nodes: each node that joins or leaves is a rank-3 change of M⁻¹ (O(m²) work
-#: against the O(m³) of a fresh factorisation and of C); the event tracking changes its sets one or two nodes at
-#: a time.
+#: differ by at most this many nodes, or :data:`NEIGHBOUR_SHARE` of the set's, where more: each node that joins
+#: or leaves is a rank-3 change of M⁻¹ (O(m²) work against the O(m³) of a fresh factorisation and of M⁻¹); the
+#: event tracking changes its sets one or two nodes at a time, an implicit increment on a fine patch by tens.
 NEIGHBOUR_NODES = 6
+#: ... and this share of the larger set: at 830 contacts (the steam bun's finest level at 5 %, its table patch) a
+#: fresh response took 0.45 s, one derived across 100 nodes about a tenth of that.
+NEIGHBOUR_SHARE = 0.125
+
+
+def neighbour_limit(m: int) -> int:
+    """How many nodes two contact sets, the larger of ``m``, may differ by for one to be derived from the other."""
+    return max(NEIGHBOUR_NODES, int(NEIGHBOUR_SHARE * m))
 #: False: :meth:`ContactResponse.neighbour` derives nothing (every set factorised afresh, the reference the tests
 #: compare with).  A contact tracker derives only with ``EngineSettings.neighbour_updates`` too (its own switch).
 NEIGHBOUR_UPDATES = True
@@ -311,7 +319,7 @@ class ContactResponse:
         ones join it by a bordered inverse (the 3a×3a Schur complement S = D − VᵀM⁻¹V of the new rows); the
         result is permuted to the order of ``nodes``.  Derived sets keep this set's scaling of B (any positive
         scale gives the same F̄).  Refused (None): the sparse backend only; sets differing by more than
-        :data:`NEIGHBOUR_NODES` nodes; an ill-conditioned or singular result (cond₁(M) above
+        :func:`neighbour_limit` nodes; an ill-conditioned or singular result (cond₁(M) above
         :data:`WARN_CONDITION`: the fresh construction warns or refuses with its own message); a backward error
         above :data:`NEIGHBOUR_BACKWARD_ERROR`.
 
@@ -330,7 +338,8 @@ class ContactResponse:
         kept = [old[i] for i in kept_pos]
         old_set = set(old)
         added = [k for k in nodes.tolist() if k not in old_set]
-        if len(removed_pos) + len(added) > NEIGHBOUR_NODES or len(kept) + len(added) != len(nodes):
+        if (len(removed_pos) + len(added) > neighbour_limit(max(len(old), len(nodes)))
+                or len(kept) + len(added) != len(nodes)):
             return None
 
         m3, n3 = 3 * len(old), 3 * len(nodes)
@@ -470,7 +479,7 @@ class ContactResponse:
 def contact_response(body: "Body", nodes: np.ndarray, *, backend: str = "sparse",
                      cached: Iterable[ContactResponse] = ()) -> ContactResponse:
     """The response of the contact set ``nodes``: derived (:meth:`ContactResponse.neighbour`) from the response
-    among ``cached`` whose set differs least from it, by at most :data:`NEIGHBOUR_NODES` nodes (the first such in
+    among ``cached`` whose set differs least from it, by at most :func:`neighbour_limit` nodes (the first such in
     ``cached`` order on a tie), where that derivation is accepted; else constructed afresh.
 
     Raises
@@ -480,10 +489,10 @@ def contact_response(body: "Body", nodes: np.ndarray, *, backend: str = "sparse"
     """
     nodes = np.asarray(nodes, dtype=np.int64)
     wanted = set(nodes.tolist())
-    parent, near = None, NEIGHBOUR_NODES + 1
+    parent, near = None, None
     for resp in cached:
         differ = len(wanted.symmetric_difference(resp.nodes.tolist()))
-        if differ < near:
+        if differ <= neighbour_limit(max(len(nodes), len(resp.nodes))) and (near is None or differ < near):
             parent, near = resp, differ
     derived = parent.neighbour(nodes) if parent is not None else None
     return derived or ContactResponse(body, nodes, backend=backend)

@@ -308,6 +308,27 @@ def test_a_neighbour_is_refused_where_it_would_not_pay_or_is_not_a_contact_set(b
     assert resp.neighbour(nodes[:4]) is None
 
 
+def test_a_large_set_is_derived_across_a_share_of_its_nodes(rng):
+    """An implicit increment on a fine patch changes tens of nodes at once: a set of m nodes is derived across up to
+    neighbour_limit(m) = max(6, m/8) of them (here 12 of 96), and agrees with a fresh one; one more is refused."""
+    from fem_grasp.elastic import response
+
+    big = Body(perturbed_box(np.random.default_rng(5), divisions=(5, 5, 5)), 8e4, 0.32, weight=0.9)
+    surface = [int(k) for k in big.mesh.surface_nodes]
+    nodes = np.array(surface[:96])
+    assert response.neighbour_limit(100) == 12 > response.NEIGHBOUR_NODES
+    resp = ContactResponse(big, nodes)
+    changed = np.concatenate([nodes[5:], surface[96:96 + 8]])  # 5 leave, 8 join: 13 differ, sets of 96 and 99
+    assert resp.neighbour(changed) is None
+    within = np.concatenate([nodes[4:], surface[96:96 + 8]])  # 4 leave, 8 join: 12
+    derived = resp.neighbour(within)
+    assert derived is not None
+    fresh = ContactResponse(big, within)
+    assert rel(derived.reduced_stiffness, fresh.reduced_stiffness) <= NEIGHBOUR_AGREEMENT
+    d = 1e-3 * rng.standard_normal((len(within), 3))
+    assert rel(derived.forces(d), fresh.forces(d)) <= NEIGHBOUR_AGREEMENT
+
+
 @pytest.mark.parametrize("rows", [[0, 1, 2, 3], [3, 4, 0, 1, 2], [-1, 0, 1, -1, 4, 5, 2], [5, -1, -1, 6], [2]])
 def test_principal_submatrix_is_fancy_indexing_with_zero_placeholders(rows, rng):
     a = rng.standard_normal((7, 7))
