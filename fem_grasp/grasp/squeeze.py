@@ -118,7 +118,7 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
     if not (isinstance(divisions, (int, np.integer)) and divisions >= 1):
         raise ValueError(f"divisions must be a whole number >= 1, got {divisions!r}")
 
-    next_test = [state.squeeze_depth + step]  # the squeeze may resume from an earlier lift start
+    next_test = [state.squeeze_depth + step]  # the squeeze may resume from an earlier lift start (in_increments)
     # The events since the last lift test, reported once the increment is kept: an increment in which the test
     # first passes is squeezed again in sub-increments when ``divisions`` > 1, and its first pass is dropped.
     pending: list[tuple[ContactState, list[ContactEvent]]] = []
@@ -179,6 +179,13 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
         last[0] = st
         return after_step(st, events)
 
+    def in_increments(st: ContactState) -> tuple[ContactState, bool]:
+        """On from ``st`` in increments ``step``, a lift test after each: (the last state, whether one passed)."""
+        next_test[0] = st.squeeze_depth + step
+        final, _, passed = run(tracker, st, velocities, stop=max_squeeze, step=step, param=Parameter.SQUEEZE_DEPTH,
+                               phase="squeeze", after_step=after, on_event=record)
+        return final, passed
+
     try:
         if first_test > state.squeeze_depth * (1.0 + 1e-12):
             final, outcome, below = _tests_from(tracker, state, velocities, max_squeeze=max_squeeze, step=step,
@@ -188,10 +195,7 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
             if outcome == "failed twice":  # on in increments from the second test, as without a first test
                 keep()
                 tested[0] = final
-                next_test[0] = final.squeeze_depth + step
-                final, _, stopped = run(tracker, final, velocities, stop=max_squeeze, step=step,
-                                        param=Parameter.SQUEEZE_DEPTH, phase="squeeze", after_step=after,
-                                        on_event=record)
+                final, stopped = in_increments(final)
             elif below is None:
                 keep_to(final.squeeze_depth)
                 pending.clear()  # beyond ρ*: squeezed on to tests that were not needed
@@ -200,18 +204,14 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
                 tested[0], passing[0] = below, final
                 keep_to(below.squeeze_depth)
         else:
-            final, _, stopped = run(tracker, state, velocities, stop=max_squeeze, step=step,
-                                    param=Parameter.SQUEEZE_DEPTH, phase="squeeze", after_step=after, on_event=record)
+            final, stopped = in_increments(state)
         if again[0]:
             pending.clear()  # the first pass through the increment is not kept
             end = passing[0].squeeze_depth
             out.liftable[:] = [(r, w) for r, w in out.liftable if r <= tested[0].squeeze_depth * (1.0 + 1e-12)]
             final, stopped = _divide(tracker, tested[0], end, velocities, step / divisions, test, emit, last)
             if not stopped:  # w(ρ) crossed mg and fell back within the increment: squeeze on, undivided
-                next_test[0] = final.squeeze_depth + step
-                final, _, stopped = run(tracker, final, velocities, stop=max_squeeze, step=step,
-                                        param=Parameter.SQUEEZE_DEPTH, phase="squeeze", after_step=after,
-                                        on_event=record)
+                final, stopped = in_increments(final)
         keep()
     except TrackingError as exc:
         keep()
