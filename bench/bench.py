@@ -739,7 +739,8 @@ def study_references(quick: bool = False, compute: bool = False,
     one (:mod:`verification.converge.references`, written by the study on the machine that ran it); None where
     neither has one.  An object's committed pinned reference (the answer at the placement rule's own grasp
     points, ``references.PINNED``) is kept under that key beside either.  Each carries ``source``: "cache", or
-    the committed entry's study, date and machine.  Its verdict is ``success``; on a pickup ``rho`` and ``force`` are each a ``{"value", "error", "method"}``.
+    the committed entry's study, date and machine.  Its verdict is ``success``; on a pickup ``rho`` and ``force``
+    are each a ``{"value", "error", "method"}``.
 
     Reading analyses the cached records without computing any (as ``--report-only``, which also rewrites the
     study's converge.json and plots).  ``compute``: first run the cases a missing reference needs (the uniform

@@ -125,10 +125,11 @@ def _accuracy_lines(acc: dict[str, Any], quick: bool) -> list[str]:
     lines = [head]
     given = acc.get("given_mesh")
     if given:
-        lines.append(f"  given    {given['vertices']:,} vertices, its finger nodes {1e3 * given['grasp_offset']:.2g} mm from "
-                     f"the grasp points: {'picked up' if given['success'] else 'not picked up'}, rho "
-                     f"{1e3 * given['squeeze_depth']:.4g} mm, finger force {given['finger_force']:.4g} N (another grasp: "
-                     "level 0 is remeshed with the points as nodes)")
+        lines.append(f"  given    {given['vertices']:,} vertices, its finger nodes "
+                     f"{1e3 * given['grasp_offset']:.2g} mm from the grasp points: "
+                     f"{'picked up' if given['success'] else 'not picked up'}, rho "
+                     f"{1e3 * given['squeeze_depth']:.4g} mm, finger force {given['finger_force']:.4g} N "
+                     "(another grasp: level 0 is remeshed with the points as nodes)")
     for lv in acc["levels"]:
         lines.append(f"  level {lv['level']}  {lv['vertices']:,} vertices, spacing {1e3 * lv['inner_size']:.3g} mm at "
                      f"the patches, increment {1e3 * lv['step']:.3g} mm"

@@ -35,8 +35,9 @@ if TYPE_CHECKING:
     from .body import Body
 
 __all__ = ["BACKENDS", "COLLINEAR_TOLERANCE", "CollinearContactError", "ContactResponse", "ContactSolution",
-           "MAX_CONDITION", "NEIGHBOUR_BACKWARD_ERROR", "NEIGHBOUR_NODES", "NEIGHBOUR_SHARE", "NEIGHBOUR_UPDATES", "WARN_CONDITION",
-           "check_contact_set", "contact_dofs", "contact_response", "equilibrium_residual", "solve_contact"]
+           "MAX_CONDITION", "NEIGHBOUR_BACKWARD_ERROR", "NEIGHBOUR_NODES", "NEIGHBOUR_SHARE", "NEIGHBOUR_UPDATES",
+           "WARN_CONDITION", "check_contact_set", "contact_dofs", "contact_response", "equilibrium_residual",
+           "neighbour_limit", "principal_submatrix", "solve_contact"]
 
 log = logging.getLogger(__name__)
 

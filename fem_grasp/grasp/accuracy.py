@@ -76,11 +76,10 @@ from .estimates import estimate, relative_change, sequence_uncertainty
 from .options import MAX_FINGER_CONTACTS as _MAX_FINGER_CONTACTS
 from .options import PickupOptions
 
-__all__ = ["AccuracyLevel", "AccuracyReport", "single_run_report",
-           "next_step", "predicted_mesh_error", "predicted_level_seconds", "first_lift_test", "placement_target", "estimated_error",
-           "three_level_errors", "converged_pickup", "GRASP_TOLERANCE", "TWO_LEVEL_SAFETY", "LEVEL_COST_GROWTH", "LEVEL_RATIO",
-           "STEP_SHARE", "FINE_STEP_SHARE", "STEP_DIVISIONS", "DEFAULT_ACCURACY", "MAX_LEVELS",
-           "MAX_FINGER_CONTACTS"]
+__all__ = ["AccuracyLevel", "AccuracyReport", "single_run_report", "next_step", "predicted_mesh_error",
+           "predicted_level_seconds", "first_lift_test", "placement_target", "estimated_error", "three_level_errors",
+           "converged_pickup", "GRASP_TOLERANCE", "TWO_LEVEL_SAFETY", "LEVEL_COST_GROWTH", "LEVEL_RATIO", "STEP_SHARE",
+           "FINE_STEP_SHARE", "STEP_DIVISIONS", "DEFAULT_ACCURACY", "MAX_LEVELS", "MAX_FINGER_CONTACTS"]
 
 log = logging.getLogger(__name__)
 

@@ -12,9 +12,9 @@ Every mesh of the study grasps at its own nodes, up to half a spacing from the p
 grasps on the object's surface, and the answer moves with the grasp: the study's references are 5-13 % in ρ*
 and 11-22 % in Σ f·n̂ from the pinned ones on the tomato, the orange and the football.  An object's entry may
 therefore also hold a **pinned** reference (:data:`PINNED`): the answer at the rule's own points, on uniform
-meshes that have those points as nodes, written by ``python scripts/pinned_reference.py NAME --write-reference`` (:func:`write_pinned`).  It is
-the reference of the question a run answers (the rule's grasp), and the benchmarks measure against it where an
-object has one.
+meshes that have those points as nodes, written by ``python scripts/pinned_reference.py NAME
+--write-reference`` (:func:`write_pinned`).  It is the reference of the question a run answers (the rule's
+grasp), and the benchmarks measure against it where an object has one.
 """
 
 from __future__ import annotations
