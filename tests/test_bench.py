@@ -343,6 +343,7 @@ def test_the_accuracy_section_measures_each_run_against_the_study_reference(monk
         return raw[run]
 
     monkeypatch.setattr(bench, "run_accuracy_worker", fake_worker)
+    monkeypatch.setattr(bench, "default_accuracy", lambda name: None)  # a default of one run: three runs
     sec = bench.section_accuracy(cap=7.0, objects=("orange", "tomato"))
     assert asked == [(False, False, ("orange", "tomato"))]  # read only: the study is not started
     assert ran == [("orange", run, 7.0) for run, _ in bench.ACCURACY_RUNS]  # tomato: no reference, not run
@@ -379,6 +380,16 @@ def test_the_accuracy_section_measures_each_run_against_the_study_reference(monk
     assert "not run (cap" in text and "no reference" in text
     assert not any("wrong verdict" in line for line in text.splitlines() if "picked up" in line)
     assert "10 %" in text and "yes" in text and "NO" in text
+
+    # where the scene's default is the adaptive loop at the target, that run is not made twice: its row repeats
+    monkeypatch.setattr(bench, "default_accuracy", lambda name: bench.ACCURACY_TARGET)
+    ran.clear()
+    again = bench.section_accuracy(cap=7.0, objects=("orange",))["objects"]["orange"]["rows"]
+    assert ran == [("orange", "one_level", 7.0), ("orange", "default", 7.0)]
+    assert again["adaptive"]["same_as"] == "default" and again["adaptive"]["error"] == again["default"]["error"]
+    bench.print_accuracy({"study": "full", "cap_s": 7.0, "target": 0.05,
+                          "objects": {"orange": {"reference": reference, "rows": again}}})
+    assert "the same run as Scene.run() as shipped" in capsys.readouterr().out
 
 
 def test_the_accuracy_section_measures_against_the_pinned_reference_where_an_object_has_one(monkeypatch, capsys):

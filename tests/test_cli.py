@@ -26,6 +26,26 @@ def test_every_shipped_scene_runs_quick_and_the_exit_status_matches_the_result(s
     assert (out / "object.pvd").exists()
 
 
+def test_a_run_without_options_is_refined_to_five_per_cent_and_off_is_one_run(tmp_path, capsys):
+    """`fem-grasp run SCENE` answers to the default 5 %: levels refined at the patches, an estimated error within
+    it, the levels' total time; `--accuracy off` is one run on the shipped mesh, said to be one, with the scene's
+    stated error.  The two answers lie within that stated error of each other."""
+    assert main(["run", "foam_block", "--no-cache", "--out", str(tmp_path / "a")]) == 0
+    text = capsys.readouterr().out
+    acc = json.loads((tmp_path / "a" / "result.json").read_text())["accuracy"]
+    assert acc["target"] == 0.05 and acc["converged"] and len(acc["levels"]) >= 2
+    assert max(acc["estimated_error"].values()) <= 0.05
+    assert f"for {len(acc['levels'])} levels; the last:" in text and "target 5 %" in text
+    assert main(["run", "foam_block", "--no-cache", "--accuracy", "off", "--out", str(tmp_path / "b")]) == 0
+    text = capsys.readouterr().out
+    doc = json.loads((tmp_path / "b" / "result.json").read_text())
+    assert len(doc["accuracy"]["levels"]) == 1 and not doc["accuracy"]["converged"]
+    assert "one run on the scene's mesh (accuracy off)" in text
+    stated = doc["accuracy"]["estimated_error"]["squeeze_depth"]
+    one, refined = doc["accuracy"]["levels"][0]["squeeze_depth"], acc["levels"][-1]["squeeze_depth"]
+    assert abs(one - refined) <= stated * refined
+
+
 def test_young_override_reaches_the_scene():
     from argparse import Namespace
 

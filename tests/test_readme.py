@@ -54,6 +54,13 @@ def test_the_python_snippet_runs(index, tmp_path, monkeypatch):
         assert 0 < result.squeeze_depth < 0.03  # a few millimetres into a 3 cm block
         assert result.finger_normal_force > 0
         result.check()  # equilibrium, non-penetration and Coulomb's law on every snapshot
+        # the default answer is refined: converged to 5 %, and the figures the README prints are this answer's
+        # (rho* within one squeeze increment, the force within 1 % of mg, beside the printed rounding)
+        assert result.accuracy["converged"] and max(result.estimated_error.values()) <= 0.05
+        shown = re.search(r"# True rho\* = ([\d.]+) mm .*finger force ([\d.]+) N", PYTHON[0])
+        assert shown, "the first snippet's comment shows its answer"
+        assert abs(result.squeeze_depth - 1e-3 * float(shown[1])) <= result.step + 5e-6
+        assert abs(result.finger_normal_force - float(shown[2])) <= 0.01 * result.body.weight + 5e-4
 
 
 @pytest.mark.parametrize("argv", COMMANDS, ids=[" ".join(a) for a in COMMANDS])

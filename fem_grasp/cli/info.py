@@ -108,13 +108,16 @@ def _scene_lines(scene: Any) -> list[str]:
     if scene.quick:
         acc = "one run on the quick variant's coarse mesh (--quick does not refine)"
     elif scene.accuracy is not None:
-        acc = f"refine at the contact patches until rho* and the finger force agree to {100 * scene.accuracy:g} %"
+        acc = (f"refine at the contact patches until the estimated error of rho* and the finger force is within "
+               f"{100 * scene.accuracy:g} %")
     else:
-        acc = "one run on the scene's mesh"
+        acc = "one run on the scene's mesh (accuracy off)"
     if scene.expected_error is not None:
-        acc += ("; such a run may even reach another verdict than a finer mesh (solver.expected_error = inf)"
+        refined = scene.accuracy is not None and not scene.quick
+        run = "one run on this mesh (--accuracy off)" if refined else "such a run"
+        acc += (f"; {run} may even reach another verdict than a finer mesh (solver.expected_error = inf)"
                 if not np.isfinite(scene.expected_error) else
-                f"; such a run is within about {100 * scene.expected_error:g} % of the converged answer "
+                f"; {run} is within about {100 * scene.expected_error:g} % of the converged answer "
                 "(solver.expected_error)")
     lines = [
         f"scene      {scene.name}{' (quick)' if scene.quick else ''}: {scene.description or '(no description)'}",

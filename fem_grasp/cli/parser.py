@@ -62,16 +62,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--young", metavar="E",
                    help="override the scene's Young's modulus: pascals, or a string with a unit, e.g. '20 kPa'")
     p.add_argument("--accuracy", metavar="A",
-                   help="override the scene's [solver] accuracy: a relative error of rho* and the finger force "
-                        "(0.05 or 5%%): refine at the contact patches until two successive answers agree within it; "
-                        "'off' runs once on the scene's mesh (--quick always runs once, on its coarse mesh, and says "
-                        "that its answer is not converged)")
+                   help="the accuracy of the answer, a relative error of rho* and the finger force (default: the "
+                        "scene's [solver] accuracy, 5%% unless it says otherwise): refine at the contact patches until "
+                        "the estimated error is within it; 'off' runs once on the scene's mesh, the paper's Algorithm "
+                        "1 as printed (--quick always runs once, on its coarse mesh, and says that its answer is not "
+                        "converged)")
     p.add_argument("--max-finger-contacts", metavar="N", type=int,
-                   help="with --accuracy: do not run a level predicted to put more than N contacts on one fingertip "
+                   help="when refining: do not run a level predicted to put more than N contacts on one fingertip "
                         "(default 300; each level has about four times the contacts of the one before, and costs "
                         "several times as much)")
     p.add_argument("--max-seconds", metavar="S", type=float,
-                   help="with --accuracy: a time budget; no level is started that would carry the loop past S "
+                   help="when refining: a time budget; no level is started that would carry the loop past S "
                         "seconds (predicted from the levels so far), and the answer is the last level's with its "
                         "estimated error (default: the scene's [solver] max_seconds, or none)")
     p.add_argument("--step-divisions", metavar="D", type=int,

@@ -83,6 +83,9 @@ def _summary_lines(scene: Any, result: Any, rest_cached: bool) -> list[str]:
         "time       " + ", ".join(time_parts),
     ]
     acc = getattr(result, "accuracy", None)
+    if acc and len(acc["levels"]) > 1 and "seconds" in acc:  # the timings are the last level's
+        lines[-1] = (f"time       {acc['seconds']:.1f} s for {len(acc['levels'])} levels; the last: "
+                     + ", ".join(time_parts))
     if acc:
         if not acc["converged"]:
             lines[2] += ("  (one run on this mesh: see accuracy)" if len(acc["levels"]) == 1 else
@@ -106,11 +109,12 @@ def _accuracy_lines(acc: dict[str, Any], quick: bool) -> list[str]:
     elif len(acc["levels"]) == 1:
         stated = acc.get("expected_error_stated")
         bound = e["squeeze_depth"]
+        hint = " (without --accuracy off the run refines it)" if "accuracy off" in acc.get("note", "") else ""
         how = ("the convergence study found that such a run can even reach another verdict than a finer mesh"
                if stated and not np.isfinite(bound) else
                f"measured against this scene's converged answer, such a run is within about {pct(bound)} of its rho* "
-               "and finger force (--accuracy 5% refines it)" if stated
-               else "how far it is from the converged answer is not known (--accuracy 5% refines it)")
+               f"and finger force{hint}" if stated
+               else f"how far it is from the converged answer is not known{hint}")
         head = (f"accuracy   {acc.get('note', '')}; {how}"
                 + (f"; run without --quick for the answer to {100 * acc['target']:g} %"
                    if quick and acc.get("target") is not None and np.isfinite(acc["target"]) else ""))

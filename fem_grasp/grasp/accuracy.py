@@ -85,7 +85,7 @@ log = logging.getLogger(__name__)
 
 #: Spacing ratio between successive levels (halving, as in the study's grading series R/2 … R/16).
 LEVEL_RATIO = 2.0
-#: The accuracy of the shipped paper scenes (relative error of ρ* and of the finger force).
+#: The accuracy a scene is run to unless it says otherwise (relative error of ρ* and of the finger force).
 DEFAULT_ACCURACY = 0.05
 #: Levels tried after level 0 before the loop gives up and reports an unconverged answer.
 MAX_LEVELS = 4

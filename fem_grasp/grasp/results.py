@@ -240,7 +240,9 @@ class PickupResult:
         within ``step / step_divisions``; :attr:`~fem_grasp.grasp.options.PickupOptions.step_divisions`)
     lift_test_step : the lift-test step h used, newtons
     accuracy : with ``pickup(..., accuracy=...)``, what the levels of :func:`fem_grasp.grasp.accuracy.converged_pickup`
-        found (target, estimated errors, levels), as in result.json; else None
+        found (target, estimated errors, levels), as in result.json; a scene's one run (``--accuracy off``,
+        ``--quick``) the error the scene states for it; else None
+    estimated_error : ``accuracy``'s estimated relative errors of ρ* and Σ f·n̂ (property)
     """
 
     success: bool
@@ -284,6 +286,14 @@ class PickupResult:
         """Each finger's force on the object in the final snapshot (at lift-off on success); None before any
         (:mod:`fem_grasp.grasp.forces`)."""
         return None if self.final is None else self.final.finger_forces(self.directions)
+
+    @property
+    def estimated_error(self) -> dict[str, float] | None:
+        """The answer's estimated relative error, ``{"squeeze_depth": …, "finger_force": …}`` (ρ* and Σ f·n̂; inf:
+        not known, or the verdict itself may differ on a finer mesh), from ``accuracy``; None without one."""
+        if not self.accuracy:
+            return None
+        return {k: float(self.accuracy["estimated_error"][k]) for k in ("squeeze_depth", "finger_force")}
 
     def event_counts(self) -> dict[str, int]:
         counts = {k: 0 for k in "ABCD"}

@@ -40,8 +40,9 @@ optional)::
     lift_test_step = "0.05 N"
     max_lift = "5 cm"
     lift = true
-    accuracy = 0.05           # relative accuracy of ρ* and the finger force: refine at the contact patches until
-                              # two successive levels agree within it (fem_grasp.grasp.accuracy); omit for one run
+    accuracy = 0.05           # relative accuracy of ρ* and the finger force (the default): refine at the contact
+                              # patches until the answer's estimated error is within it (fem_grasp.grasp.accuracy);
+                              # "off" for one run on the scene's mesh, the paper's Algorithm 1 as printed
     max_finger_contacts = 300 # with accuracy: a level predicted to put more contacts on a fingertip is not run
     max_seconds = 120         # with accuracy: a time budget; a level predicted to overrun it is not run
     expected_error = 0.3      # how far a single run of this scene (no accuracy loop, e.g. its [quick] variant) is
@@ -67,6 +68,7 @@ from typing import TYPE_CHECKING, Any
 
 from ..elastic.fem import STANDARD_GRAVITY
 from ..errors import SceneError
+from ..grasp.accuracy import DEFAULT_ACCURACY
 from ..grasp.options import PickupOptions
 from ..grasp.placement import DEFAULT_PLACEMENT_RULE
 from .quantities import check_quantity, parse_quantity
@@ -167,7 +169,7 @@ class Scene:
     quick: bool = False
     expect: str | None = None
     placement_rule: str = DEFAULT_PLACEMENT_RULE
-    accuracy: float | None = None
+    accuracy: float | None = DEFAULT_ACCURACY
     expected_error: float | None = None
     max_finger_contacts: int | None = None
     step_divisions: int | None = None
@@ -240,8 +242,9 @@ class Scene:
         Keys: ``young``, ``poisson``, ``weight``, ``mass``, ``density``, ``gravity``; ``mu`` (both
         coefficients), ``mu_finger``, ``mu_table``; ``finger_radius``; ``contacts`` ("auto", a placement rule
         or two node indices) or ``placement_rule``; ``directions``, ``ratio``; ``backend``, ``max_squeeze``,
-        ``step``, ``lift_test_step``, ``max_lift``, ``lift``; ``vertices`` (remesh); ``accuracy`` (0.05, "5%" or
-        None: refine until ρ* and the finger force agree to it, :mod:`fem_grasp.grasp.accuracy`) and
+        ``step``, ``lift_test_step``, ``max_lift``, ``lift``; ``vertices`` (remesh); ``accuracy`` (0.05 or "5%":
+        refine until the answer's estimated error is within it, :mod:`fem_grasp.grasp.accuracy`, 5 % unless the
+        scene says otherwise; None or "off": one run on the scene's mesh) and
         ``max_finger_contacts`` (the refinement's bound on one fingertip's contacts); for a mesh
         file ``units`` ("m", "cm", "mm") and ``allow_implausible_units`` (True: compute even when the object's
         size or density says its unit is wrong, with a warning, instead of refusing it).  Example:
@@ -255,8 +258,9 @@ class Scene:
         return with_changes(self, changes)
 
     def run(self, cache_dir: "Path | str | None | object" = "default") -> "PickupResult":
-        """Pick the object up (Algorithm 1) as ``fem-grasp run`` does; returns the
-        :class:`~fem_grasp.grasp.PickupResult`.
+        """Pick the object up (Algorithm 1) as ``fem-grasp run`` does, refined to the scene's ``accuracy`` (5 %
+        unless the scene says otherwise; ``with_(accuracy="off")``: one run on its mesh); returns the
+        :class:`~fem_grasp.grasp.PickupResult`, whose ``accuracy`` holds the estimated error.
 
         ``cache_dir``: where meshes and resting states are cached ("default": the CLI's cache,
         ``~/.cache/fem_grasp``; None: no cache).  A cached resting state is used only after it re-solves to the
@@ -411,9 +415,7 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
         raise SceneError(f"{s.where('backend')} must be \"sparse\" or \"spectral\", got {backend!r}")
     for key, unit in (("max_squeeze", "m"), ("step", "m"), ("lift_test_step", "N"), ("max_lift", "m")):
         check_quantity(s.where(key), s.get(key), unit)
-    accuracy = s.get("accuracy")
-    if accuracy is not None and not 0.0 < accuracy < 1.0:
-        raise SceneError(f"{s.where('accuracy')} is a relative error in (0, 1), e.g. 0.05 for 5 %; got {accuracy!r}")
+    accuracy = s.get("accuracy", DEFAULT_ACCURACY)
     max_contacts = s.get("max_finger_contacts")
     if max_contacts is not None and not (isinstance(max_contacts, int) and max_contacts >= 1):
         raise SceneError(f"{s.where('max_finger_contacts')} is a whole number of contacts ≥ 1; got {max_contacts!r}")
@@ -441,7 +443,7 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
                  max_squeeze=max_sq, step=step, lift_test_step=s.get("lift_test_step"),
                  max_lift=s.get("max_lift"), lift=s.get("lift", True), description=top.get("description", ""),
                  path=path, quick=quick, expect=expect, placement_rule=rule,
-                 accuracy=None if accuracy is None else float(accuracy),
+                 accuracy=accuracy,
                  expected_error=None if expected_error is None else float(expected_error),
                  max_finger_contacts=max_contacts, step_divisions=divisions,
                  max_seconds=None if max_seconds is None else float(max_seconds))

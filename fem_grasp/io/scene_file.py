@@ -15,7 +15,7 @@ from typing import Any
 
 from ..errors import SceneError
 from ..grasp.placement import PLACEMENT_RULES
-from .quantities import UNITS, parse_quantity
+from .quantities import UNITS, parse_accuracy, parse_quantity
 
 __all__ = ["SCENE_DIR", "SCHEMA", "TableReader", "check_keys", "close_keys", "merge_tables", "read_toml",
            "resolve_scene", "shipped_scenes"]
@@ -54,7 +54,7 @@ SCHEMA: dict[str, dict[str, str]] = {
     "friction": {"finger": "float", "table": "float"},
     "fingers": {"radius": "length", "contacts": "contacts", "directions": "directions", "ratio": "float"},
     "solver": {"backend": "str", "max_squeeze": "length", "step": "length", "lift_test_step": "force",
-               "max_lift": "length", "lift": "bool", "accuracy": "float",
+               "max_lift": "length", "lift": "bool", "accuracy": "accuracy",
                "expected_error": "float", "max_finger_contacts": "int", "step_divisions": "int",
                "max_seconds": "float"},
 }
@@ -153,6 +153,8 @@ class TableReader:
             if isinstance(v, bool) or not isinstance(v, (int, float)):
                 raise SceneError(f"{w}: expected a number, got {v!r}")
             return float(v)
+        if kind == "accuracy":  # 0.05, "5%" or "off" (None)
+            return parse_accuracy(v, w)
         if kind in UNITS:
             return parse_quantity(v, kind, w)
         if kind in ("length3", "vec3", "int3"):

@@ -4,10 +4,13 @@ the pickup, with errors about the fingers raised naming the scene file and its k
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..errors import SceneError
+
+log = logging.getLogger(__name__)
 
 __all__ = ["pickup_scene"]
 
@@ -25,7 +28,7 @@ def pickup_scene(scene: Scene, cache_dir: Path | None = None, phase: Any = None)
     "squeeze, lift test, lift") and returns a context manager around that phase (the CLI's progress bar).
     Errors about the fingers (contact nodes, placement, squeeze directions) are raised naming the scene file
     and its key.  ``result.timings["rest"]`` is the time the resting state took (to solve or to check from the
-    cache).  Returns (result, whether the resting state came from the cache).
+    cache; refined, the last level's).  Returns (result, whether its resting state came from the cache).
     """
     import contextlib
     import time
@@ -43,12 +46,13 @@ def pickup_scene(scene: Scene, cache_dir: Path | None = None, phase: Any = None)
                                  cache_dir=cache_dir)
     t_rest = time.perf_counter() - t0
     refine = scene.accuracy is not None and not scene.quick
+    geometry, no_geometry = (_geometry(scene, body.mesh) if refine else (None, ""))
+    refine = refine and geometry is not None
     with step("squeeze and lift, refining" if refine else "squeeze, lift test, lift"):
         try:
             options = scene.pickup_options()
             if refine:
-                result = pickup(body, options.replace(accuracy=scene.accuracy, geometry=scene.geometry()),
-                                rest_state=rs)
+                result = pickup(body, options.replace(accuracy=scene.accuracy, geometry=geometry), rest_state=rs)
             else:
                 result = pickup(body, options, rest_state=rs)
                 from ..grasp.accuracy import single_run_report
@@ -58,12 +62,30 @@ def pickup_scene(scene: Scene, cache_dir: Path | None = None, phase: Any = None)
                 result.accuracy = single_run_report(
                     result, scene.accuracy, scene.expected_error,
                     "--quick: one run on the coarse mesh, no refinement" if scene.quick else
-                    "one run on the scene's mesh (accuracy off)")
+                    no_geometry or "one run on the scene's mesh (accuracy off)")
         except SceneError as exc:
             raise _in_scene(scene, exc) from None
+    if refine:  # the result is the last level's, whose resting state the loop solved (its timings say how long)
+        return result, False
     result.timings["rest"] = t_rest
     result.timings["total"] = result.timings.get("total", 0.0) + t_rest
     return result, cached
+
+
+def _geometry(scene: Scene, mesh: "TetMesh") -> tuple[Any, str]:
+    """What the accuracy loop remeshes (the scene's geometry, else the mesh's boundary) and "", or None and why
+    it cannot refine: without gmsh (a core install), or for a volume mesh whose boundary is not a closed manifold
+    surface, the scene is run once on its mesh, and its answer says so."""
+    from ..errors import MissingExtraError, require
+    from ..mesh.remesh import NoGeometryError, geometry_of_mesh
+
+    try:
+        require("gmsh", "mesh", f"refining the answer to {100 * scene.accuracy:g} %", load=False)
+        geometry = scene.geometry()
+        return (geometry, "") if geometry is not None else (geometry_of_mesh(mesh), "")
+    except (MissingExtraError, NoGeometryError) as exc:
+        log.warning("%s: one run on the scene's mesh, not refined: %s", scene.name, exc)
+        return None, f"one run on the scene's mesh, not refined: {exc}"
 
 
 def _check_contacts(scene: Scene, mesh: "TetMesh") -> None:

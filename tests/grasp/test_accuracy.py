@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from fem_grasp import Body, box_mesh
-from fem_grasp.grasp.accuracy import STEP_SHARE, converged_pickup
+from fem_grasp.grasp.accuracy import DEFAULT_ACCURACY, STEP_SHARE, converged_pickup
 from fem_grasp.grasp.answer import answer_of
 from fem_grasp.grasp.estimates import relative_change
 from fem_grasp.grasp.pickup import pickup
@@ -334,10 +334,14 @@ def test_scene_key_and_cli_flag():
 
     base = {"object": {"box": [0.03, 0.04, 0.03]}, "material": {"young": 2e4, "poisson": 0.3, "weight": 0.3},
             "friction": {"finger": 0.5}}
-    assert parse_scene(base).accuracy is None
-    assert parse_scene(dict(base, solver={"accuracy": 0.05})).accuracy == 0.05
-    with pytest.raises(SceneError, match="solver.accuracy"):
-        parse_scene(dict(base, solver={"accuracy": 5.0}))
+    assert parse_scene(base).accuracy == DEFAULT_ACCURACY == 0.05  # a scene is refined to 5 % unless it says
+    assert parse_scene(dict(base, solver={"accuracy": 0.02})).accuracy == 0.02
+    assert parse_scene(dict(base, solver={"accuracy": "2%"})).accuracy == pytest.approx(0.02)
+    assert parse_scene(dict(base, solver={"accuracy": "off"})).accuracy is None
+    assert parse_scene(base).with_(accuracy="off").accuracy is None
+    for bad in (5.0, "often", True):
+        with pytest.raises(SceneError, match="solver.accuracy"):
+            parse_scene(dict(base, solver={"accuracy": bad}))
     assert isinstance(parse_scene(base).geometry(), remesh.BoxGeometry)
     assert parse_scene(dict(base, solver={"expected_error": float("inf")})).expected_error == float("inf")
     with pytest.raises(SceneError, match="solver.expected_error"):
@@ -347,6 +351,35 @@ def test_scene_key_and_cli_flag():
     for bad in ("2", "x", "0", True):
         with pytest.raises(SceneError, match="--accuracy"):
             parse_accuracy(bad, "--accuracy")
+
+
+def test_a_scene_without_gmsh_runs_once_and_says_so(monkeypatch, caplog):
+    """The core install has no gmsh: a scene's default refinement cannot remesh, so the run is one run on its mesh
+    whose answer states the scene's error for such a run and why it was not refined (a warning names the extra),
+    the same answer as the run with accuracy off."""
+    import logging
+
+    from fem_grasp import errors
+    from fem_grasp.io.scene import Scene
+
+    real = errors.require
+
+    def no_gmsh(module, extra, purpose, **kw):
+        if module == "gmsh":
+            raise errors.MissingExtraError(f"{purpose} needs the 'mesh' extra (gmsh is not installed)", extra="mesh")
+        return real(module, extra, purpose, **kw)
+
+    scene = Scene.load("foam_block").with_(lift=False)
+    off = scene.with_(accuracy="off").run(cache_dir=None)
+    monkeypatch.setattr(errors, "require", no_gmsh)
+    with caplog.at_level(logging.WARNING, logger="fem_grasp"):
+        res = scene.run(cache_dir=None)
+    assert "'mesh' extra" in caplog.text
+    acc = res.accuracy
+    assert not acc["converged"] and len(acc["levels"]) == 1 and "not refined" in acc["note"]
+    assert res.estimated_error == {"squeeze_depth": scene.expected_error, "finger_force": scene.expected_error}
+    assert res.success == off.success and abs(res.squeeze_depth - off.squeeze_depth) <= off.step
+    assert abs(res.finger_normal_force - off.finger_normal_force) <= 0.01 * off.body.weight
 
 
 def test_quick_says_its_answer_is_not_converged_and_by_how_much(capsys, tmp_path):
