@@ -366,16 +366,21 @@ def geometry_of_mesh(mesh: TetMesh, source: str = "the body's mesh") -> SurfaceG
 
 
 def geometry_of_scene(scene: Any) -> Geometry | None:
-    """The geometry of a :class:`~fem_grasp.io.scene.Scene`'s object: its paper shape, its box, its scan's surface;
-    None for a volume mesh file (remeshed from its boundary by :func:`geometry_of_mesh` when needed)."""
+    """The geometry of a :class:`~fem_grasp.io.scene.Scene`'s object: its paper shape, its box, its scan's surface
+    (in metres: the file's ``units`` applied, as to the scene's mesh); None for a volume mesh file (remeshed from
+    its boundary by :func:`geometry_of_mesh` when needed)."""
     spec = scene.object
     if spec.kind == "paper":
         return PaperGeometry(spec.paper)
     if spec.kind == "box":
         lx, ly, lz = spec.box
         return BoxGeometry((-lx / 2, -ly / 2, 0.0), (lx / 2, ly / 2, lz))
-    from .scan import SURFACE_SUFFIXES, check_surface, read_surface
+    from .scan import SURFACE_SUFFIXES, Surface, check_surface, read_surface
 
     if spec.mesh is not None and spec.mesh.suffix.lower() in SURFACE_SUFFIXES:
-        return SurfaceGeometry(check_surface(read_surface(spec.mesh)))
+        from .units import LENGTH_UNITS
+
+        surface = read_surface(spec.mesh)
+        scaled = Surface(surface.points * LENGTH_UNITS[spec.units], surface.faces, surface.source)
+        return SurfaceGeometry(check_surface(scaled))
     return None

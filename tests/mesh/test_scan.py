@@ -105,3 +105,25 @@ def test_non_surface_inputs_are_refused(tmp_path):
         check_surface(Surface(np.eye(3), np.array([[0, 1, 2]])))
     with pytest.raises(SurfaceError, match="target_vertices or size, not both"):
         mesh_surface(Surface(np.eye(3), np.array([[0, 1, 2]])), target_vertices=100, size=0.01)
+
+
+def test_a_scan_scenes_geometry_is_in_metres_as_its_mesh_is(tmp_path):
+    """A scene's scan in millimetres (object.units = "mm"): the geometry the accuracy loop remeshes is the scene's
+    object in metres, as its mesh is; remeshed at a size in metres it has the mesh's extent and volume (read in
+    the file's millimetres, a size of 5 mm asked gmsh for tens of thousands of elements per edge)."""
+    from fem_grasp.io.scene import parse_scene
+    from fem_grasp.mesh.remesh import geometry_of_scene
+
+    p, f = icosphere(1e3 * R, 3)  # millimetres
+    write_stl(tmp_path / "ball_mm.stl", p, f)
+    scene = parse_scene({"object": {"mesh": "ball_mm.stl", "units": "mm", "vertices": 300},
+                         "material": {"young": 2e4, "poisson": 0.4, "weight": 1.0}, "friction": {"finger": 0.5}},
+                        base_dir=tmp_path)
+    geo = geometry_of_scene(scene)
+    mesh = scene.load_mesh(None)
+    extent = np.ptp(1e-3 * p, axis=0)  # the scan's box, in metres
+    assert np.ptp(geo.surface.points, axis=0) == pytest.approx(extent, rel=1e-9)
+    assert np.ptp(mesh.points, axis=0) == pytest.approx(extent, rel=0.03)
+    again = geo.build(0.01)
+    assert np.ptp(again.points, axis=0) == pytest.approx(extent, rel=0.03)
+    assert again.volume == pytest.approx(mesh.volume, rel=0.05) and again.n_points < 2000
