@@ -79,7 +79,8 @@ from .options import PickupOptions
 __all__ = ["AccuracyLevel", "AccuracyReport", "single_run_report", "next_step", "predicted_mesh_error",
            "predicted_level_seconds", "first_lift_test", "placement_target", "estimated_error", "three_level_errors",
            "converged_pickup", "GRASP_TOLERANCE", "TWO_LEVEL_SAFETY", "LEVEL_COST_GROWTH", "LEVEL_RATIO", "STEP_SHARE",
-           "FINE_STEP_SHARE", "STEP_DIVISIONS", "DEFAULT_ACCURACY", "MAX_LEVELS", "MAX_FINGER_CONTACTS"]
+           "FINE_STEP_SHARE", "STEP_DIVISIONS", "DEFAULT_ACCURACY", "MAX_LEVELS", "MAX_FINGER_CONTACTS",
+           "SPECTRAL_MAX_VERTICES"]
 
 log = logging.getLogger(__name__)
 
@@ -94,6 +95,11 @@ MAX_LEVELS = 4
 #: algebra is dense in them (the (3m)² reduced stiffness, its factorisations, the hanging patch's return mappings).
 #: The loop then stops with the last level's answer and its estimated error.
 MAX_FINGER_CONTACTS = _MAX_FINGER_CONTACTS
+#: The spectral backend's eigendecomposition is dense, O(n³) in time and O(n²) in memory (the football's 869
+#: vertices take 5.6 s, its 2,744-vertex level would take minutes and its 7,521-vertex one an hour): the loop does
+#: not run a level with more vertices on it, and stops with the last level's answer.  The sparse backend gives the
+#: same answers to round-off (``python -m bench.bench --only spectral``).
+SPECTRAL_MAX_VERTICES = 1500
 
 
 # ============================================================== estimation
@@ -451,6 +457,12 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         t0 = time.perf_counter()
         mesh = _level_meshes(geo, fingers, table, inner_l, PATCH_RADIUS * prev_inner, outer_l, contact_points)
         t_mesh = time.perf_counter() - t0
+        if opts.backend == "spectral" and mesh.n_points > SPECTRAL_MAX_VERTICES:
+            report.note = (f"stopped before level {level}: its {mesh.n_points:,} vertices are more than the spectral "
+                           f"backend's dense eigendecomposition runs in the loop (SPECTRAL_MAX_VERTICES = "
+                           f"{SPECTRAL_MAX_VERTICES}; its time grows as the cube of the vertices); the sparse backend "
+                           "gives the same answers to round-off and refines further")
+            break
         lv_body = Body(mesh, body.young, body.poisson, weight=body.weight, gravity=body.gravity)
         lv_contacts = None if contact_points is None else tuple(int(k) for k in
                                                                 nearest_surface_nodes(mesh, contact_points))

@@ -158,6 +158,23 @@ def test_a_level_that_would_crowd_a_fingertip_with_contacts_is_not_run():
         assert res.body.n_nodes == body.n_nodes
 
 
+def test_the_spectral_backend_does_not_refine_past_what_its_dense_eigendecomposition_runs(monkeypatch):
+    """The spectral backend's eigendecomposition is O(n³): a level with more vertices than the bound is not run,
+    and the answer is the last level's, not converged, saying why and that the sparse backend refines further;
+    the same loop on the sparse backend runs that level."""
+    from fem_grasp.grasp import accuracy
+
+    body = Body(BOX.grid((2, 2, 2)), 2e4, 0.3, weight=0.3)
+    monkeypatch.setattr(accuracy, "SPECTRAL_MAX_VERTICES", body.n_nodes + 1)  # level 0 runs, level 1 does not
+    kw = dict(accuracy=TARGET, geometry=BOX, contacts=_centre_nodes(body.mesh), mu_finger=0.5, finger_radius=0.01,
+              lift=False, max_levels=1)
+    spectral = converged_pickup(body, solve=pickup, backend="spectral", **kw)
+    acc = spectral.accuracy
+    assert len(acc["levels"]) == 1 and not acc["converged"] and spectral.body.n_nodes == body.n_nodes
+    assert "spectral" in acc["note"] and "sparse backend" in acc["note"]
+    assert len(converged_pickup(body, solve=pickup, **kw).accuracy["levels"]) == 2
+
+
 def test_a_level_that_would_crowd_the_table_with_contacts_is_not_run():
     """A flat base rests on many table contacts, which the rest and the squeeze track: a level predicted to put
     more than TABLE_CONTACT_SHARE × max_finger_contacts on the table is not run either."""
