@@ -26,6 +26,7 @@ def test_every_shipped_scene_runs_quick_and_the_exit_status_matches_the_result(s
     assert (out / "object.pvd").exists()
 
 
+@pytest.mark.requires("gmsh")
 def test_a_run_without_options_is_refined_to_five_per_cent_and_off_is_one_run(tmp_path, capsys):
     """`fem-grasp run SCENE` answers to the default 5 %: levels refined at the patches, an estimated error within
     it, the levels' total time; `--accuracy off` is one run on the shipped mesh, said to be one, with the scene's

@@ -10,9 +10,9 @@ from typing import TYPE_CHECKING, Any
 
 from ..errors import SceneError
 
-log = logging.getLogger(__name__)
-
 __all__ = ["pickup_scene"]
+
+log = logging.getLogger(__name__)
 
 if TYPE_CHECKING:
     from ..grasp.pickup import PickupResult
