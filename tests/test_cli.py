@@ -47,6 +47,23 @@ def test_a_run_without_options_is_refined_to_five_per_cent_and_off_is_one_run(tm
     assert abs(one - refined) <= stated * refined
 
 
+def test_an_answer_short_of_its_target_says_by_how_much_and_why():
+    """The summary of a refined answer whose estimate is above the target: the target, that it was not reached,
+    the estimated errors and the loop's reason; then one line per level."""
+    from fem_grasp.cli.run import _accuracy_lines
+
+    level = {"inner_size": 2e-3, "step": 4e-4, "success": True, "finger_force": 4.5, "seconds": 1.0,
+             "mesh_seconds": 0.2}
+    acc = {"target": 0.05, "converged": False, "estimated_error": {"squeeze_depth": 0.024, "finger_force": 0.07},
+           "note": "stopped before level 2: it would put about 528 contacts on a fingertip",
+           "levels": [dict(level, level=0, vertices=700, squeeze_depth=8.7e-3),
+                      dict(level, level=1, vertices=2100, squeeze_depth=9.0e-3)]}
+    lines = _accuracy_lines(acc, quick=False)
+    assert lines[0] == ("accuracy   target 5 %, not reached: estimated error rho* 2.4 %, finger force 7 % (stopped "
+                        "before level 2: it would put about 528 contacts on a fingertip)")
+    assert [x.split()[:2] for x in lines[1:]] == [["level", "0"], ["level", "1"]] and "2,100 vertices" in lines[2]
+
+
 def test_young_override_reaches_the_scene():
     from argparse import Namespace
 

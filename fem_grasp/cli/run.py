@@ -123,8 +123,8 @@ def _accuracy_lines(acc: dict[str, Any], quick: bool) -> list[str]:
                 "last two meshes give different verdicts, so the verdict itself is not settled at this resolution"
                 + ("; run without --quick for the refined answer" if quick else ""))
     else:
-        head = (f"accuracy   the error estimate ({pct(e['squeeze_depth'])} in rho*, {pct(e['finger_force'])} in the "
-                f"finger force) is above the requested {100 * acc['target']:g} % ({acc.get('note', '')})"
+        head = (f"accuracy   target {100 * acc['target']:g} %, not reached: estimated error rho* "
+                f"{pct(e['squeeze_depth'])}, finger force {pct(e['finger_force'])} ({acc.get('note', '')})"
                 + ("; run without --quick for the refined answer" if quick else ""))
     lines = [head]
     given = acc.get("given_mesh")

@@ -434,11 +434,10 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         inner_l = inner / LEVEL_RATIO**level
         predicted = max(f["nodes"] for f in report.levels[-1].answer.fingers) * LEVEL_RATIO**2
         if predicted > max_finger_contacts:
-            report.note = (f"stopped before level {level}: it would put about {predicted:.0f} contacts on a fingertip "
-                           f"(max_finger_contacts = {max_finger_contacts}; the contact algebra is dense in them, so "
-                           f"each level costs several times the last; to go on, raise it: fem-grasp run "
-                           f"--max-finger-contacts N, the scene's [solver] max_finger_contacts, or "
-                           f"PickupOptions.max_finger_contacts)")
+            report.note = (f"stopped before level {level}: it would put about {predicted:.0f} contacts on a fingertip, "
+                           f"more than max_finger_contacts = {max_finger_contacts} (each level costs several times "
+                           "the last; to go on: --max-finger-contacts N, the scene's [solver] max_finger_contacts "
+                           "or PickupOptions.max_finger_contacts)")
             break
         table_now = report.levels[-1].answer.table_nodes
         table_before = report.levels[-2].answer.table_nodes if len(report.levels) > 1 else 0
@@ -448,10 +447,10 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         table_predicted = table_now * growth
         if table_predicted > TABLE_CONTACT_SHARE * max_finger_contacts:
             report.note = (f"stopped before level {level}: it would put about {table_predicted:.0f} contacts on the "
-                           f"table (more than {TABLE_CONTACT_SHARE:g} × max_finger_contacts = "
-                           f"{TABLE_CONTACT_SHARE * max_finger_contacts:g}; the rest and the squeeze are dense in "
-                           f"them; to go on, raise max_finger_contacts: fem-grasp run --max-finger-contacts N, the "
-                           f"scene's [solver] max_finger_contacts, or PickupOptions.max_finger_contacts)")
+                           f"table, more than {TABLE_CONTACT_SHARE:g} × max_finger_contacts = "
+                           f"{TABLE_CONTACT_SHARE * max_finger_contacts:g} (each level costs several times the last; "
+                           "to go on: --max-finger-contacts N, the scene's [solver] max_finger_contacts or "
+                           "PickupOptions.max_finger_contacts)")
             break
         outer_l = max(outer / LEVEL_RATIO ** (0.5 * level), inner_l)
         t0 = time.perf_counter()
