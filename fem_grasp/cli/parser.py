@@ -58,7 +58,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="override the scene's contact solver (spectral: dense eigendecomposition, the paper's)")
     p.add_argument("--no-lift", action="store_true",
                    help="stop when the lift test passes (is it liftable?) instead of simulating the lift; the exit "
-                        "status is then 1, as the object has not been lifted")
+                        "status is then 1, as the object has not been lifted. Refined, its levels compare the finger "
+                        "force on the table at rho* and are meshed without the lift's patches: they settle more "
+                        "slowly than a full run's (not quicker, e.g. the foam block: four levels, not converged)")
     p.add_argument("--young", metavar="E",
                    help="override the scene's Young's modulus: pascals, or a string with a unit, e.g. '20 kPa'")
     p.add_argument("--accuracy", metavar="A",
