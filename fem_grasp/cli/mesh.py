@@ -18,18 +18,15 @@ log = logging.getLogger(__name__)
 
 def cmd_mesh(args: argparse.Namespace) -> int:
     from .._files import atomic_write_mesh
-    from ..mesh.scan import DENSE_SCAN_VERTICES, SURFACE_SUFFIXES, Surface, check_surface, mesh_surface, read_surface
-    from ..mesh.units import LENGTH_UNITS, size_warning
+    from ..mesh.scan import DENSE_SCAN_VERTICES, SURFACE_SUFFIXES, check_surface, mesh_surface, read_surface
+    from ..mesh.units import size_warning
 
     src, dst = Path(args.input), Path(args.output)
     if src.suffix.lower() not in SURFACE_SUFFIXES:
         raise BadInput(f"{src}: expected a surface file ({', '.join(SURFACE_SUFFIXES)}), got {src.suffix or 'no suffix'}")
     if dst.exists() and not args.force:
         raise BadInput(f"{dst} exists; pass --force to overwrite it")
-    surf = read_surface(src)
-    scale = LENGTH_UNITS[args.units]
-    if scale != 1.0:
-        surf = Surface(surf.points * scale, surf.faces, surf.source)
+    surf = read_surface(src, args.units)
     warning = size_warning(surf.diameter, args.units, str(src), hint="--units")
     if warning:
         log.warning("%s", warning)

@@ -48,8 +48,7 @@ def scene_mesh(scene: Scene, cache_dir: Path | None = None) -> "TetMesh":
     data = path.read_bytes()
     if path.suffix.lower() in scan.SURFACE_SUFFIXES:
         def surface() -> "TetMesh":
-            surf = scan.read_surface(path)
-            surf = scan.Surface(surf.points * scale, surf.faces, surf.source)
+            surf = scan.read_surface(path, spec.units)
             return scan.mesh_surface(surf, target_vertices=spec.vertices, size=spec.size)
 
         return cached_mesh(cache_dir, ("surface", digest(data), spec.vertices, spec.size, spec.units), surface)

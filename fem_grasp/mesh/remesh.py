@@ -375,12 +375,8 @@ def geometry_of_scene(scene: Any) -> Geometry | None:
     if spec.kind == "box":
         lx, ly, lz = spec.box
         return BoxGeometry((-lx / 2, -ly / 2, 0.0), (lx / 2, ly / 2, lz))
-    from .scan import SURFACE_SUFFIXES, Surface, check_surface, read_surface
+    from .scan import SURFACE_SUFFIXES, check_surface, read_surface
 
     if spec.mesh is not None and spec.mesh.suffix.lower() in SURFACE_SUFFIXES:
-        from .units import LENGTH_UNITS
-
-        surface = read_surface(spec.mesh)
-        scaled = Surface(surface.points * LENGTH_UNITS[spec.units], surface.faces, surface.source)
-        return SurfaceGeometry(check_surface(scaled))
+        return SurfaceGeometry(check_surface(read_surface(spec.mesh, spec.units)))
     return None

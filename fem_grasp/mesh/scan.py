@@ -31,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import SurfaceError
+from .units import length_scale
 
 __all__ = ["SURFACE_SUFFIXES", "SurfaceError", "Surface", "read_surface", "check_surface", "self_intersections",
            "mesh_surface", "surface_report"]
@@ -77,8 +78,9 @@ def _at(points: np.ndarray, k: int) -> str:
 
 
 # ------------------------------------------------------------------ reading
-def read_surface(path: str | Path) -> Surface:
-    """Read a triangle surface with meshio (quads are split), merge duplicate vertices, drop degenerate triangles.
+def read_surface(path: str | Path, units: str = "m") -> Surface:
+    """Read a triangle surface with meshio (quads are split), merge duplicate vertices, drop degenerate triangles;
+    the file's coordinates are in ``units`` ("m", "cm", "mm"), the surface returned is in metres.
 
     Raises
     ------
@@ -105,7 +107,9 @@ def read_surface(path: str | Path) -> Surface:
             raise SurfaceError(f"{p} holds volume cells ({c.type}); read it with TetMesh.from_file instead")
     if not blocks:
         raise SurfaceError(f"{p} holds no triangles (cell types: {sorted({c.type for c in m.cells}) or 'none'})")
-    return clean_surface(np.asarray(m.points, dtype=float)[:, :3], np.concatenate(blocks), str(p))
+    surface = clean_surface(np.asarray(m.points, dtype=float)[:, :3], np.concatenate(blocks), str(p))
+    scale = length_scale(units)
+    return surface if scale == 1.0 else Surface(surface.points * scale, surface.faces, surface.source)
 
 
 def clean_surface(points: np.ndarray, faces: np.ndarray, source: str = "<surface>") -> Surface:
