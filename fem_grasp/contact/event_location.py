@@ -159,9 +159,11 @@ class EventLocation:
         halvings = 0
         while True:
             try:
-                # Just after an implicit increment the rate problem is likely to fail again: Newton only.
+                # Newton alone just after an implicit increment (the rate problem is likely to fail again) and on a
+                # halved increment: a homotopy that found no root for the whole increment rarely finds one for a
+                # part of it (the foam block's lift: 1 root in 205 paths).
                 trial = self.trial(base, h, velocities, load_rate, param,
-                                   methods=("newton",) if self.implicit else ("newton", "homotopy"))
+                                   methods=("newton",) if self.implicit or halvings else ("newton", "homotopy"))
                 self.implicit = False
                 break
             except SlipFailure as exc:
@@ -226,8 +228,8 @@ class EventLocation:
                     mid += 0.1 * tol
                 elif hi - mid < 0.9 * tol:
                     mid -= 0.1 * tol
-                try:
-                    tr = self.trial(base, mid, velocities, load_rate, param)
+                try:  # Newton alone (warm-started from the roots nearby): a trial that fails only narrows the bracket
+                    tr = self.trial(base, mid, velocities, load_rate, param, methods=("newton",))
                 except SlipFailure:
                     hi, hi_trial, all_hi = mid, None, None
                     g_hi = 1.0

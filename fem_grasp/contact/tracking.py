@@ -27,8 +27,9 @@ displacements, F̄ = C Δ̄ + λ F̄₀ (eq. 5, :class:`~fem_grasp.elastic.respo
    same base state at the nearest parameter (continuation in t: the event
    location below solves the same system at many nearby t), with the
    Newton-homotopy continuation of :mod:`fem_grasp.contact.homotopy` (paper
-   footnote 2) as fallback.  The warm start took the football's lift from
-   24 s to 6 s (756 homotopy paths to 24).
+   footnote 2) as fallback on an increment's first trial (a halved increment
+   and the event location's trials try Newton alone).  The warm start took
+   the football's lift from 24 s to 6 s (756 homotopy paths to 24).
 
 The event tests are evaluated at the end of every increment; when one fires, the event's t is located
 and the configuration is updated there (:mod:`~fem_grasp.contact.event_location`, with the event
