@@ -141,3 +141,18 @@ def test_a_pickup_after_the_warm_up_compiles_nothing():
     success, n_events, before, after = json.loads(out.stdout.strip().splitlines()[-1])
     assert n_events > 0  # the pickup tracked events (it ran the trial kernels)
     assert after == before, {k: (before[k], after[k]) for k in after if after[k] != before[k]}
+
+
+def test_kernels_cached_under_other_options_are_dropped_once(tmp_path):
+    """numba's cache does not record nogil: entries of a cache without the marker of jit.OPTIONS (kernels cached by
+    an earlier version, which held the GIL) are removed before compiling, once; with the marker they stay."""
+    cache = tmp_path / "__pycache__"
+    cache.mkdir()
+    for name in ("polish.polish-129.py311.nbi", "polish.polish-129.py311.1.nbc", "keep.txt"):
+        (cache / name).write_text("x")
+    jit._drop_stale_cache(cache)
+    assert sorted(p.name for p in cache.iterdir()) == sorted(["keep.txt", jit.OPTIONS_MARKER])
+    (cache / "sweep-317.py311.nbi").write_text("x")
+    jit._drop_stale_cache(cache)  # marked: numba's own entries are left to numba
+    assert (cache / "sweep-317.py311.nbi").exists()
+    jit._drop_stale_cache(tmp_path / "absent" / "__pycache__")  # nothing to drop, nowhere to write: no error

@@ -9,8 +9,8 @@ access).  :func:`as_kernel_data` converts to whichever form is in use.
 numba itself (~0.13 s to import) is imported at the first call of a kernel,
 not with fem_grasp: that call replaces every kernel in its module's
 namespace by its compiled version (``cache=True``: compiled once per
-installation, then loaded from ``__pycache__``), so that kernels calling
-kernels are compiled together.
+installation, then loaded from ``__pycache__``; ``nogil=True``: other Python
+threads run meanwhile), so that kernels calling kernels are compiled together.
 
 Set ``FEM_GRASP_NO_JIT=1`` before importing fem_grasp to run the plain
 Python versions even when numba is installed (the tests compare the two).
@@ -28,12 +28,13 @@ import importlib.metadata
 import importlib.util
 import logging
 import os
+from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
-__all__ = ["ENABLED", "as_kernel_data", "backend_name", "jit", "kernel_modules", "sample_contacts", "warm_up_sample",
-           "warm_up_samples"]
+__all__ = ["ENABLED", "OPTIONS", "as_kernel_data", "backend_name", "jit", "kernel_modules", "sample_contacts",
+           "warm_up_sample", "warm_up_samples"]
 
 log = logging.getLogger(__name__)
 
@@ -47,6 +48,32 @@ _kernel_modules: set[str] = set()
 _samples: list[Callable[[], Any]] = []
 
 
+#: The options every kernel is compiled with.  numba's cache does not record them (an entry is keyed by the
+#: kernel's source and argument types), so entries cached under other options are removed once
+#: (:func:`_drop_stale_cache`): kernels cached before ``nogil`` would otherwise hold the GIL for good.
+OPTIONS = {"cache": True, "nogil": True}
+#: The file in this package's ``__pycache__`` naming the :data:`OPTIONS` its cached kernels were compiled with.
+OPTIONS_MARKER = "fem_grasp-kernel-options.txt"
+
+
+def _drop_stale_cache(folder: Path) -> None:
+    """Remove numba's cached kernels in ``folder`` unless its marker names :data:`OPTIONS` (then write it)."""
+    marker = folder / OPTIONS_MARKER
+    tag = repr(sorted(OPTIONS.items()))
+    try:
+        if marker.read_text() == tag:
+            return
+    except OSError:
+        pass
+    try:
+        for entry in [*folder.glob("*.nbi"), *folder.glob("*.nbc")]:
+            entry.unlink()
+        folder.mkdir(exist_ok=True)
+        marker.write_text(tag)
+    except OSError:  # a read-only installation: numba caches in the user's folder, from fresh files
+        pass
+
+
 def _compile_all() -> None:
     """Put the compiled version of every kernel in place of its stub (numba compiles lazily, per signature)."""
     try:
@@ -54,13 +81,19 @@ def _compile_all() -> None:
     except ImportError as exc:  # pragma: no cover - found but broken installation
         log.warning("numba could not be imported (%s): the inner loops run as plain Python on arrays", exc)
         numba = None
+    if numba is not None:
+        _drop_stale_cache(Path(__file__).parent / "__pycache__")
     for namespace, name, fn in _kernels:
-        namespace[name] = fn if numba is None else numba.njit(cache=True)(fn)
+        namespace[name] = fn if numba is None else numba.njit(**OPTIONS)(fn)
     _kernels.clear()
 
 
 def jit(fn: Callable) -> Callable:
-    """``numba.njit(cache=True)`` when :data:`ENABLED` (numba imported at the first call), else ``fn``."""
+    """``numba.njit(cache=True, nogil=True)`` when :data:`ENABLED` (numba imported at the first call), else ``fn``.
+
+    ``nogil``: a compiled kernel releases the GIL, so that a second lift test in a helper thread
+    (:class:`~fem_grasp.grasp.lift_test.SpeculativeTest`) runs on the other core.
+    """
     _kernel_modules.add(fn.__module__)
     if not ENABLED:
         return fn
