@@ -152,6 +152,12 @@ class EngineSettings:
         weight counts as not held (3, steps down to h/8: they resolve the load path near the weight a finger lets
         go; with none, 6 of the tomato's 64 search placements lift one or two squeeze increments later, 4 of
         them by more than one: ``python -m bench.tracker --against settings.load_halvings=0 --search tomato``).
+    parallel_lift_tests : bool
+        A squeeze whose first lift test is at a given depth (the accuracy loop's finer levels) tests the end of
+        the sub-increment below it too, for the case the first passes
+        (:class:`~fem_grasp.grasp.lift_test.SpeculativeTest`): beside the first test in a second thread (True,
+        where numba compiles the kernels, which release the GIL) or after it in the same thread (False); the
+        same numbers either way.
     """
 
     # events A-D (contact.event_location)
@@ -197,6 +203,7 @@ class EngineSettings:
     polish_adoptions: int = 4
     # the lift test (grasp.lift_test)
     load_halvings: int = 3
+    parallel_lift_tests: bool = True
 
     def __post_init__(self) -> None:
         for f in fields(self):

@@ -19,21 +19,43 @@ kinds of solve inside it are the opposite case, and get the threads back:
   17 ms at 840 rows and 20 against 0.2 ms at 150 (the second thread waits
   for a core), so they are kept for sizes where they pay.
 
+While two lift tests run side by side (:func:`side_by_side`, the speculative lift test of
+:class:`~fem_grasp.grasp.lift_test.SpeculativeTest`), nothing gets the threads back: the limit is one
+setting of the whole process, and a solve given two threads by one test would run the other's on two as
+well, for the length of the solve (the same numbers either way, but two threads of the other core).
+
 threadpoolctl is optional: without it nothing is limited.
 """
 
 from __future__ import annotations
 
 import contextlib
+import threading
 from typing import Any, Iterator
 
-__all__ = ["one_blas_thread", "outer_blas_threads", "blas_threads_for", "DENSE_THREADS_MIN"]
+__all__ = ["one_blas_thread", "outer_blas_threads", "blas_threads_for", "side_by_side", "DENSE_THREADS_MIN"]
 
 #: Dense systems of at least this many rows are solved on every BLAS thread, also while tracking (module notes).
 DENSE_THREADS_MIN = 1200
 
 #: (controller, BLAS threads before the limit) of each active :func:`one_blas_thread`, outermost first.
 _LIMITS: list[tuple[Any, int]] = []
+#: How many :func:`side_by_side` sections are active (under ``_SECTIONS_LOCK``).
+_SECTIONS = 0
+_SECTIONS_LOCK = threading.Lock()
+
+
+@contextlib.contextmanager
+def side_by_side() -> Iterator[None]:
+    """A section in which two computations may run in two threads: :func:`outer_blas_threads` changes nothing."""
+    global _SECTIONS
+    with _SECTIONS_LOCK:
+        _SECTIONS += 1
+    try:
+        yield
+    finally:
+        with _SECTIONS_LOCK:
+            _SECTIONS -= 1
 
 
 @contextlib.contextmanager
@@ -55,8 +77,9 @@ def one_blas_thread() -> Iterator[None]:
 
 
 def outer_blas_threads() -> contextlib.AbstractContextManager:
-    """Inside :func:`one_blas_thread`, the BLAS threads in force before it; elsewhere no change."""
-    if not _LIMITS:
+    """Inside :func:`one_blas_thread`, the BLAS threads in force before it; elsewhere, and inside
+    :func:`side_by_side`, no change."""
+    if not _LIMITS or _SECTIONS:
         return contextlib.nullcontext()
     ctl, before = _LIMITS[0]
     return ctl.limit(limits=before, user_api="blas")

@@ -187,6 +187,17 @@ class Tracker(EventLocation, ImplicitStep):
         #: from that state (its event values, rates), which need not be solved again.
         self._returned: _Trial | None = None
 
+    def branch(self) -> "Tracker":
+        """A tracker of the same body, obstacles and settings, starting from copies of this one's caches (contact
+        responses, fields; its body's :meth:`~fem_grasp.elastic.body.Body.branch`): for a second thread, whose
+        numbers do not depend on what this one computes meanwhile."""
+        twin = Tracker(self.body.branch(), radius=self.radius, mu_finger=float(self.mu[FINGER1]),
+                       mu_table=float(self.mu[TABLE]), table=self.table, backend=self.backend, settings=self.settings)
+        twin._responses = {k: r.branch(twin.body) for k, r in self._responses.items()}
+        twin._zero_fields, twin._zero_surface_fields = dict(self._zero_fields), dict(self._zero_surface_fields)
+        twin._latest_full = dict(self._latest_full)
+        return twin
+
     # ------------------------------------------------------------ responses
     def response(self, nodes: np.ndarray) -> ContactResponse:
         key = _key(nodes)

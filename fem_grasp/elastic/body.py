@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 from functools import cached_property
 from typing import TYPE_CHECKING
 
@@ -98,6 +99,14 @@ class Body:
         if "compliance" in self.__dict__:
             moved.__dict__["compliance"] = self.compliance.rotated(np.eye(3) if rotation is None else rotation)
         return moved
+
+    def branch(self) -> "Body":
+        """The same body, sharing what it has computed, with compliance column caches of its own
+        (:meth:`~fem_grasp.elastic.compliance.Compliance.branch`): for a tracker in a second thread."""
+        twin = copy.copy(self)
+        if "compliance" in self.__dict__:
+            twin.__dict__["compliance"] = self.compliance.branch()
+        return twin
 
     # ------------------------------------------------------------ physics
     @property

@@ -45,6 +45,7 @@ import atexit
 import copy
 import logging
 import os
+import threading
 import weakref
 from typing import Callable
 
@@ -114,6 +115,9 @@ def choose_solver(solver: str | None = None) -> str:
 
 #: Every live CHOLMOD factor, by the id of the solve function that owns it (see _cholmod).
 _LIVE_FACTORS: dict[int, object] = {}
+#: One sparse solve at a time: CHOLMOD's solve works in its factor's shared workspace (``Common``), so two threads
+#: (a speculative lift test beside the squeeze's) take turns.
+_SOLVE_LOCK = threading.Lock()
 
 
 def _keep_factors_at_exit() -> None:
@@ -341,8 +345,18 @@ class Compliance:
         """X @ load in the frame of the factorised body (:meth:`rotated`)."""
         out = np.zeros_like(load)
         with outer_blas_threads():  # inside the tracking's one-thread limit too
-            out[self.free] = self._solve(np.ascontiguousarray(load[self.free]))
+            with _SOLVE_LOCK:
+                out[self.free] = self._solve(np.ascontiguousarray(load[self.free]))
         return out
+
+    def branch(self) -> "Compliance":
+        """The same compliance with column caches of its own (copies of this one's): a second tracker in another
+        thread (:class:`~fem_grasp.grasp.lift_test.SpeculativeTest`) reads and adds columns without touching
+        this one's, and what it computes does not depend on when this one's columns were added."""
+        new = copy.copy(self)  # shares the factor, whose solves take _SOLVE_LOCK
+        new._columns = dict(self._columns)
+        new._surface_columns = new._columns if self._surface_columns is self._columns else dict(self._surface_columns)
+        return new
 
     def rotated(self, rotation: np.ndarray) -> "Compliance":
         """The compliance of the same body rigidly rotated by ``rotation`` (3, 3), sharing this factorisation.
@@ -392,7 +406,8 @@ class Compliance:
             at = self._free_position[3 * k: 3 * k + 3]
             rhs[at[at >= 0], 3 * j: 3 * j + 3] = unit[at >= 0]
         with outer_blas_threads():  # inside the tracking's one-thread limit too
-            sol = self._solve(rhs)
+            with _SOLVE_LOCK:
+                sol = self._solve(rhs)
         del rhs
         rows = self._free_position if self._row_dofs is None else self._free_position[self._row_dofs]
         cols = np.where((rows >= 0)[:, None], sol[np.maximum(rows, 0)], 0.0)

@@ -19,6 +19,7 @@ X of K in their place (:mod:`fem_grasp.elastic.compliance`), which gives the sam
 
 from __future__ import annotations
 
+import copy
 import logging
 import warnings
 from dataclasses import dataclass
@@ -263,6 +264,13 @@ class ContactResponse:
     @property
     def _gravity_displacement(self) -> np.ndarray:
         return self.body.gravity_compliance_field
+
+    def branch(self, body: "Body") -> "ContactResponse":
+        """This response for ``body``, a :meth:`~fem_grasp.elastic.body.Body.branch` of its own: the factors and
+        fields computed so far shared, the count of surface fields its own (a tracker in a second thread)."""
+        twin = copy.copy(self)
+        twin.body = body
+        return twin
 
     @property
     def nbytes(self) -> int:

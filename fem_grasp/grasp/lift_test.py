@@ -55,8 +55,11 @@ so the ramp keeps steps of h throughout.
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import threading
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -64,8 +67,9 @@ from ..contact.obstacles import FINGER1, FINGER2, TABLE
 from ..contact.tracking import ContactState, Parameter, Tracker
 from ..elastic.response import check_contact_set
 from ..errors import CollinearContactError, TrackingError
+from ..threads import side_by_side
 
-__all__ = ["HangResult", "LiftTest", "hang", "hanging_state"]
+__all__ = ["HangResult", "LiftTest", "LiftTestCancelled", "SpeculativeTest", "hang", "hanging_state"]
 
 log = logging.getLogger(__name__)
 
@@ -177,12 +181,13 @@ class LiftTest:
         if not self.step > 0:
             raise ValueError(f"the lift-test step must be positive, got {self.step!r}")
 
-    def update(self, state: ContactState) -> float:
+    def update(self, state: ContactState, *, stop: Callable[[], bool] | None = None) -> float:
         """w(ρ_l) from the squeeze state at ρ_l; returns it.
 
         The finger configuration is hung at zero weight, then loaded with h, 2h, … (module notes), each
         weight from the configuration held at the one before; the ramp stops at the first weight not held or
-        at mg.
+        at mg.  ``stop``: asked before every weight; when it says True the test is abandoned
+        (:class:`LiftTestCancelled`, ``liftable`` unchanged).
         """
         self.tests += 1
         base = hanging_state(self.tracker, state)
@@ -191,6 +196,8 @@ class LiftTest:
             return 0.0
         held, k, st = 0.0, 1, base.state
         while held < self.weight * PASS_FRACTION:
+            if stop is not None and stop():
+                raise LiftTestCancelled(f"the lift test was abandoned at {held:.4g} N")
             self.tests += 1
             res = hang(self.tracker, st, k * self.step)
             if not res.held:
@@ -202,3 +209,61 @@ class LiftTest:
     @property
     def passed(self) -> bool:
         return self.liftable >= self.weight * PASS_FRACTION
+
+
+class LiftTestCancelled(Exception):
+    """A lift test abandoned before its verdict (the ``stop`` of :meth:`LiftTest.update`)."""
+
+
+class SpeculativeTest:
+    """The lift test of another squeeze state, made beside the squeeze's own test (on the other core).
+
+    A squeeze with a first lift test at a given depth (``PickupOptions.first_lift_test``: the accuracy loop's
+    finer levels, at the coarser level's ρ*) tests the end of the sub-increment below it next whenever that
+    first test passes, and that test usually fails (ρ* confirmed): the two tests are independent (each hangs
+    its own squeeze state), so this one starts with the first, in a helper thread, and is abandoned if the
+    first fails.  It runs on a branch of the lift test's tracker (:meth:`Tracker.branch`: caches of its own)
+    whether or not a thread runs it (``threaded=False``: at :meth:`result`, in the calling thread), so both
+    ways give the same numbers; while it lasts the BLAS threads stay as they are (:func:`side_by_side`).  The
+    compiled kernels release the GIL; a sparse solve for new compliance columns waits for the other thread's.
+    """
+
+    def __init__(self, lift_test: LiftTest, state: ContactState, *, threaded: bool) -> None:
+        self.state = state
+        self._test = LiftTest(lift_test.tracker.branch(), lift_test.weight, lift_test.step)
+        self._stop = threading.Event()
+        self._outcome: tuple[float, bool, int] | BaseException | None = None
+        self._section = contextlib.ExitStack()
+        self._section.enter_context(side_by_side())
+        self._thread = None
+        if threaded:
+            self._thread = threading.Thread(target=self._run, name="fem_grasp-lift-test", daemon=True)
+            self._thread.start()
+
+    def _run(self) -> None:
+        try:
+            w = self._test.update(self.state, stop=self._stop.is_set)
+            self._outcome = (w, self._test.passed, self._test.tests)
+        except BaseException as exc:  # re-raised by result() in the caller's thread
+            self._outcome = exc
+
+    def result(self) -> tuple[float, bool, int]:
+        """(w(ρ), passed, weights tried) of the state's lift test, once it has ended (or made here)."""
+        try:
+            if self._thread is None:
+                self._run()
+            else:
+                self._thread.join()
+        finally:
+            self._section.close()
+        if isinstance(self._outcome, BaseException):
+            raise self._outcome
+        assert self._outcome is not None
+        return self._outcome
+
+    def cancel(self) -> None:
+        """Abandon the test (the helper stops before its next weight)."""
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join()
+        self._section.close()

@@ -26,10 +26,11 @@ from typing import Callable
 
 import numpy as np
 
+from ..contact.kernels import jit
 from ..contact.obstacles import FINGER1, FINGER2, TABLE
 from ..contact.tracking import ContactEvent, ContactState, Parameter, Tracker, run
 from ..errors import TrackingError
-from .lift_test import LiftTest
+from .lift_test import LiftTest, SpeculativeTest
 from .rest import RestState
 
 __all__ = ["SqueezeOutcome", "initial_state", "squeeze"]
@@ -145,6 +146,18 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
                   int((st.owner != TABLE).sum()))
         return lift_test.passed
 
+    def adopt(st: ContactState, outcome: tuple[float, bool, int]) -> bool:
+        """A :class:`SpeculativeTest`'s outcome at ``st``, recorded as :func:`test` records its own."""
+        w, passed, tests = outcome
+        lift_test.liftable = w
+        lift_test.tests += tests
+        out.liftable.append((st.squeeze_depth, w))
+        log.debug("ρ = %.6g m: liftable weight %.4g N (tested beside the test above it)", st.squeeze_depth, w)
+        return passed
+
+    def speculate(st: ContactState) -> SpeculativeTest:
+        return SpeculativeTest(lift_test, st, threaded=tracker.settings.parallel_lift_tests and jit.ENABLED)
+
     def keep_to(rho: float) -> None:
         """Report the events up to depth ``rho``; those beyond stay pending."""
         upto = [(st, ev) for st, ev in pending if st.squeeze_depth <= rho * (1.0 + 1e-12)]
@@ -190,7 +203,7 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
         if first_test > state.squeeze_depth * (1.0 + 1e-12):
             final, outcome, below = _tests_from(tracker, state, velocities, max_squeeze=max_squeeze, step=step,
                                                 divisions=divisions, first_test=first_test, test=test,
-                                                record=record, last=last)
+                                                record=record, last=last, speculate=speculate, adopt=adopt)
             stopped = outcome == "passed"
             if outcome == "failed twice":  # on in increments from the second test, as without a first test
                 keep()
@@ -233,7 +246,9 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
 def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *, max_squeeze: float, step: float,
                 divisions: int, first_test: float, test: Callable[[ContactState], bool],
                 record: Callable[[ContactState, list[ContactEvent]], None],
-                last: list) -> tuple[ContactState, str, ContactState | None]:
+                last: list, speculate: Callable[[ContactState], SpeculativeTest] | None = None,
+                adopt: Callable[[ContactState, tuple[float, bool, int]], bool] | None = None,
+                ) -> tuple[ContactState, str, ContactState | None]:
     """The squeeze with its first lift test at ``first_test`` (see :func:`squeeze`): in increments ``step`` to the
     start of the one in which it falls, untested, then in sub-increments (``step / divisions``) to the first test
     and, should it fail, the next.
@@ -267,6 +282,11 @@ def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *
     subs: list[ContactState] = []  # the ends of the sub-increments, tested or not
     tests: list[bool] = []
     next_sub = [state.squeeze_depth + sub]
+    ahead: list[tuple[float, bool, int]] = []  # the outcome of the first end below the first test, tested beside it
+
+    def below_first() -> list[ContactState]:
+        """The ends below the first test, from the deepest down: those a passing first test walks down."""
+        return subs[:-1][::-1] + untested[::-1]
 
     def after_sub(st: ContactState, events: list[ContactEvent]) -> bool:
         last[0] = st
@@ -278,8 +298,21 @@ def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *
         subs.append(st)
         if not (tests or rho >= first_test * (1.0 - 1e-9) or at_max):
             return False
-        tests.append(test(st))
-        return tests[-1] or len(tests) == 2
+        if tests or speculate is None or not below_first():
+            tests.append(test(st))
+            return tests[-1] or len(tests) == 2
+        # The first test, and beside it the end below it, which a pass walks down to first (SpeculativeTest).
+        beside = speculate(below_first()[0])
+        try:
+            tests.append(test(st))
+        except BaseException:
+            beside.cancel()
+            raise
+        if tests[-1]:
+            ahead.append(beside.result())
+        else:
+            beside.cancel()
+        return tests[-1]
 
     if untested and state.squeeze_depth >= max_squeeze * (1.0 - 1e-9):
         untested.pop()  # the maximum depth below the first test: the test there, below it the increments' ends
@@ -295,8 +328,8 @@ def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *
         return final, "passed", None
     # The first test passed: the ends below it from the deepest down to the first that fails, ρ* the last that
     # passed; where the two are further apart than a sub-increment (increments' ends), their increment is divided.
-    for st in subs[:-1][::-1] + untested[::-1]:
-        if not test(st):
+    for n, st in enumerate(below_first()):
+        if not (adopt(st, ahead[0]) if n == 0 and ahead and adopt is not None else test(st)):
             return final, "passed", (st if final.squeeze_depth - st.squeeze_depth > 1.5 * sub else None)
         final = st
     return final, "passed", None

@@ -234,6 +234,29 @@ def test_column_solves_use_every_blas_thread_inside_the_tracking_limit(body):
             assert blas_threads() == 2
         with blas_threads_for(DENSE_THREADS_MIN - 1):
             assert blas_threads() == 1
+        # two lift tests side by side: the limit is one setting of the process, so neither gets the threads back
+        from fem_grasp.threads import side_by_side
+
+        with side_by_side(), blas_threads_for(DENSE_THREADS_MIN):
+            comp.node_columns([7])
+            assert blas_threads() == 1 and seen[-1] == 1
+
+
+def test_a_branch_shares_the_factor_and_keeps_columns_of_its_own(body, monkeypatch):
+    """Compliance.branch (a tracker in a second thread): no second factorisation, the columns computed so far,
+    the same columns as this one's for new nodes, and none of its own added to this one's cache."""
+    comp = cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver="superlu")
+    comp.node_columns([3])
+    calls = []
+    factorize = cp.factorize
+    monkeypatch.setattr(cp, "factorize", lambda *a, **k: calls.append(1) or factorize(*a, **k))
+    twin = comp.branch()
+    assert twin.is_cached(3) and not calls
+    np.testing.assert_allclose(twin.node_columns([9]), comp.node_columns([9]), rtol=0, atol=1e-12 * np.abs(
+        comp.node_columns([9])).max())
+    twin.node_columns([11])
+    assert twin.is_cached(11) and not comp.is_cached(11) and not calls
+    np.testing.assert_array_equal(twin.combine([3], np.ones(3)), comp.combine([3], np.ones(3)))
 
 
 def test_a_rigidly_moved_body_shares_the_factorisation_and_solves_the_same(monkeypatch, rng):

@@ -3,11 +3,14 @@ use, at the coarser level's ρ*): the same answer as testing every increment, wi
 of ρ*; should the first test pass, the ends below it tested after all, from the deepest down, so that ρ* is still
 the first that passes where w(ρ) crosses mg once."""
 
+import threading
+
 import pytest
 
 from fem_grasp.grasp.options import PickupOptions
 from fem_grasp.grasp.pickup import pickup
 from fem_grasp.io.scene import load_scene, resolve_scene
+from fem_grasp.settings import EngineSettings
 from tests.helpers import force_along
 
 
@@ -74,6 +77,27 @@ def test_a_first_test_at_rho_star_costs_two_or_three_tests(tomato):
     _same_answer(every, guess)
     assert len(guess.liftable) <= 3 < len(every.liftable)
     assert min(r for r, _ in guess.liftable) >= every.squeeze_depth - 2.5 * every.step / every.step_divisions
+
+
+def test_the_end_below_a_first_test_is_tested_beside_it_with_the_same_numbers(tomato):
+    """A passing first test walks down to the end below it first; that end is tested beside the first test (a
+    helper thread, EngineSettings.parallel_lift_tests) or after it in the same thread, on a branch of the
+    tracker either way: the same w(ρ) at every depth and the same ρ*.  No thread outlives the pickup, also
+    where the first test fails and the test beside it is abandoned."""
+    body, opts, every = tomato
+    before = threading.active_count()
+    at = opts.replace(first_lift_test=every.squeeze_depth)
+    side = pickup(body, at, settings=EngineSettings(parallel_lift_tests=True))
+    after = pickup(body, at, settings=EngineSettings(parallel_lift_tests=False))
+    _same_answer(every, side)
+    assert side.squeeze_depth == pytest.approx(after.squeeze_depth, rel=1e-12)
+    assert len(side.liftable) == len(after.liftable) >= 2
+    mg = body.weight
+    for (r1, w1), (r2, w2) in zip(side.liftable, after.liftable):
+        assert r1 == pytest.approx(r2, rel=1e-12) and abs(w1 - w2) <= 1e-9 * mg
+    early = pickup(body, opts.replace(first_lift_test=0.8 * every.squeeze_depth))
+    _same_answer(every, early)
+    assert threading.active_count() == before
 
 
 def test_a_first_test_beyond_the_maximum_squeeze_is_made_there(tomato):

@@ -49,6 +49,18 @@ def test_a_weight_still_held_is_kept_when_the_next_step_is_not(scripted):
         assert lt.update(None) == pytest.approx(0.5)
 
 
+def test_a_stopped_test_is_abandoned_before_its_next_weight(scripted):
+    """``stop`` (how a speculative test beside the squeeze's is cancelled) is asked before every weight: the ramp
+    ends there, with no verdict, and the last verdict stands."""
+    lt = LiftTest(tracker=None, weight=1.0, step=0.1)
+    scripted.limit = 0.35
+    assert lt.update(None) == pytest.approx(0.3)
+    scripted.limit, scripted.calls = 0.95, 0
+    with pytest.raises(lift_test.LiftTestCancelled, match="abandoned"):
+        lt.update(None, stop=lambda: scripted.calls >= 2)
+    assert scripted.calls == 2 and lt.liftable == pytest.approx(0.3)
+
+
 def test_w_follows_a_falling_and_rising_capacity_within_one_step(scripted):
     lt = LiftTest(tracker=None, weight=1.0, step=0.1)
     for limit, expected in ((0.35, 0.3), (0.72, 0.7), (0.41, 0.4), (0.05, 0.0), (1.3, 1.0)):
