@@ -253,7 +253,11 @@ class SpeculativeTest:
             if self._thread is None:
                 self._run()
             else:
-                self._thread.join()
+                try:
+                    self._thread.join()
+                except BaseException:  # interrupted while waiting: the helper stops at its next weight
+                    self._stop.set()
+                    raise
         finally:
             self._section.close()
         if isinstance(self._outcome, BaseException):

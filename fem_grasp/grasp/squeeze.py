@@ -283,6 +283,11 @@ def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *
     tests: list[bool] = []
     next_sub = [state.squeeze_depth + sub]
     ahead: list[tuple[float, bool, int]] = []  # the outcome of the first end below the first test, tested beside it
+    beside_it: list[SpeculativeTest] = []  # that test, while it runs
+
+    def start_beside(at: ContactState) -> None:
+        if speculate is not None and not beside_it:
+            beside_it.append(speculate(at))
 
     def below_first() -> list[ContactState]:
         """The ends below the first test, from the deepest down: those a passing first test walks down."""
@@ -297,12 +302,18 @@ def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *
         next_sub[0] = rho + sub
         subs.append(st)
         if not (tests or rho >= first_test * (1.0 - 1e-9) or at_max):
+            if rho + sub >= first_test * (1.0 - 1e-9):
+                start_beside(st)  # the next end is the first test's: this one is below it
             return False
         if tests or speculate is None or not below_first():
             tests.append(test(st))
             return tests[-1] or len(tests) == 2
-        # The first test, and beside it the end below it, which a pass walks down to first (SpeculativeTest).
-        beside = speculate(below_first()[0])
+        # The first test, and beside it the end below it, which a pass walks down to first (SpeculativeTest),
+        # started while the squeeze went on to this end where it could be.
+        if beside_it and beside_it[0].state is not below_first()[0]:
+            beside_it.pop().cancel()
+        start_beside(below_first()[0])
+        beside = beside_it.pop()
         try:
             tests.append(test(st))
         except BaseException:
@@ -319,8 +330,14 @@ def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *
         final = state
         after_sub(state, [])
     else:
-        final, _, _ = run(tracker, state, velocities, stop=max_squeeze, step=sub, param=Parameter.SQUEEZE_DEPTH,
-                          phase="squeeze", after_step=after_sub, on_event=record)
+        if untested and state.squeeze_depth + sub >= first_test * (1.0 - 1e-9):
+            start_beside(untested[-1])  # the first end is the first test's
+        try:
+            final, _, _ = run(tracker, state, velocities, stop=max_squeeze, step=sub, param=Parameter.SQUEEZE_DEPTH,
+                              phase="squeeze", after_step=after_sub, on_event=record)
+        finally:
+            while beside_it:  # the squeeze failed, or ended without a first test
+                beside_it.pop().cancel()
     if not tests or not tests[-1]:
         on = len(tests) == 2 and final.squeeze_depth < max_squeeze * (1.0 - 1e-9)
         return final, ("failed twice" if on else "stopped"), None
