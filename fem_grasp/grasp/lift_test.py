@@ -58,8 +58,9 @@ from __future__ import annotations
 import contextlib
 import logging
 import threading
+import time
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import numpy as np
 
@@ -69,7 +70,8 @@ from ..elastic.response import check_contact_set
 from ..errors import CollinearContactError, TrackingError
 from ..threads import side_by_side
 
-__all__ = ["HangResult", "LiftTest", "LiftTestCancelled", "SpeculativeTest", "hang", "hanging_state"]
+__all__ = ["HangResult", "LiftTest", "LiftTestCancelled", "SpeculativeOutcome", "SpeculativeTest", "hang",
+           "hanging_state"]
 
 log = logging.getLogger(__name__)
 
@@ -211,6 +213,16 @@ class LiftTest:
         return self.liftable >= self.weight * PASS_FRACTION
 
 
+class SpeculativeOutcome(NamedTuple):
+    """What :meth:`SpeculativeTest.result` returns: w(ρ) and the verdict of the state's lift test, the weights it
+    tried (:attr:`LiftTest.tests`) and the seconds the caller waited for it."""
+
+    liftable: float
+    passed: bool
+    weights: int
+    waited: float
+
+
 class LiftTestCancelled(Exception):
     """A lift test abandoned before its verdict (the ``stop`` of :meth:`LiftTest.update`)."""
 
@@ -232,7 +244,7 @@ class SpeculativeTest:
         self.state = state
         self._test = LiftTest(lift_test.tracker.branch(), lift_test.weight, lift_test.step)
         self._stop = threading.Event()
-        self._outcome: tuple[float, bool, int] | BaseException | None = None
+        self._outcome: tuple[float, bool, int] | BaseException | None = None  # (w, passed, weights tried)
         self._section = contextlib.ExitStack()
         self._section.enter_context(side_by_side())
         self._thread = None
@@ -247,8 +259,9 @@ class SpeculativeTest:
         except BaseException as exc:  # re-raised by result() in the caller's thread
             self._outcome = exc
 
-    def result(self) -> tuple[float, bool, int]:
-        """(w(ρ), passed, weights tried) of the state's lift test, once it has ended (or made here)."""
+    def result(self) -> SpeculativeOutcome:
+        """The state's lift test, once it has ended (or made here: then ``waited`` is its whole time)."""
+        t0 = time.perf_counter()
         try:
             if self._thread is None:
                 self._run()
@@ -263,7 +276,7 @@ class SpeculativeTest:
         if isinstance(self._outcome, BaseException):
             raise self._outcome
         assert self._outcome is not None
-        return self._outcome
+        return SpeculativeOutcome(*self._outcome, time.perf_counter() - t0)
 
     def cancel(self) -> None:
         """Abandon the test (the helper stops before its next weight)."""

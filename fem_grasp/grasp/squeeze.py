@@ -30,7 +30,7 @@ from ..contact.kernels import jit
 from ..contact.obstacles import FINGER1, FINGER2, TABLE
 from ..contact.tracking import ContactEvent, ContactState, Parameter, Tracker, run
 from ..errors import TrackingError
-from .lift_test import LiftTest, SpeculativeTest
+from .lift_test import LiftTest, SpeculativeOutcome, SpeculativeTest
 from .rest import RestState
 
 __all__ = ["SqueezeOutcome", "initial_state", "squeeze"]
@@ -109,7 +109,8 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
         increment's end below the sub-increments brackets a whole increment, divided as below); should it fail,
         the next sub-increment is tested, and should that fail too, the squeeze goes on from it as without a
         first test.  ρ* is that of testing every sub-increment wherever w(ρ) crosses mg once; a first test at a
-        good guess of ρ* costs two tests
+        good guess of ρ* costs two tests, which run side by side (the one below in a second thread,
+        :class:`~fem_grasp.grasp.lift_test.SpeculativeTest`; ``EngineSettings.parallel_lift_tests``)
     on_event : called with the state after every event (of the increments kept: a passing increment squeezed
         again reports its events once, from the second pass)
     """
@@ -146,14 +147,16 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
                   int((st.owner != TABLE).sum()))
         return lift_test.passed
 
-    def adopt(st: ContactState, outcome: tuple[float, bool, int]) -> bool:
-        """A :class:`SpeculativeTest`'s outcome at ``st``, recorded as :func:`test` records its own."""
-        w, passed, tests = outcome
-        lift_test.liftable = w
-        lift_test.tests += tests
-        out.liftable.append((st.squeeze_depth, w))
-        log.debug("ρ = %.6g m: liftable weight %.4g N (tested beside the test above it)", st.squeeze_depth, w)
-        return passed
+    def adopt(st: ContactState, outcome: SpeculativeOutcome) -> bool:
+        """A :class:`SpeculativeTest`'s outcome at ``st``, recorded as :func:`test` records its own (its time: what
+        the squeeze waited for it)."""
+        lift_test.liftable = outcome.liftable
+        lift_test.tests += outcome.weights
+        out.lift_test_time += outcome.waited
+        out.liftable.append((st.squeeze_depth, outcome.liftable))
+        log.debug("ρ = %.6g m: liftable weight %.4g N (tested beside the test above it)", st.squeeze_depth,
+                  outcome.liftable)
+        return outcome.passed
 
     def speculate(st: ContactState) -> SpeculativeTest:
         return SpeculativeTest(lift_test, st, threaded=tracker.settings.parallel_lift_tests and jit.ENABLED)
@@ -247,11 +250,15 @@ def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *
                 divisions: int, first_test: float, test: Callable[[ContactState], bool],
                 record: Callable[[ContactState, list[ContactEvent]], None],
                 last: list, speculate: Callable[[ContactState], SpeculativeTest] | None = None,
-                adopt: Callable[[ContactState, tuple[float, bool, int]], bool] | None = None,
+                adopt: Callable[[ContactState, SpeculativeOutcome], bool] | None = None,
                 ) -> tuple[ContactState, str, ContactState | None]:
     """The squeeze with its first lift test at ``first_test`` (see :func:`squeeze`): in increments ``step`` to the
     start of the one in which it falls, untested, then in sub-increments (``step / divisions``) to the first test
     and, should it fail, the next.
+
+    ``speculate`` starts the lift test of the end below the first test's beside it (:class:`SpeculativeTest`), as
+    soon as the squeeze reaches that end; ``adopt`` records its outcome in place of testing that end again, should
+    the first test pass (both None: that end is tested after the first, as the others).
 
     Returns (state, outcome, bracket): outcome ``"passed"`` (the state is at ρ*, or, with a ``bracket``, w(ρ)
     crossed mg in an untested increment from the bracket's state to this one, still to be divided),
@@ -282,7 +289,7 @@ def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *
     subs: list[ContactState] = []  # the ends of the sub-increments, tested or not
     tests: list[bool] = []
     next_sub = [state.squeeze_depth + sub]
-    ahead: list[tuple[float, bool, int]] = []  # the outcome of the first end below the first test, tested beside it
+    ahead: list[SpeculativeOutcome] = []  # the outcome of the first end below the first test, tested beside it
     beside_it: list[SpeculativeTest] = []  # that test, while it runs
 
     def start_beside(at: ContactState) -> None:

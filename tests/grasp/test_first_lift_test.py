@@ -98,6 +98,9 @@ def test_the_end_below_a_first_test_is_tested_beside_it_with_the_same_numbers(to
     early = pickup(body, opts.replace(first_lift_test=0.8 * every.squeeze_depth))
     _same_answer(every, early)
     assert threading.active_count() == before
+    from fem_grasp import threads
+
+    assert threads._SECTIONS == 0  # every side-by-side section closed: the BLAS threads switch again
 
 
 def test_a_first_test_beyond_the_maximum_squeeze_is_made_there(tomato):
