@@ -39,7 +39,7 @@ converging at least linearly in the spacing with ratio 2, the last level's
 error against the converged value is at most the difference, and two levels
 may agree by chance (Roache's grid convergence index of a two-grid study) —
 or, from the third level on, the larger of the difference and the
-uncertainty of the last three levels (:func:`three_level_errors`, after Eça and
+uncertainty of the last three levels (:func:`~fem_grasp.grasp.level_error.three_level_errors`, after Eça and
 Hoekstra, :mod:`fem_grasp.grasp.estimates`: 1.25 × the extrapolated error
 where they converge monotonically, at least 1.25 × their spread where faster
 than order 2, three times their spread where they swing, but no less than
@@ -72,15 +72,15 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from .answer import GraspAnswer, answer_of, failure_kind, finger_nodes, passed, patch_points
-from .estimates import estimate, relative_change, sequence_uncertainty
+from .estimates import estimate, relative_change
+from .level_error import estimated_error, three_level_errors
 from .options import MAX_FINGER_CONTACTS as _MAX_FINGER_CONTACTS
 from .options import PickupOptions
 
 __all__ = ["AccuracyLevel", "AccuracyReport", "single_run_report", "next_step", "predicted_mesh_error",
-           "predicted_level_seconds", "first_lift_test", "placement_target", "estimated_error", "three_level_errors",
-           "converged_pickup", "GRASP_TOLERANCE", "TWO_LEVEL_SAFETY", "LEVEL_COST_GROWTH", "LEVEL_RATIO", "STEP_SHARE",
-           "FINE_STEP_SHARE", "STEP_DIVISIONS", "DEFAULT_ACCURACY", "MAX_LEVELS", "MAX_FINGER_CONTACTS",
-           "SPECTRAL_MAX_VERTICES"]
+           "predicted_level_seconds", "first_lift_test", "placement_target", "converged_pickup", "GRASP_TOLERANCE",
+           "LEVEL_COST_GROWTH", "LEVEL_RATIO", "STEP_SHARE", "FINE_STEP_SHARE", "STEP_DIVISIONS", "DEFAULT_ACCURACY",
+           "MAX_LEVELS", "MAX_FINGER_CONTACTS", "SPECTRAL_MAX_VERTICES"]
 
 log = logging.getLogger(__name__)
 
@@ -100,26 +100,6 @@ MAX_FINGER_CONTACTS = _MAX_FINGER_CONTACTS
 #: not run a level with more vertices on it, and stops with the last level's answer.  The sparse backend gives the
 #: same answers to round-off (``python -m bench.bench --only spectral``).
 SPECTRAL_MAX_VERTICES = 1500
-
-
-# ============================================================== estimation
-def three_level_errors(levels: Sequence[dict[str, Any]]) -> dict[str, dict[str, Any]]:
-    """Per quantity (ρ* and Σ f·n̂), :func:`~fem_grasp.grasp.estimates.sequence_uncertainty` of the last three
-    levels (records as :meth:`AccuracyLevel.to_dict` writes them), when all three lifted the object (the verdict
-    the levels compare) at decreasing patch spacings; else empty (a failed pickup's ρ* is where the squeeze
-    stopped, not a converging quantity)."""
-    last = list(levels)[-3:]
-    if len(last) < 3 or not all((lv["success"] or "lift was not run" in lv.get("reason", ""))
-                                and (lv.get("squeeze_depth") or 0.0) > 0 for lv in last):
-        return {}
-    sizes = [float(lv["inner_size"]) for lv in last]
-    if not sizes[0] > sizes[1] > sizes[2] > 0:
-        return {}
-    # each level's quantisation: ρ* up to one resolution late, the force about in proportion
-    res = [float(lv.get("resolution") or 0.0) / float(lv["squeeze_depth"]) for lv in last]
-    return {q: sequence_uncertainty([float(lv[q]) for lv in last], sizes, [x * abs(float(lv[q])) for x, lv in
-                                                                           zip(res, last)])
-            for q in ("squeeze_depth", "finger_force")}
 
 
 # ============================================================ the loop
@@ -577,47 +557,6 @@ def next_step(step: float, before: GraspAnswer, accuracy: float, predicted: floa
 
 #: Roache's factor of safety for an error estimated from two levels (the grid convergence index of a two-grid
 #: study, 3; with three levels their uncertainty takes its place): two levels that agree may agree by chance.
-#: The coverage study at 20 %, where every level grasps at one placement, converged on two levels on four of nine
-#: objects, and their difference alone missed the actual error on two (5.2 % stated against 5.3 %, 14 % against
-#: 17 %).
-TWO_LEVEL_SAFETY = 3.0
-
-
-def estimated_error(change: dict[str, float], ans: GraspAnswer,
-                    three_levels: dict[str, dict[str, Any]] | None = None) -> dict[str, float]:
-    """Relative error of a level's answer: :data:`TWO_LEVEL_SAFETY` × its change from the level before — or,
-    where the last three levels lifted the object and converge (monotonically with an order, or oscillating and
-    contracting), the larger of that change and their uncertainty (``three_levels``, :func:`three_level_errors`)
-    — plus, for a level that found ρ*, its resolution (ρ* is found up to one increment, or sub-increment, late,
-    and the finger force grows with ρ*, about in proportion near the lift-off).  For ρ* the change itself is
-    known only to a resolution (two levels on one grid of depths find the same ρ* wherever theirs lie within one
-    step of it), so its part is at least one resolution: ρ*'s estimate is at least two.
-
-    Three levels that do not converge ("scatter") state the larger of three times their spread and the
-    two-level estimate: their spread is net of each level's quantisation of ρ*, and where every difference lies
-    within it (the tomato's levels at 5 %: 9.42, 9.33, 9.22 mm, each a resolution apart, 2.9 % from the
-    reference) that spread is nil although the levels drift; levels that show no convergence cannot vouch for
-    less than two levels would.
-    """
-    q = ans.resolution / ans.squeeze_depth if passed(ans) and ans.squeeze_depth > 0 else 0.0
-    three = three_levels or {}
-    out = {}
-    for k in ("squeeze_depth", "finger_force"):
-        two = TWO_LEVEL_SAFETY * change[k]
-        if k not in three:
-            mesh = two
-        elif three[k]["method"] == "scatter":
-            mesh = max(two, three[k]["relative"])
-        else:
-            mesh = max(change[k], three[k]["relative"])
-        # Two levels whose ρ* differ by less than a resolution may find the same one (on a common grid of
-        # depths they do): the mesh's part of ρ*'s error is stated as at least one resolution.
-        out[k] = (max(mesh, q) if k == "squeeze_depth" else mesh) + q
-    if "max_liftable" in change:
-        out["max_liftable"] = change["max_liftable"]
-    return out
-
-
 def single_run_report(result: Any, target: float | None, expected_error: float | None, note: str) -> dict[str, Any]:
     """The ``accuracy`` block of a run made without the loop (``--quick``): one level, not converged, and the
     error the scene states for such a run (``[solver] expected_error``, measured by the convergence study)."""

@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from fem_grasp.grasp.accuracy import TWO_LEVEL_SAFETY, estimated_error, three_level_errors
 from fem_grasp.grasp.estimates import estimate, observed_order, relative_change, sequence_uncertainty
+from fem_grasp.grasp.level_error import TWO_LEVEL_SAFETY, estimated_error, three_level_errors
 
 H = np.array([0.4, 0.2, 0.1])  # patch spacings of three levels, ratio 2 as the loop's
 

@@ -100,13 +100,13 @@ def within(row: dict[str, Any], target: float, picked: bool) -> bool:
 def adaptive_at(acc: dict[str, Any], target: float) -> dict[str, Any] | None:
     """What ``pickup(..., accuracy=target)`` returns, read off a run of the loop at a finer target: the first level
     ≥ 1 with the verdict of the one before whose estimated error meets ``target`` by the loop's own rule
-    (:func:`fem_grasp.grasp.accuracy.estimated_error`: the change from the level before, or the uncertainty of
+    (:func:`fem_grasp.grasp.level_error.estimated_error`: the change from the level before, or the uncertainty of
     the last three levels where larger, plus the resolution of ρ*, one squeeze increment or sub-increment,
     relative; for ρ* at least twice the resolution), and its cumulative time.  The finer target's run took finer
     increments, so the time is an upper bound on that of a run at ``target``."""
     from types import SimpleNamespace
 
-    from fem_grasp.grasp.accuracy import estimated_error, three_level_errors
+    from fem_grasp.grasp.level_error import estimated_error, three_level_errors
 
     levels = acc.get("levels", [])
     seconds = 0.0
