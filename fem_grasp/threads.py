@@ -21,8 +21,9 @@ kinds of solve inside it are the opposite case, and get the threads back:
 
 While two lift tests run side by side (:func:`side_by_side`, the speculative lift test of
 :class:`~fem_grasp.grasp.lift_test.SpeculativeTest`), nothing gets the threads back: the limit is one
-setting of the whole process, and a solve given two threads by one test would run the other's on two as
-well, for the length of the solve (the same numbers either way, but two threads of the other core).
+setting of the whole process, so a solve given two threads by one test would run the other test's BLAS
+calls on two threads too for as long as it lasts, and which calls those are would depend on the timing of
+the two (and with it, where OpenBLAS splits a sum by its threads, their round-off).
 
 threadpoolctl is optional: without it nothing is limited.
 """
