@@ -555,8 +555,6 @@ def next_step(step: float, before: GraspAnswer, accuracy: float, predicted: floa
     return STEP_SHARE * accuracy * before.squeeze_depth
 
 
-#: Roache's factor of safety for an error estimated from two levels (the grid convergence index of a two-grid
-#: study, 3; with three levels their uncertainty takes its place): two levels that agree may agree by chance.
 def single_run_report(result: Any, target: float | None, expected_error: float | None, note: str) -> dict[str, Any]:
     """The ``accuracy`` block of a run made without the loop (``--quick``): one level, not converged, and the
     error the scene states for such a run (``[solver] expected_error``, measured by the convergence study)."""

@@ -36,6 +36,8 @@ def three_level_errors(levels: Sequence[dict[str, Any]]) -> dict[str, dict[str, 
             for q in ("squeeze_depth", "finger_force")}
 
 
+#: Roache's factor of safety for an error estimated from two levels (the grid convergence index of a two-grid
+#: study, 3; with three levels their uncertainty takes its place): two levels that agree may agree by chance.
 #: The coverage study at 20 %, where every level grasps at one placement, converged on two levels on four of nine
 #: objects, and their difference alone missed the actual error on two (5.2 % stated against 5.3 %, 14 % against
 #: 17 %).
