@@ -109,7 +109,7 @@ def _accuracy_lines(acc: dict[str, Any], quick: bool) -> list[str]:
     elif len(acc["levels"]) == 1:
         stated = acc.get("expected_error_stated")
         bound = e["squeeze_depth"]
-        hint = " (without --accuracy off the run refines it)" if "accuracy off" in acc.get("note", "") else ""
+        hint = " (without --accuracy off the run refines it)" if acc.get("refinable") else ""
         how = ("the convergence study found that such a run can even reach another verdict than a finer mesh"
                if stated and not np.isfinite(bound) else
                f"measured against this scene's converged answer, such a run is within about {pct(bound)} of its rho* "

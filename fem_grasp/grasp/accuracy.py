@@ -555,9 +555,11 @@ def next_step(step: float, before: GraspAnswer, accuracy: float, predicted: floa
     return STEP_SHARE * accuracy * before.squeeze_depth
 
 
-def single_run_report(result: Any, target: float | None, expected_error: float | None, note: str) -> dict[str, Any]:
+def single_run_report(result: Any, target: float | None, expected_error: float | None, note: str, *,
+                      refinable: bool = False) -> dict[str, Any]:
     """The ``accuracy`` block of a run made without the loop (``--quick``): one level, not converged, and the
-    error the scene states for such a run (``[solver] expected_error``, measured by the convergence study)."""
+    error the scene states for such a run (``[solver] expected_error``, measured by the convergence study).
+    ``refinable``: the loop could have refined it (the accuracy was set off), which the block records."""
     from ..mesh.remesh import spacing
 
     ans = answer_of(result)
@@ -569,4 +571,5 @@ def single_run_report(result: Any, target: float | None, expected_error: float |
                          {"squeeze_depth": err, "finger_force": err}, False, [level], note)
     out = rep.to_dict()
     out["expected_error_stated"] = expected_error is not None
+    out["refinable"] = bool(refinable)
     return out

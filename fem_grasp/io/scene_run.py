@@ -62,7 +62,8 @@ def pickup_scene(scene: Scene, cache_dir: Path | None = None, phase: Any = None)
                 result.accuracy = single_run_report(
                     result, scene.accuracy, scene.expected_error,
                     "--quick: one run on the coarse mesh, no refinement" if scene.quick else
-                    no_geometry or "one run on the scene's mesh (accuracy off)")
+                    no_geometry or "one run on the scene's mesh (accuracy off)",
+                    refinable=not (scene.quick or no_geometry))
         except SceneError as exc:
             raise _in_scene(scene, exc) from None
     if refine:  # the result is the last level's, whose resting state the loop solved (its timings say how long)
