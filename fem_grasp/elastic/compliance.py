@@ -353,9 +353,14 @@ class Compliance:
         """The same compliance with column caches of its own (copies of this one's): a second tracker in another
         thread (:class:`~fem_grasp.grasp.lift_test.SpeculativeTest`) reads and adds columns without touching
         this one's, and what it computes does not depend on when this one's columns were added."""
-        new = copy.copy(self)  # shares the factor, whose solves take _SOLVE_LOCK
-        new._columns = dict(self._columns)
-        new._surface_columns = new._columns if self._surface_columns is self._columns else dict(self._surface_columns)
+        return self._sharing_factor(dict(self._columns), dict(self._surface_columns))
+
+    def _sharing_factor(self, columns: dict, surface_columns: dict) -> "Compliance":
+        """A copy sharing this one's factor (whose solves take _SOLVE_LOCK), with the given column caches (one
+        cache where this one's kept rows are its surface rows)."""
+        new = copy.copy(self)
+        new._columns = columns
+        new._surface_columns = columns if self._surface_columns is self._columns else surface_columns
         return new
 
     def rotated(self, rotation: np.ndarray) -> "Compliance":
@@ -368,10 +373,8 @@ class Compliance:
         empty; its grounded DOFs are this one's, in the unrotated frame.
         """
         rotation = check_rotation(rotation)
-        new = copy.copy(self)  # shares the factor, the free DOFs and the kept rows
+        new = self._sharing_factor({}, {})  # and the free DOFs and the kept rows
         new._rotation = rotation if self._rotation is None else rotation @ self._rotation
-        new._columns = {}
-        new._surface_columns = new._columns if self._surface_columns is self._columns else {}
         return new
 
     def _row_positions(self, nodes: np.ndarray) -> np.ndarray:

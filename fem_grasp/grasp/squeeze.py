@@ -138,25 +138,24 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
             emit(st, events)
         pending.clear()
 
-    def test(st: ContactState) -> bool:
-        t0 = time.perf_counter()
-        w = lift_test.update(st)
-        out.lift_test_time += time.perf_counter() - t0
+    def recorded(st: ContactState, w: float, seconds: float) -> bool:
+        out.lift_test_time += seconds
         out.liftable.append((st.squeeze_depth, w))
         log.debug("ρ = %.6g m: liftable weight %.4g N (%d finger contacts)", st.squeeze_depth, w,
                   int((st.owner != TABLE).sum()))
         return lift_test.passed
+
+    def test(st: ContactState) -> bool:
+        t0 = time.perf_counter()
+        w = lift_test.update(st)
+        return recorded(st, w, time.perf_counter() - t0)
 
     def adopt(st: ContactState, outcome: SpeculativeOutcome) -> bool:
         """A :class:`SpeculativeTest`'s outcome at ``st``, recorded as :func:`test` records its own (its time: what
         the squeeze waited for it)."""
         lift_test.liftable = outcome.liftable
         lift_test.tests += outcome.weights
-        out.lift_test_time += outcome.waited
-        out.liftable.append((st.squeeze_depth, outcome.liftable))
-        log.debug("ρ = %.6g m: liftable weight %.4g N (tested beside the test above it)", st.squeeze_depth,
-                  outcome.liftable)
-        return outcome.passed
+        return recorded(st, outcome.liftable, outcome.waited)
 
     def speculate(st: ContactState) -> SpeculativeTest:
         return SpeculativeTest(lift_test, st, threaded=tracker.settings.parallel_lift_tests and jit.ENABLED)
