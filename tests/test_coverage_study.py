@@ -21,6 +21,7 @@ from verification.coverage import (
     summarise,
 )
 from verification.coverage.__main__ import main
+from verification.coverage.summary import summary_lines
 
 
 # ------------------------------------------------------------------ the objects
@@ -165,6 +166,7 @@ def test_the_summary_counts_only_objects_with_a_reference():
     assert s["reference_status"] == {"ok": 4, "too large": 1, "timed out": 1}
     assert s["answer_status"] == {"ok": 6, "timed out": 1}
     assert s["verdicts_agree"] == 2 and s["verdicts_differ"] == 2
+    assert s["verdicts_differ_settled"] == 1  # the other said it did not know (both estimates infinite)
     assert s["covered"] == {"squeeze_depth": 2, "finger_force": 3, "both": 2}
     assert s["coverage"]["both"] == pytest.approx(0.5)
     assert s["coverage"]["finger_force"] == pytest.approx(0.75)
@@ -177,6 +179,15 @@ def test_the_summary_counts_only_objects_with_a_reference():
     crashed = _row(7)
     crashed["answer"] = {"status": "failed", "error": "ZeroDivisionError: float division by zero", "seconds": 1.0}
     assert summarise(rows + [crashed])["errors"] == {"answer: ZeroDivisionError": 1}
+    # a verdict the reference overturns fails the study where the answer called it settled, not where it said
+    # it was not (the accuracy block's "verdict"; its estimated errors are then infinite)
+    overturned = _row(9, ref=(False, 0.0100, 2.00))
+    assert passed(summarise([_row(k) for k in range(9)] + [overturned])) == (True, False)
+    overturned["answer"]["accuracy"].update(verdict="the last two levels give different verdicts",
+                                            estimated_error={"squeeze_depth": None, "finger_force": None})
+    warned = summarise([_row(k) for k in range(9)] + [overturned])
+    assert warned["verdicts_differ"] == 1 and warned["verdicts_differ_settled"] == 0 and passed(warned) == (True, True)
+    assert any("1 said the verdict is not settled" in line for line in summary_lines(warned))
     empty = summarise([_row(0, ref_status="too large")])
     assert math.isnan(empty["coverage"]["both"]) and passed(empty) == (False, False)
 

@@ -286,7 +286,8 @@ def _error_note(result: Any) -> str:
     if target is not None:
         each = (f"Each answer was refined to {100 * target:g} % by the accuracy loop (levels: the meshes it ran on) "
                 "and carries its own estimated relative errors of ρ* and Σ f·n̂ (± columns; — when not known, e.g. "
-                "when the verdict changed between its last two meshes).")
+                "when its verdict is not settled: its last two meshes disagree, or it failed with the weight within "
+                "the estimated error of what the fingers held).")
         if result.rank_by not in ("force", "squeeze"):
             return each + " The errors cover ρ* and the finger force, not w/mg: no grasp is marked ≈."
         return each + (" ≈ within error of the best: a grasp whose ranking quantity q and the best one's q₁ could be "

@@ -119,8 +119,9 @@ def _accuracy_lines(acc: dict[str, Any], quick: bool) -> list[str]:
                 + (f"; run without --quick for the answer to {100 * acc['target']:g} %"
                    if quick and acc.get("target") is not None and np.isfinite(acc["target"]) else ""))
     elif not all(np.isfinite(v) for v in (e["squeeze_depth"], e["finger_force"])):
-        head = (f"accuracy   the requested {100 * acc['target']:g} % was not reached ({acc.get('note', '')}): the "
-                "last two meshes give different verdicts, so the verdict itself is not settled at this resolution"
+        why = acc.get("verdict") or "the last two meshes give different verdicts"
+        head = (f"accuracy   the requested {100 * acc['target']:g} % was not reached ({acc.get('note', '')}): {why}, "
+                "so the verdict itself is not settled at this resolution"
                 + ("; run without --quick for the refined answer" if quick else ""))
     else:
         head = (f"accuracy   target {100 * acc['target']:g} %, not reached: estimated error rho* "

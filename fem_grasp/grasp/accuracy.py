@@ -73,7 +73,7 @@ import numpy as np
 
 from .answer import GraspAnswer, answer_of, failure_kind, finger_nodes, passed, patch_points
 from .estimates import estimate, relative_change
-from .level_error import estimated_error, three_level_errors
+from .level_error import estimated_error, three_level_errors, unsettled_verdict
 from .options import MAX_FINGER_CONTACTS as _MAX_FINGER_CONTACTS
 from .options import PickupOptions
 
@@ -152,6 +152,8 @@ class AccuracyReport:
         observed ``order``, ``contraction``, ``relative`` uncertainty), when they all lifted the object
     contact_points : (2, 3) the initial finger contact points every level grasps at, in the frame of the body as
         given (the given contacts, or those the placement rule chose on level 0), or None before a placement
+    verdict : why the last level's verdict is not settled at its resolution
+        (:func:`~fem_grasp.grasp.level_error.unsettled_verdict`; the estimated errors are then inf), or empty
     given_mesh : where the body as given grasps away from ``contact_points`` and the geometry can make them nodes,
         its run (``grasp_offset``, m, its ``vertices``, ``success``, ``squeeze_depth``, ``finger_force`` and
         ``seconds``), which then is not level 0: level 0 is the body remeshed at its own spacing with the points
@@ -168,10 +170,11 @@ class AccuracyReport:
     three_levels: dict[str, Any] = field(default_factory=dict)
     contact_points: list[list[float]] | None = None
     given_mesh: dict[str, Any] | None = None
+    verdict: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         return {"target": self.target, "estimated_error": dict(self.estimated_error), "converged": self.converged,
-                "note": self.note, "geometry": self.geometry, "richardson": self.richardson,
+                "note": self.note, "verdict": self.verdict, "geometry": self.geometry, "richardson": self.richardson,
                 "three_levels": self.three_levels, "contact_points": self.contact_points,
                 "given_mesh": self.given_mesh, "levels": [lv.to_dict() for lv in self.levels]}
 
@@ -481,9 +484,11 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         report.estimated_error = estimated_error(change, ans, three)
         report.three_levels = {k: {"method": u["method"], "order": u["order"], "contraction": u["contraction"],
                                    "spread": u["spread"], "relative": u["relative"]} for k, u in three.items()}
-        if passed(ans) != passed(before):
-            report.estimated_error = {"squeeze_depth": math.inf, "finger_force": math.inf}
-            report.note = f"the verdict changed between levels {level - 1} and {level}"
+        report.verdict = unsettled_verdict(ans, before, report.estimated_error)
+        if report.verdict:
+            report.estimated_error.update(squeeze_depth=math.inf, finger_force=math.inf)
+            report.note = (f"the verdict changed between levels {level - 1} and {level}"
+                           if passed(ans) != passed(before) else f"the verdict of level {level} is not settled")
         elif max(report.estimated_error.values()) <= accuracy:
             report.converged = True
             report.note = (f"levels {level - 1} and {level} agree within {100 * accuracy:g} %: the estimated error is "

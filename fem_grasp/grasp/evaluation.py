@@ -128,8 +128,8 @@ ROW_COLUMNS: dict[str, tuple[str, str]] = {
     "worker": ("str", "host:pid of the process that evaluated it"),
     "error_rho_star": ("float", "estimated relative error of ρ*: with an accuracy target, the accuracy loop's estimate "
                                 "(the change between its last two levels, or the uncertainty of its last three where "
-                                "larger, plus the resolution of ρ*; inf when not known, e.g. the verdict changed "
-                                "between levels); in a one-level search, the scene's stated error "
+                                "larger, plus the resolution of ρ*; inf when not known, e.g. the verdict is not "
+                                "settled); in a one-level search, the scene's stated error "
                                 "(solver.expected_error), NaN when none is stated"),
     "error_finger_force": ("float", "estimated relative error of the finger force Σ f·n̂, as error_rho_star"),
     "converged": ("bool", "the accuracy loop reached its target (two successive levels agree within it); False for "

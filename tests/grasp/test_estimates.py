@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from fem_grasp.grasp.estimates import estimate, observed_order, relative_change, sequence_uncertainty
-from fem_grasp.grasp.level_error import TWO_LEVEL_SAFETY, estimated_error, three_level_errors
+from fem_grasp.grasp.level_error import TWO_LEVEL_SAFETY, estimated_error, three_level_errors, unsettled_verdict
 
 H = np.array([0.4, 0.2, 0.1])  # patch spacings of three levels, ratio 2 as the loop's
 
@@ -186,6 +186,53 @@ def test_levels_that_find_the_same_rho_state_at_least_twice_its_resolution():
     # a change larger than the resolution keeps its factor of three
     big = estimated_error({"squeeze_depth": 0.05, "finger_force": 0.0}, ans)
     assert big["squeeze_depth"] == pytest.approx(0.15 + res)
+
+
+# ---------------------------------------------------------------- failures and the verdict
+def _failure(held_steps: int, weight: float = 3.7753, steps: int = 20, success: bool = False):
+    """A level that did not lift the object (the squeeze reached its maximum), having held ``held_steps`` steps
+    h = weight / ``steps``; ``success``: one that lifted it."""
+    from fem_grasp.grasp.answer import GraspAnswer
+
+    f = {"resultant": 11.0, "along_squeeze": 11.0, "vertical": 0.1, "nodes": 40}
+    h = weight / steps
+    reason = "" if success else "the lift test did not pass by the maximum squeeze depth ρ = 34.97 mm"
+    return GraspAnswer(success, reason, 0.03497, 22.35, (f, f), 90, held_steps * h, weight, (), 5000, 5e-4, h, 1.0, 4)
+
+
+def _failure_change(before, after) -> dict:
+    return {"squeeze_depth": relative_change(before.squeeze_depth, after.squeeze_depth),
+            "finger_force": relative_change(before.finger_force, after.finger_force),
+            "max_liftable": abs(after.max_liftable - before.max_liftable) / after.weight}
+
+
+def test_two_failing_levels_state_three_times_the_change_of_the_weight_they_held():
+    """The largest weight held by two failing levels is a converging quantity like ρ* and the force: two levels may
+    agree on it by chance, and its estimate is three times their difference (relative to the weight)."""
+    before, after = _failure(18), _failure(19)
+    est = estimated_error(_failure_change(before, after), after)
+    assert est["max_liftable"] == pytest.approx(TWO_LEVEL_SAFETY * 0.05)
+
+
+def test_a_failure_within_its_error_of_the_weight_is_not_a_settled_verdict():
+    """A random ellipsoid of the coverage study (seed 5): its last two levels failed, holding 18 and 19 steps h of
+    the 20 of its weight, and a finer mesh lifted it; at 10 % the loop had called that failure converged.  The
+    weight lies within the estimated error of the largest weight held: not settled.  Two failures four steps below
+    the weight, one step apart (seed 8, whose finer reference failed too), are settled; a lift after a failure
+    never is; two lifts are."""
+    near = unsettled_verdict(_failure(19), _failure(18), estimated_error(_failure_change(_failure(18), _failure(19)),
+                                                                        _failure(19)))
+    assert "finer mesh may lift it" in near and "3.587 N" in near and "3.775 N" in near
+    far = estimated_error(_failure_change(_failure(15), _failure(16)), _failure(16))
+    assert unsettled_verdict(_failure(16), _failure(15), far) == ""
+    # the same weight held twice, one step below: the levels agree, and nothing says a finer one would differ
+    same = estimated_error(_failure_change(_failure(19), _failure(19)), _failure(19))
+    assert unsettled_verdict(_failure(19), _failure(19), same) == ""
+    lifted = _failure(20, success=True)
+    lifts = {"squeeze_depth": 0.01, "finger_force": 0.01}
+    assert "different verdicts" in unsettled_verdict(lifted, _failure(19), lifts)
+    assert "different verdicts" in unsettled_verdict(_failure(19), lifted, far)
+    assert unsettled_verdict(lifted, lifted, lifts) == ""
 
 
 # ---------------------------------------------------------------- what the next level's resolution costs

@@ -33,7 +33,8 @@ def evaluate(row: dict[str, Any]) -> dict[str, Any]:
         timed out, failed); when compared, ``verdicts_agree``, per quantity ``estimated``, ``actual`` (|answer −
         reference| / |reference|) and ``covered``, and ``covered_both``.  A quantity is covered when its estimate
         is at least its actual error and the verdicts agree, or when its estimate is infinite (the answer says it
-        does not know).
+        does not know).  ``verdict_unsettled``: the answer said its verdict is not settled (the accuracy block's
+        ``verdict``, or, in rows saved before it, infinite estimates of both quantities).
     """
     ans, ref = row.get("answer") or {}, row.get("reference") or {}
     if ans.get("status") != "ok":
@@ -42,8 +43,9 @@ def evaluate(row: dict[str, Any]) -> dict[str, Any]:
         return {"status": "no reference", "why": ref.get("status", "missing")}
     agree = bool(ans["success"]) == bool(ref["success"])
     est = ans["accuracy"]["estimated_error"]
-    out: dict[str, Any] = {"status": "compared", "verdicts_agree": agree, "estimated": {}, "actual": {},
-                           "covered": {}}
+    unsettled = bool(ans["accuracy"].get("verdict")) or all(math.isinf(_estimate(est.get(q))) for q in QUANTITIES)
+    out: dict[str, Any] = {"status": "compared", "verdicts_agree": agree, "verdict_unsettled": unsettled,
+                           "estimated": {}, "actual": {}, "covered": {}}
     for q in QUANTITIES:
         e = _estimate(est.get(q))
         a = relative_error(float(ans[q]), float(ref[q]))
@@ -92,6 +94,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "with_reference": n,
         "verdicts_agree": sum(e["verdicts_agree"] for e in compared),
         "verdicts_differ": sum(not e["verdicts_agree"] for e in compared),
+        "verdicts_differ_settled": sum(not e["verdicts_agree"] and not e.get("verdict_unsettled") for e in compared),
         "covered": {q: sum(e["covered"][q] for e in compared) for q in QUANTITIES}
         | {"both": sum(e["covered_both"] for e in compared)},
         "coverage": coverage,
@@ -103,11 +106,16 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def passed(summary: dict[str, Any]) -> tuple[bool, bool]:
-    """(coverage of both quantities at least :data:`REQUIRED_COVERAGE`, every verdict agreeing with its
-    reference); an empty comparison passes neither."""
+    """(coverage of both quantities at least :data:`REQUIRED_COVERAGE`, no verdict differing from its reference
+    where the answer called it settled); an empty comparison passes neither.  An answer that says its verdict is
+    not settled says it does not know: a finer mesh deciding otherwise is what it warned of."""
     cov = summary["coverage"]["both"]
     return (bool(cov >= REQUIRED_COVERAGE) if not math.isnan(cov) else False,
-            summary["with_reference"] > 0 and summary["verdicts_differ"] == 0)
+            summary["with_reference"] > 0 and _differ_settled(summary) == 0)
+
+
+def _differ_settled(summary: dict[str, Any]) -> int:
+    return summary.get("verdicts_differ_settled", summary["verdicts_differ"])
 
 
 def _pct(x: float | None) -> str:
@@ -165,11 +173,13 @@ def summary_lines(summary: dict[str, Any]) -> list[str]:
         f"answers: {', '.join(f'{k} {v}' for k, v in sorted(s['answer_status'].items()))}"
         + (f"; errors: {', '.join(f'{k} {v}' for k, v in sorted(s.get('errors', {}).items()))}"
            if s.get("errors") else ""),
-        f"verdicts agree on {s['verdicts_agree']} of {n}",
+        f"verdicts agree on {s['verdicts_agree']} of {n}"
+        + (f"; of the {s['verdicts_differ']} that differ, {s['verdicts_differ'] - _differ_settled(s)} said the "
+           "verdict is not settled" if s["verdicts_differ"] else ""),
         f"estimated error >= actual: rho* {cnt['squeeze_depth']}/{n} ({_pct(cov['squeeze_depth'])}), finger force "
         f"{cnt['finger_force']}/{n} ({_pct(cov['finger_force'])}), both {cnt['both']}/{n} ({_pct(cov['both'])})",
         f"answer seconds: median {_s(s['answer_seconds']['median'])}, max {_s(s['answer_seconds']['max'])}; "
         f"reference seconds: median {_s(s['reference_seconds']['median'])}, max {_s(s['reference_seconds']['max'])}",
         f"{'PASS' if ok_cov else 'FAIL'}  coverage of both quantities >= {100 * REQUIRED_COVERAGE:.0f} %",
-        f"{'PASS' if ok_verdict else 'FAIL'}  every verdict agrees with its reference",
+        f"{'PASS' if ok_verdict else 'FAIL'}  every verdict agrees with its reference or says it is not settled",
     ]
