@@ -157,7 +157,8 @@ class EngineSettings:
         the sub-increment below it too, for the case the first passes
         (:class:`~fem_grasp.grasp.lift_test.SpeculativeTest`): beside the first test in a second thread (True,
         where numba compiles the kernels, which release the GIL) or after it in the same thread (False); the
-        same numbers either way.
+        same numbers either way.  A placement search's candidates use False (their workers fill the cores:
+        :data:`~fem_grasp.grasp.evaluation.SEARCH_SETTINGS`).
     """
 
     # events A-D (contact.event_location)

@@ -45,14 +45,16 @@ from ..contact.warm_up import warm_up
 from ..elastic.body import FULL_COLUMNS_MAX_NODES, Body
 from ..elastic.response import ContactResponse
 from ..mesh.tetmesh import TetMesh
+from ..settings import DEFAULT_SETTINGS
 from .candidates import Candidate
 from .options import PickupOptions
 from .pickup import PickupResult, pickup
 from .pose import RestingPose
 from .rest import RestState
 
-__all__ = ["ACCURACY_OPTIONS", "COLUMN_BATCH", "Evaluator", "KEEP_EVALUATORS", "REST_RTOL", "ROW_COLUMNS", "SHARED_COLUMNS_BYTES",
-           "SHARED_OPTIONS", "SearchSetup", "error_row", "evaluate", "evaluator_for", "one_thread", "result_row"]
+__all__ = ["ACCURACY_OPTIONS", "COLUMN_BATCH", "Evaluator", "KEEP_EVALUATORS", "REST_RTOL", "ROW_COLUMNS",
+           "SEARCH_SETTINGS", "SHARED_COLUMNS_BYTES", "SHARED_OPTIONS", "SearchSetup", "error_row", "evaluate",
+           "evaluator_for", "one_thread", "result_row"]
 
 #: Above this many bytes of compliance columns (every surface node's three, all kept rows) the columns are not
 #: shared: each pickup starts from an empty column cache on the shared factorisation.
@@ -64,6 +66,11 @@ COLUMN_BATCH = 200
 KEEP_EVALUATORS = 2
 #: The rebuilt resting state must reproduce the shipped contact forces to this, relative to mg + Σ|f|.
 REST_RTOL = 1e-8
+#: The engine's settings of a search's pickups: one thread each, as their BLAS (:func:`one_thread`): the workers
+#: fill the cores, so the accuracy loop's second lift test at a level runs after the first rather than beside it
+#: (``parallel_lift_tests``, the same numbers either way).  Beside it, an 8-candidate search of the tomato at 5 %
+#: on two workers took 1.16 times as long (243 and 211 s against 205 and 185 s, on the 2-core AMD EPYC).
+SEARCH_SETTINGS = DEFAULT_SETTINGS.replace(parallel_lift_tests=False)
 
 #: The options every candidate of a search shares (a :class:`SearchSetup`'s); the others are the candidate's
 #: (``contacts``, ``directions``, ``ratio``, ``max_squeeze``), not run per candidate (the placement rule), or those
@@ -314,10 +321,10 @@ class Evaluator:
             options = s.options.replace(contacts=candidate.finger_nodes, directions=candidate.directions,
                                         ratio=candidate.ratio, max_squeeze=candidate.max_squeeze)
             if options.accuracy is None:
-                return pickup(body, options, rest_state=rest_state)
+                return pickup(body, options, rest_state=rest_state, settings=SEARCH_SETTINGS)
             # The accuracy loop: level 0 on the shared rest (and factorisation), as above; the finer levels remesh
             # the geometry, which is in the frame of the body as given, and rest and solve on their own.
-            return pickup(self.given_body(), options, rest_state=rest_state)
+            return pickup(self.given_body(), options, rest_state=rest_state, settings=SEARCH_SETTINGS)
 
     def given_body(self) -> Body:
         """The body as it was given, before it was posed on the table (the frame of the accuracy loop's geometry),

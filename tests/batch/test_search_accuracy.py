@@ -76,6 +76,33 @@ def test_with_one_error_for_every_row_the_per_row_rule_is_the_stated_error_rule(
         assert list(stated["candidate"]) == list(own["candidate"])
 
 
+# ------------------------------------------------------------------ one thread per candidate
+def test_a_searchs_candidates_make_their_lift_tests_one_after_the_other(monkeypatch):
+    """A search's workers fill the cores: each candidate's accuracy loop makes the lift test below its first one
+    after it, in its own thread (``SEARCH_SETTINGS``), where a pickup alone makes it beside it in a second thread
+    wherever numba compiles the kernels."""
+    from fem_grasp.contact.kernels import jit
+    from fem_grasp.grasp import lift_test
+    from fem_grasp.grasp.accuracy import converged_pickup
+    from fem_grasp.grasp.pickup import pickup
+
+    threaded: list[bool] = []  # how each SpeculativeTest was made
+    made = lift_test.SpeculativeTest.__init__
+
+    def spy(self, test, state, **kw) -> None:
+        threaded.append(kw["threaded"])
+        made(self, test, state, **kw)
+
+    monkeypatch.setattr(lift_test.SpeculativeTest, "__init__", spy)
+    search(small_box(), None, azimuths=AZIMUTHS[:1], workers=0, accuracy=TARGET, report=False, **SETTINGS)
+    assert threaded and not any(threaded)
+    threaded.clear()
+    body = small_box()
+    kw = {k: v for k, v in SETTINGS.items() if k != "name"}
+    alone = converged_pickup(body, solve=pickup, accuracy=TARGET, geometry=None, **kw)
+    assert len(alone.accuracy["levels"]) > 1 and threaded and all(threaded) == jit.ENABLED
+
+
 # ------------------------------------------------------------------ bad input, before any work
 @pytest.fixture
 def no_work(monkeypatch):
