@@ -131,8 +131,8 @@ class AccuracyLevel:
                 "resolution": a.resolution, "lift_test_step": a.lift_test_step,
                 "success": a.success, "squeeze_depth": a.squeeze_depth, "finger_force": a.finger_force,
                 "finger_nodes": [f["nodes"] for f in a.fingers], "table_nodes": a.table_nodes,
-                "max_liftable": a.max_liftable, "seconds": a.seconds, "mesh_seconds": self.mesh_seconds,
-                "change": self.change, "reason": a.reason}
+                "max_liftable": a.max_liftable, "liftable": [list(p) for p in a.liftable], "seconds": a.seconds,
+                "mesh_seconds": self.mesh_seconds, "change": self.change, "reason": a.reason}
 
 
 @dataclass

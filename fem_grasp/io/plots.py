@@ -15,6 +15,9 @@ from .frames import SLIP, STICK, finger_centres, pick_frames, read_frame
 __all__ = ["plot_liftable", "plot_patches", "plot_timeline"]
 
 _BODY_COLOURS = {"finger1": "#d62728", "finger2": "#9467bd", "table": "#1f77b4"}
+#: A patch of more contacts than this has no force printed at its nodes, and smaller dots: on the accuracy loop's
+#: finest level (about 130 contacts on a fingertip, 1 mm apart) the numbers and dots covered one another.
+LABELLED_CONTACTS = 30
 
 
 def _figure(size: tuple[float, float]) -> tuple[Any, Any]:
@@ -38,22 +41,32 @@ def _save(fig: Any, path: Path) -> Path:
 
 
 def plot_liftable(doc: dict[str, Any], path: Path) -> Path:
-    """w(ρ) from the lift test against the real weight."""
+    """w(ρ) from the lift test against the real weight; with the accuracy loop, every level's w(ρ) (a finer level
+    tests only from the coarser level's ρ*, so the coarser levels show the curve's way up)."""
     fig, subplots = _figure((6.4, 4.0))
     ax = subplots()
     res, summ = doc["result"], doc["summary"]
     lw = np.asarray(res["liftable"], float).reshape(-1, 2)
     weight = float(summ["weight"])
+    levels = [lv for lv in ((doc.get("accuracy") or {}).get("levels") or []) if lv.get("liftable")]
+    top = [float(lw[:, 1].max())] if len(lw) else []
+    for n, lv in enumerate(levels[:-1]):
+        w = np.asarray(lv["liftable"], float).reshape(-1, 2)
+        grey = str(round(0.75 - 0.3 * n / max(len(levels) - 2, 1), 2))
+        ax.step(1e3 * w[:, 0], w[:, 1], where="post", color=grey, marker=".", ms=2, lw=1,
+                label=f"w(ρ), level {lv['level']} ({lv['vertices']:,} vertices)")
+        top.append(float(w[:, 1].max()))
     if len(lw):
-        ax.step(1e3 * lw[:, 0], lw[:, 1], where="post", color="#1f77b4", marker=".", ms=3,
-                label="liftable weight w(ρ) (lift test)")
+        last = f", level {levels[-1]['level']} (the answer's)" if len(levels) > 1 else " (lift test)"
+        ax.step(1e3 * lw[:, 0], lw[:, 1], where="post", color="#1f77b4", marker=".", ms=4, lw=1.8,
+                label=f"liftable weight w(ρ){last}")
     ax.axhline(weight, color="#d62728", ls="--", label=f"weight mg = {weight:.3g} N")
     rho = float(summ["squeeze_depth"])
     ax.axvline(1e3 * rho, color="0.4", ls=":", label=f"squeeze stops, ρ = {1e3 * rho:.3g} mm")
     ax.set_xlim(left=0)
     ax.set_xlabel("squeeze depth ρ (mm)")
     ax.set_ylabel("weight (N)")
-    ax.set_ylim(bottom=0, top=max(1.25 * weight, float(lw[:, 1].max()) * 1.05 if len(lw) else 0))
+    ax.set_ylim(bottom=0, top=max([1.25 * weight] + [1.05 * t for t in top]))
     ax.set_title("Lift test: the fingers lift once w(ρ) ≥ mg" + ("" if len(lw) else " (no lift test ran)"))
     ax.grid(alpha=0.3)
     ax.legend(loc="upper left", fontsize=8)
@@ -102,7 +115,7 @@ def plot_patches(out: Path, doc: dict[str, Any], path: Path) -> Path:
             ft = fk - fn[:, None] * n_hat
             u, v = 1e3 * rel[k] @ eu, 1e3 * rel[k] @ ev
             slide = d["state"][k] == 2
-            size = 30 + 250 * np.clip(fn, 0, None) / max(float(fn.max()), 1e-300)
+            size = (30 + 250 * np.clip(fn, 0, None) / max(float(fn.max()), 1e-300)) * min(1.0, LABELLED_CONTACTS / len(k))
             for mask, colour, name in ((~slide, STICK, "sticks"), (slide, SLIP, "slides")):
                 if mask.any():
                     ax.scatter(u[mask], v[mask], s=size[mask], color=colour, edgecolor="black", lw=0.5, zorder=3,
@@ -111,7 +124,7 @@ def plot_patches(out: Path, doc: dict[str, Any], path: Path) -> Path:
             ax.quiver(u, v, ft @ eu, ft @ ev, color="#d62728", zorder=4, angles="xy", scale_units="xy",
                       scale=tmax / (0.35e3 * radius), width=0.006, label="tangential force (longest: 0.35 R)")
             ax.text(0.02, 0.02, f"longest tangential force {1e3 * tmax:.3g} mN", transform=ax.transAxes, fontsize=7)
-            for x, y, val in zip(u, v, fn):
+            for x, y, val in zip(u, v, fn) if len(k) <= LABELLED_CONTACTS else ():
                 text = f"{1e3 * val:.3g}" if 1e3 * abs(val) >= 0.01 else "<0.01"
                 ax.annotate(text, (x, y), xytext=(4, 4), textcoords="offset points", fontsize=6.5)
             r = fk.sum(axis=0)
@@ -129,7 +142,8 @@ def plot_patches(out: Path, doc: dict[str, Any], path: Path) -> Path:
         fig.legend(list(handles.values()), list(handles), loc="outside lower center", ncol=3, fontsize=7.5,
                    markerscale=0.6)
     fig.suptitle("Contact patches seen from each finger along its squeeze direction\n"
-                 "numbers and dot sizes: normal force f·n̂ on the object (mN); arrows: tangential force", fontsize=10)
+                 f"dot sizes (and numbers, on patches of up to {LABELLED_CONTACTS} contacts): normal force f·n̂ on the "
+                 "object (mN); arrows: tangential force", fontsize=10)
     return _save(fig, path)
 
 

@@ -22,10 +22,12 @@ Pictures (PNG, beside report.html):
   computed state, translated.
 * ``patches.png`` — a close-up of each finger's contact patch when the lift
   starts and at the end, seen along the finger's squeeze direction: the
-  contact nodes (stick / slip), their normal forces (mN, written beside each
-  node and as the dot's size) and their tangential forces (arrows).
+  contact nodes (stick / slip), their normal forces (mN, as the dot's size,
+  and written beside each node on patches of up to 30 contacts) and their
+  tangential forces (arrows).
 * ``liftable.png`` — the liftable weight w(ρ) of the lift test against the
-  object's weight (matplotlib, no pyplot state).
+  object's weight, with every level's w(ρ) when the answer was refined
+  (matplotlib, no pyplot state).
 * ``timeline.png`` — every event (A contact, B break, C stick→slip, D
   slip→stick) along the finger path (squeeze depth ρ, then ρ + lift height),
   coloured by the body it concerns, and the number of contacts per body.
@@ -164,7 +166,8 @@ def _html(doc: dict[str, Any]) -> str:
         "lifted.png": lifted,
         "patches.png": "Each finger's contact patch seen along its squeeze direction: contact nodes sticking or "
                        "sliding, normal forces (mN) and tangential forces.",
-        "liftable.png": "Liftable weight w(ρ) of the lift test against the object's weight.",
+        "liftable.png": "Liftable weight w(ρ) of the lift test against the object's weight (and of each level of the "
+                        "refinement: a finer level tests from the coarser level's ρ* on).",
         "timeline.png": "Events along the finger path and contact nodes per body.",
     }
     forces = s.get("finger_forces") or {}

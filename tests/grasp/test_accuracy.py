@@ -96,6 +96,24 @@ def test_each_level_halves_the_patch_spacing_and_resolves_rho_to_its_share_of_th
         assert b["lift_test_step"] == pytest.approx(lv[0]["lift_test_step"])  # every level ramps in level 0's h
 
 
+def test_each_level_records_its_lift_tests_and_the_report_plots_them(levels, tmp_path):
+    """w(ρ) of every level is in the accuracy block (the report plots them: a finer level tests from the coarser
+    level's ρ* on, so only the coarser levels show how w rises); the last level's is the answer's, and each level's
+    largest w is its max_liftable."""
+    pytest.importorskip("matplotlib")
+    from fem_grasp.io.plots import plot_liftable
+
+    lv = levels.accuracy["levels"]
+    assert lv[-1]["liftable"] == [list(p) for p in levels.liftable]
+    for x in lv:
+        assert x["liftable"] and max(w for _, w in x["liftable"]) == pytest.approx(x["max_liftable"])
+    assert min(r for r, _ in lv[0]["liftable"]) < min(r for r, _ in lv[-1]["liftable"])  # level 0 from the start
+    doc = {"result": {"liftable": lv[-1]["liftable"]}, "summary": {"weight": levels.body.weight,
+                                                                   "squeeze_depth": levels.squeeze_depth},
+           "accuracy": levels.accuracy}
+    assert plot_liftable(doc, tmp_path / "liftable.png").stat().st_size > 10_000
+
+
 def test_three_levels_state_an_error_by_how_they_converge(levels):
     """ρ* oscillates and contracts (2.12, 1.96, 1.99 mm): the last difference plus the resolution.  The force
     swings back as far as it moved (0.649, 0.632, 0.648 N): levels that do not converge state no less than two
