@@ -1,6 +1,7 @@
 """The fem-grasp command line, in-process: every shipped scene's quick variant, exit statuses, bad input."""
 
 import json
+import math
 import subprocess
 import sys
 
@@ -62,6 +63,25 @@ def test_an_answer_short_of_its_target_says_by_how_much_and_why():
     assert lines[0] == ("accuracy   target 5 %, not reached: estimated error rho* 2.4 %, finger force 7 % (stopped "
                         "before level 2: it would put about 528 contacts on a fingertip)")
     assert [x.split()[:2] for x in lines[1:]] == [["level", "0"], ["level", "1"]] and "2,100 vertices" in lines[2]
+
+
+def test_an_answer_whose_verdict_is_not_settled_says_why():
+    """Infinite estimates: the verdict itself is not settled, for the reason the accuracy block gives (a failure
+    within its error of the weight), or, in a result written before that block had a reason, the two last levels'
+    disagreement."""
+    from fem_grasp.cli.run import _accuracy_lines
+
+    level = {"inner_size": 2e-3, "step": 4e-4, "success": False, "finger_force": 22.3, "seconds": 1.0,
+             "mesh_seconds": 0.2, "squeeze_depth": 0.035}
+    why = "the fingers held up to 3.587 N, and the weight 3.775 N lies within the estimated error of that"
+    acc = {"target": 0.1, "converged": False, "note": "stopped after 64 s before level 3",
+           "estimated_error": {"squeeze_depth": math.inf, "finger_force": math.inf, "max_liftable": 0.15},
+           "verdict": why, "levels": [dict(level, level=0, vertices=1800), dict(level, level=1, vertices=5900)]}
+    head = _accuracy_lines(acc, quick=False)[0]
+    assert head.startswith("accuracy   the requested 10 % was not reached (stopped after 64 s before level 3)")
+    assert why in head and "the verdict itself is not settled" in head
+    del acc["verdict"]
+    assert "the last two meshes give different verdicts" in _accuracy_lines(acc, quick=False)[0]
 
 
 def test_young_override_reaches_the_scene():
