@@ -10,8 +10,8 @@ The verdict has no error of its own but can be unsettled (:func:`unsettled_verdi
 disagree on it, or when both fail and the largest weight the fingers held lies within its estimated error of
 the object's weight.  On fine meshes the fingertips hold more (a P1 patch is too stiff, and too few nodes touch):
 of the coverage study's random objects at 5 %, two whose last two levels failed with the largest weight held
-one or two steps h below mg (and the estimate of a failure once took that weight's difference alone) were
-lifted by the finer reference; one of them was reported converged at 10 %.
+one or two steps h below mg were lifted by the finer reference, and the bare difference of that weight between
+the levels (one step, 5 % of mg) would have called one of those failures converged at 10 %.
 """
 
 from __future__ import annotations

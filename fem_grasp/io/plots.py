@@ -48,11 +48,12 @@ def plot_liftable(doc: dict[str, Any], path: Path) -> Path:
     res, summ = doc["result"], doc["summary"]
     lw = np.asarray(res["liftable"], float).reshape(-1, 2)
     weight = float(summ["weight"])
-    levels = [lv for lv in ((doc.get("accuracy") or {}).get("levels") or []) if lv.get("liftable")]
+    levels = (doc.get("accuracy") or {}).get("levels") or []  # the last is the answer's (``lw``)
+    coarser = [lv for lv in levels[:-1] if lv.get("liftable")]
     top = [float(lw[:, 1].max())] if len(lw) else []
-    for n, lv in enumerate(levels[:-1]):
+    for n, lv in enumerate(coarser):
         w = np.asarray(lv["liftable"], float).reshape(-1, 2)
-        grey = str(round(0.75 - 0.3 * n / max(len(levels) - 2, 1), 2))
+        grey = str(round(0.75 - 0.3 * n / max(len(coarser) - 1, 1), 2))
         ax.step(1e3 * w[:, 0], w[:, 1], where="post", color=grey, marker=".", ms=2, lw=1,
                 label=f"w(ρ), level {lv['level']} ({lv['vertices']:,} vertices)")
         top.append(float(w[:, 1].max()))
