@@ -84,6 +84,33 @@ def test_an_answer_whose_verdict_is_not_settled_says_why():
     assert "the last two meshes give different verdicts" in _accuracy_lines(acc, quick=False)[0]
 
 
+def test_the_result_line_says_whether_a_refined_answer_is_short_of_its_target_or_its_verdict_unsettled():
+    from types import SimpleNamespace as NS
+
+    import numpy as np
+
+    from fem_grasp.cli.run import _summary_lines
+
+    scene = NS(name="pear", quick=False, young=2e4, poisson=0.4, mu_finger=0.3, mu_table=0.3)
+    level = {"inner_size": 2e-3, "step": 4e-4, "success": False, "finger_force": 22.3, "seconds": 1.0,
+             "mesh_seconds": 0.2, "squeeze_depth": 0.035, "vertices": 1000}
+    acc = {"target": 0.05, "converged": False, "note": "stopped",
+           "levels": [dict(level, level=0), dict(level, level=1)],
+           "estimated_error": {"squeeze_depth": 0.08, "finger_force": 0.09}}
+    result = NS(success=False, outcome="not liftable", reason="the lift test did not pass", squeeze_depth=0.035,
+                max_squeeze=0.035, liftable=[(0.03, 3.4)], n_final_contacts=90, finger_forces=None, events=[],
+                event_counts=lambda: {k: 0 for k in "ABCD"}, timings={"rest": 0.1, "squeeze": 1.0}, accuracy=acc,
+                body=NS(n_nodes=1000, mesh=NS(n_tets=4000), weight=3.775),
+                rest=NS(n_contacts=20, sliding=np.zeros(20, bool), max_sag=1e-3))
+    assert _summary_lines(scene, result, False)[2].endswith("(less accurate than requested: see accuracy)")
+    acc.update(estimated_error={"squeeze_depth": math.inf, "finger_force": math.inf},
+               verdict="a finer mesh may lift it")
+    lines = _summary_lines(scene, result, False)
+    assert lines[2].startswith("result     NOT PICKED UP")
+    assert lines[2].endswith("(the verdict is not settled at this resolution: see accuracy)")
+    assert "a finer mesh may lift it" in lines[3]
+
+
 def test_young_override_reaches_the_scene():
     from argparse import Namespace
 

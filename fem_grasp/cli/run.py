@@ -88,8 +88,11 @@ def _summary_lines(scene: Any, result: Any, rest_cached: bool) -> list[str]:
                      + ", ".join(time_parts))
     if acc:
         if not acc["converged"]:
+            e = acc["estimated_error"]
+            settled = all(np.isfinite(e[k]) for k in ("squeeze_depth", "finger_force"))  # as _accuracy_lines
             lines[2] += ("  (one run on this mesh: see accuracy)" if len(acc["levels"]) == 1 else
-                         "  (less accurate than requested: see accuracy)")
+                         "  (less accurate than requested: see accuracy)" if settled else
+                         "  (the verdict is not settled at this resolution: see accuracy)")
         lines[3:3] = _accuracy_lines(acc, scene.quick)
     return lines
 
