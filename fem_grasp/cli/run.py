@@ -88,13 +88,17 @@ def _summary_lines(scene: Any, result: Any, rest_cached: bool) -> list[str]:
                      + ", ".join(time_parts))
     if acc:
         if not acc["converged"]:
-            e = acc["estimated_error"]
-            settled = all(np.isfinite(e[k]) for k in ("squeeze_depth", "finger_force"))  # as _accuracy_lines
             lines[2] += ("  (one run on this mesh: see accuracy)" if len(acc["levels"]) == 1 else
-                         "  (less accurate than requested: see accuracy)" if settled else
+                         "  (less accurate than requested: see accuracy)" if _errors_known(acc) else
                          "  (the verdict is not settled at this resolution: see accuracy)")
         lines[3:3] = _accuracy_lines(acc, scene.quick)
     return lines
+
+
+def _errors_known(acc: dict[str, Any]) -> bool:
+    """The refined answer states finite errors of ρ* and the force (else its verdict is not settled)."""
+    e = acc["estimated_error"]
+    return all(np.isfinite(e[k]) for k in ("squeeze_depth", "finger_force"))
 
 
 def _accuracy_lines(acc: dict[str, Any], quick: bool) -> list[str]:
@@ -121,7 +125,7 @@ def _accuracy_lines(acc: dict[str, Any], quick: bool) -> list[str]:
         head = (f"accuracy   {acc.get('note', '')}; {how}"
                 + (f"; run without --quick for the answer to {100 * acc['target']:g} %"
                    if quick and acc.get("target") is not None and np.isfinite(acc["target"]) else ""))
-    elif not all(np.isfinite(v) for v in (e["squeeze_depth"], e["finger_force"])):
+    elif not _errors_known(acc):
         why = acc.get("verdict") or "the last two meshes give different verdicts"
         head = (f"accuracy   the requested {100 * acc['target']:g} % was not reached ({acc.get('note', '')}): {why}, "
                 "so the verdict itself is not settled at this resolution"
