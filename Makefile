@@ -31,11 +31,11 @@ $(STAMPS)/venv: $(STAMPS)/apt pyproject.toml
 	$(SYSPY) -c "import numpy; print('numpy==' + numpy.__version__)" > $(STAMPS)/constraints.txt
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -c $(STAMPS)/constraints.txt -e ".[dev,report,fast,docs,xdmf,examples,search]"
-	@# Optional CHOLMOD backend: scikit-sparse compiled against Debian's SuiteSparse and the pinned numpy
-	@# (no build isolation, so Cython comes first). If it fails to build, SuperLU is used instead.
+	@# scikit-sparse compiled against Debian's SuiteSparse and the pinned numpy (no build isolation, so Cython comes
+	@# first): fem_grasp calls libcholmod itself; the floor benchmark and the friction reference use scikit-sparse.
 	$(PY) -m pip install -q -c $(STAMPS)/constraints.txt "cython>=0.29" setuptools wheel && \
 	  $(PY) -m pip install -q -c $(STAMPS)/constraints.txt --no-build-isolation -e ".[cholmod]" \
-	  || echo "WARNING: scikit-sparse (CHOLMOD) did not build; fem_grasp falls back to SciPy SuperLU"
+	  || echo "WARNING: scikit-sparse did not build (fem_grasp calls libcholmod directly; the floor benchmark needs it)"
 	$(PY) -c "import dolfinx, gmsh, numpy; print('venv ok: dolfinx', dolfinx.__version__, 'numpy', numpy.__version__)"
 	@# Compile the numba kernels once here (cached), not in the first pickup.
 	$(PY) -c "from fem_grasp.contact import warm_up; from fem_grasp.contact.kernels import jit; t = warm_up(); print('inner loops:', jit.backend_name(), f'(compiled in {t:.1f} s)')"

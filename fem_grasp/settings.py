@@ -109,6 +109,12 @@ class EngineSettings:
     prefetch_nodes : int
         Nodes whose compliance columns are solved for together when a new contact needs its own (30: at 31k
         vertices a column costs 10.7 ms in batches of 90, 12.2 in batches of 30, 40 for one node's three).
+    solve_ahead : bool
+        While the squeeze and the lift are tracked, the columns of the next likely contacts are solved in a
+        background thread on the other core (True; :meth:`~fem_grasp.elastic.compliance.Compliance.solve_ahead`,
+        with a CHOLMOD library whose solves release the GIL).  The same answers either way, to round-off (the
+        columns are solved in other batches, on one BLAS thread).  A placement search's candidates use False
+        (their workers fill the cores).
     neighbour_updates : bool
         A tracker derives a new contact set's response from a cached neighbouring set's by rank-3 updates (True)
         instead of factorising every set afresh (False, the reference; the same answers to round-off).
@@ -189,6 +195,7 @@ class EngineSettings:
     # paths
     compiled_trials: bool | None = None
     prefetch_nodes: int = 30
+    solve_ahead: bool = True
     neighbour_updates: bool = True
     # the return mapping (contact.relaxation)
     drift_sweeps: int = 300

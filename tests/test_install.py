@@ -197,7 +197,10 @@ def test_quick_run_without_gmsh_exits_2_naming_the_mesh_extra(monkeypatch, capsy
 
 def test_python_callers_get_the_same_message(monkeypatch):
     _missing(monkeypatch, "gmsh", "sksparse", "sksparse.cholmod")
-    from fem_grasp.elastic import compliance
+    from fem_grasp.elastic import cholmod, compliance
+
+    monkeypatch.setattr(cholmod, "_LIBRARY_TRIED", True)  # and no CHOLMOD library loads either
+    monkeypatch.setattr(cholmod, "_LIBRARY", None)
     from fem_grasp.mesh import shapes
 
     with pytest.raises(ImportError, match=r'pip install "fem_grasp\[mesh\]"') as info:

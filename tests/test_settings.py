@@ -118,3 +118,36 @@ def test_a_tracker_without_neighbour_updates_factorises_every_contact_set_afresh
         assert bool(asked) == updates
     for a, b in zip(out[True], out[False]):
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-10 * np.abs(b).max())
+
+
+def test_columns_solved_ahead_give_the_same_pickup(monkeypatch):
+    """solve_ahead: the squeeze's and the lift's tracker queue the next likely contacts' columns for a background
+    thread (with CHOLMOD called directly); the tomato's answer is the same as without, to the answer-level
+    tolerance (the columns are solved in other batches), and the section leaves no columns being solved."""
+    from fem_grasp.elastic import compliance
+    from fem_grasp.grasp.pickup import pickup
+    from fem_grasp.io.scene import load_scene, resolve_scene
+
+    scene = load_scene(resolve_scene("tomato"))
+    body, kw = scene.body(), scene.pickup_kwargs()
+    if not getattr(body.compliance._solve, "releases_gil", False):
+        pytest.skip("no CHOLMOD library whose solves release the GIL")
+    queued = []
+    original = compliance.Compliance.solve_ahead
+
+    def counted(self, likely, count):
+        before = len(self._ahead)
+        original(self, likely, count)
+        queued.append(len(self._ahead) - before)
+
+    monkeypatch.setattr(compliance.Compliance, "solve_ahead", counted)
+    monkeypatch.setattr(compliance, "AHEAD_MIN_NODES", 1)  # a coarse mesh's fingertips touch a few nodes at a time
+    implicit = EngineSettings(implicit_contacts=0)  # a return mapping per increment: new contacts at every one
+    ahead = pickup(body, settings=implicit, **kw)
+    assert sum(queued) > 0
+    queued.clear()
+    plain = pickup(body, settings=implicit.replace(solve_ahead=False), **kw)
+    assert sum(queued) == 0
+    assert_same_pickup(ahead, plain)
+    posed = ahead.body.compliance
+    assert not posed._ahead_on and all(batch.result.done() for batch in posed._ahead.values())

@@ -117,6 +117,9 @@ CRAWL_TOGGLES = DEFAULT_SETTINGS.crawl_toggles
 #: Whether a tracker with the default settings uses the compiled trials (numba installed;
 #: ``EngineSettings.compiled_trials``).
 COMPILED_TRIALS = jit.ENABLED if DEFAULT_SETTINGS.compiled_trials is None else DEFAULT_SETTINGS.compiled_trials
+#: The squeeze's and the lift's tracker queues the columns of the surface nodes that would touch an obstacle
+#: within this many more calls of :meth:`Tracker.prefetch_columns` at the rate their gaps closed since the last.
+AHEAD_CALLS = 3.0
 
 
 class Tracker(EventLocation, ImplicitStep):
@@ -169,6 +172,7 @@ class Tracker(EventLocation, ImplicitStep):
         self._zero_fields: dict[tuple[int, ...], np.ndarray] = {}
         self._zero_surface_fields: dict[tuple[int, ...], np.ndarray] = {}
         self._latest_full: dict[tuple, np.ndarray] = {}
+        self._ahead_gaps: np.ndarray | None = None  # the gaps at the last prefetch_columns (solve_ahead's rates)
         self.solves = 0
         #: The slip systems are assembled, solved and read out by compiled kernels (:class:`CompiledSlipSystem`);
         #: False: by :class:`MixedSlipSystem` (numpy; the reference path the tests compare with).
@@ -223,11 +227,30 @@ class Tracker(EventLocation, ImplicitStep):
         ``settings.prefetch_nodes`` in one solve (a new contact's own three columns alone cost
         several times more per column)."""
         comp = self.body.compliance if self.backend == "sparse" else None
-        if comp is None or all(comp.is_cached(k) for k in nodes):
+        if comp is None:
             return
-        gap = self.obstacle_gaps(surface_positions, centers).min(axis=1)
-        comp.prefetch(np.asarray(nodes, dtype=np.int64), likely=self.surface[np.argsort(gap, kind="stable")],
-                      count=self.settings.prefetch_nodes)
+        missing = not all(comp.is_cached(k) for k in nodes)
+        # The tracker with the table (squeeze, lift) queues the next likely contacts' columns for the other core
+        # (Compliance.solve_ahead, inside a solving_ahead section); the lift test's two trackers fill both cores.
+        ahead = self.settings.solve_ahead and self.table is not None
+        if not (missing or ahead):
+            return
+        gaps = self.obstacle_gaps(surface_positions, centers)
+        if missing:
+            comp.prefetch(np.asarray(nodes, dtype=np.int64),
+                          likely=self.surface[np.argsort(gaps.min(axis=1), kind="stable")],
+                          count=self.settings.prefetch_nodes)
+        if ahead:
+            # Ranked by when each node would touch at the rate its gaps closed since the last call (in calls,
+            # about one increment each): the nodes near the static table that stay clear of it are not queued.
+            before, self._ahead_gaps = self._ahead_gaps, gaps
+            if before is not None and before.shape == gaps.shape:
+                closing = before - gaps
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    calls = np.where(closing > 0, gaps / closing, np.inf).min(axis=1)
+                order = np.argsort(calls, kind="stable")
+                order = order[calls[order] <= AHEAD_CALLS]
+                comp.solve_ahead(self.surface[order], self.settings.prefetch_nodes)
 
     def field(self, nodes: np.ndarray, disp: np.ndarray, load: float) -> np.ndarray:
         """(n, 3) displacement field for prescribed contact displacements at gravity factor λ (eq. 4)."""

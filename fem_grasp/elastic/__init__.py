@@ -4,8 +4,8 @@
    the lumped gravity loads G of §II-B and the six rigid modes of Theorem 1 (pure functions of arrays);
 2. :class:`Body` — a mesh with E, ν and a weight: K, G, the mass and centre of mass, cached on first use;
 3. :mod:`~fem_grasp.elastic.compliance` and :mod:`~fem_grasp.elastic.spectral` — the two ways to solve
-   eq. (3): a sparse generalised inverse of K (factorised once, columns cached per contact node), or the
-   paper's dense eigendecomposition K = VΛVᵀ;
+   eq. (3): a sparse generalised inverse of K (factorised once, columns cached per contact node; CHOLMOD
+   called directly by :mod:`~fem_grasp.elastic.cholmod`), or the paper's dense eigendecomposition K = VΛVᵀ;
 4. :class:`ContactResponse` — for a contact index set ℂ, the reduced stiffness C of eq. (5),
    F̄ = C(Δ̄ − D̄) + mg e/√n, and the displacement field of eq. (4); :func:`solve_contact` does one solve.
 

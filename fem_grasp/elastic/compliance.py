@@ -12,10 +12,11 @@ contact and cached, so every later contact set costs a small dense solve.
 Sparse solvers
 --------------
 ``"cholmod"``
-    Supernodal Cholesky from SuiteSparse through scikit-sparse (optional
-    extra ``fem_grasp[cholmod]``; ``make setup`` builds it against Debian's
-    ``libsuitesparse-dev``).  About ten times faster than SuperLU on 3D
-    elasticity, with far less fill.
+    Supernodal Cholesky from SuiteSparse: the system's CHOLMOD library called
+    directly (:mod:`~fem_grasp.elastic.cholmod`; Debian's ``libcholmod3``),
+    whose solves release the GIL, or where that does not load, through
+    scikit-sparse (optional extra ``fem_grasp[cholmod]``).  About ten times
+    faster than SuperLU on 3D elasticity, with far less fill.
 ``"superlu"``
     SciPy's SuperLU in symmetric mode: always available.
 ``"mumps"``
@@ -37,17 +38,30 @@ is then recovered when needed by one more solve (:meth:`Compliance.combine`
 applies X to the contact forces placed at their DOFs).  :class:`~fem_grasp.elastic.body.Body`
 does this above ``body.FULL_COLUMNS_MAX_NODES`` vertices: the contact tracking
 reads only the surface (``surface=``, :meth:`Compliance.combine_surface`).
+
+Columns solved ahead
+--------------------
+A new contact waits for its columns, which cost more than the rest of a fine mesh's implicit increment
+(the tomato's 5,901-vertex level: 1.6 of the squeeze's 2.9 s).  Inside :meth:`Compliance.solving_ahead`
+(the squeeze and the lift of a pickup) the tracker queues the columns of the nodes about to touch
+(:meth:`Compliance.solve_ahead`) and one background thread solves them on the other core while the
+tracking goes on; a queued node's columns are taken when asked for.  This needs a solve that releases the
+GIL (the ctypes CHOLMOD binding).  What is queued, in which batches, depends only on the calls made, and
+BLAS keeps one thread throughout the section, so the columns and their round-off do not depend on timing.
 """
 
 from __future__ import annotations
 
 import atexit
+import contextlib
 import copy
 import logging
 import os
 import threading
 import weakref
-from typing import Callable
+from concurrent import futures
+from dataclasses import dataclass
+from typing import Callable, Iterator
 
 import numpy as np
 import scipy.linalg as la
@@ -57,7 +71,7 @@ import scipy.sparse.linalg as spla
 from ..errors import MissingExtraError
 from ..mesh.tetmesh import check_rotation
 from ..settings import DEFAULT_SETTINGS
-from ..threads import outer_blas_threads
+from ..threads import one_blas_thread, outer_blas_threads, side_by_side
 
 __all__ = ["Compliance", "PREFETCH_NODES", "SOLVERS", "SOLVER_ENV", "cholmod_available", "choose_solver",
            "factorize", "grounding_dofs"]
@@ -73,6 +87,11 @@ SOLVER_ENV = "FEM_GRASP_SOLVER"
 #: 30, 40 for one node's three): the default of ``EngineSettings.prefetch_nodes``, which the contact trackers
 #: read; the resting iteration reads this name.
 PREFETCH_NODES = DEFAULT_SETTINGS.prefetch_nodes
+#: :meth:`Compliance.solve_ahead` queues no batch of fewer nodes than this (a solve of few columns costs
+#: several times more per column).
+AHEAD_MIN_NODES = 10
+#: ... and keeps up to this many batches queued.
+AHEAD_BATCHES = 2
 #: The right-hand sides and solutions of one multi-column solve take at most about this many bytes; more columns
 #: are solved in blocks.  (The steam bun's flat base puts 2,714 nodes on the table at 21k vertices: their 8,142
 #: columns at once needed two dense 129k × 8,142 arrays, 7.8 GiB each.)
@@ -80,7 +99,11 @@ SOLVE_BLOCK_BYTES = 512 * 2**20
 
 
 def cholmod_available() -> bool:
-    """True when scikit-sparse's CHOLMOD wrapper imports."""
+    """True when a CHOLMOD library loads (:mod:`~fem_grasp.elastic.cholmod`) or scikit-sparse's wrapper imports."""
+    from .cholmod import library
+
+    if library() is not None:
+        return True
     try:
         import sksparse.cholmod  # type: ignore # noqa: F401
     except ImportError:
@@ -107,17 +130,41 @@ def choose_solver(solver: str | None = None) -> str:
     if solver not in SOLVERS:
         raise ValueError(f"unknown sparse solver {solver!r} ({source}); choose 'auto' or one of {SOLVERS}")
     if solver == "cholmod" and not cholmod_available():
-        raise MissingExtraError("the CHOLMOD solver needs the 'cholmod' extra (scikit-sparse is not installed): "
-                                "pip install \"fem_grasp[cholmod]\" (with Debian's libsuitesparse-dev installed), or "
-                                "choose 'superlu'", extra="cholmod", name="sksparse")
+        raise MissingExtraError("the CHOLMOD solver needs a CHOLMOD library (3.x to 5.x) that loads, such as Debian's "
+                                "libcholmod3 (apt install libsuitesparse-dev), or the 'cholmod' extra (scikit-sparse): "
+                                "pip install \"fem_grasp[cholmod]\"; or choose 'superlu'", extra="cholmod",
+                                name="sksparse")
     return solver
 
 
 #: Every live CHOLMOD factor, by the id of the solve function that owns it (see _cholmod).
 _LIVE_FACTORS: dict[int, object] = {}
-#: One sparse solve at a time: CHOLMOD's solve works in its factor's shared workspace (``Common``), so two threads
-#: (a speculative lift test beside the squeeze's) take turns.
+#: One scikit-sparse solve at a time: it works in its factor's shared workspace (``Common``), so two threads (a
+#: speculative lift test beside the squeeze's) take turns; the ctypes binding gives each thread a ``Common``.
 _SOLVE_LOCK = threading.Lock()
+
+
+@dataclass(eq=False)  # hashed by identity
+class _AheadBatch:
+    """Nodes queued together by :meth:`Compliance.solve_ahead`, the future of their solved columns, and whether a
+    branch holds it too (then it is never cancelled: only a batch nobody can ask for may be)."""
+
+    nodes: tuple[int, ...]
+    result: futures.Future
+    shared: bool = False
+
+
+_BACKGROUND: futures.ThreadPoolExecutor | None = None
+_BACKGROUND_LOCK = threading.Lock()
+
+
+def _background() -> futures.ThreadPoolExecutor:
+    """The one thread that solves queued columns (:meth:`Compliance.solve_ahead`), started when first needed."""
+    global _BACKGROUND
+    with _BACKGROUND_LOCK:
+        if _BACKGROUND is None:
+            _BACKGROUND = futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="fem_grasp-columns")
+        return _BACKGROUND
 
 
 def _keep_factors_at_exit() -> None:
@@ -132,7 +179,8 @@ atexit.register(_keep_factors_at_exit)
 
 
 def _cholmod(matrix: sp.csc_matrix) -> Callable[[np.ndarray], np.ndarray]:
-    """CHOLMOD's factorisation and its solve function.
+    """CHOLMOD's factorisation and its solve function: through ctypes (:mod:`~fem_grasp.elastic.cholmod`, whose
+    solves release the GIL) where a CHOLMOD library loads, else through scikit-sparse.
 
     scikit-sparse's ``Factor`` frees itself through its ``Common`` in ``__dealloc__``; if the garbage
     collector breaks a reference cycle that holds a factor by clearing the factor first, the ``Common``
@@ -142,6 +190,17 @@ def _cholmod(matrix: sp.csc_matrix) -> Callable[[np.ndarray], np.ndarray]:
     itself, and dies by reference counting with its ``Common`` intact.  At exit the factors still
     alive are kept for the operating system to reclaim.
     """
+    from .cholmod import CholmodFactor, library
+
+    if library() is not None:
+        direct = CholmodFactor(matrix)
+
+        def solve_direct(b: np.ndarray) -> np.ndarray:
+            return direct.solve(b)
+
+        solve_direct.factor = direct  # type: ignore[attr-defined]
+        solve_direct.releases_gil = True  # type: ignore[attr-defined]
+        return solve_direct
     from sksparse.cholmod import cholesky  # type: ignore
 
     factor = cholesky(matrix)
@@ -322,6 +381,8 @@ class Compliance:
         if self._position is not None:
             self._position[self.kept_nodes] = np.arange(len(self.kept_nodes))
         self._columns: dict[int, np.ndarray] = {}
+        self._ahead: dict[int, _AheadBatch] = {}  # nodes queued by solve_ahead, not yet taken into _columns
+        self._ahead_on = False  # inside solving_ahead()
         self._rotation: np.ndarray | None = None  # see rotated()
         self.surface_nodes = None if surface is None else np.unique(np.asarray(surface, dtype=np.int64))
         self._surface_rows = None if surface is None else self._row_positions(self.surface_nodes)
@@ -345,22 +406,29 @@ class Compliance:
         """X @ load in the frame of the factorised body (:meth:`rotated`)."""
         out = np.zeros_like(load)
         with outer_blas_threads():  # inside the tracking's one-thread limit too
-            with _SOLVE_LOCK:
+            with self._solve_lock():
                 out[self.free] = self._solve(np.ascontiguousarray(load[self.free]))
         return out
+
+    def _solve_lock(self) -> contextlib.AbstractContextManager:
+        """_SOLVE_LOCK for a solver whose solves share a workspace; none for the ctypes CHOLMOD binding."""
+        return contextlib.nullcontext() if getattr(self._solve, "releases_gil", False) else _SOLVE_LOCK
 
     def branch(self) -> "Compliance":
         """The same compliance with column caches of its own (copies of this one's): a second tracker in another
         thread (:class:`~fem_grasp.grasp.lift_test.SpeculativeTest`) reads and adds columns without touching
         this one's, and what it computes does not depend on when this one's columns were added."""
-        return self._sharing_factor(dict(self._columns), dict(self._surface_columns))
+        for batch in self._ahead.values():
+            batch.shared = True
+        return self._sharing_factor(dict(self._columns), dict(self._surface_columns), dict(self._ahead))
 
-    def _sharing_factor(self, columns: dict, surface_columns: dict) -> "Compliance":
-        """A copy sharing this one's factor (whose solves take _SOLVE_LOCK), with the given column caches (one
-        cache where this one's kept rows are its surface rows)."""
+    def _sharing_factor(self, columns: dict, surface_columns: dict, ahead: dict) -> "Compliance":
+        """A copy sharing this one's factor (whose solves take _SOLVE_LOCK unless they release the GIL), with the
+        given column caches (one cache where this one's kept rows are its surface rows) and queued columns."""
         new = copy.copy(self)
         new._columns = columns
         new._surface_columns = columns if self._surface_columns is self._columns else surface_columns
+        new._ahead = ahead
         return new
 
     def rotated(self, rotation: np.ndarray) -> "Compliance":
@@ -373,7 +441,7 @@ class Compliance:
         empty; its grounded DOFs are this one's, in the unrotated frame.
         """
         rotation = check_rotation(rotation)
-        new = self._sharing_factor({}, {})  # and the free DOFs and the kept rows
+        new = self._sharing_factor({}, {}, {})  # and the free DOFs and the kept rows
         new._rotation = rotation if self._rotation is None else rotation @ self._rotation
         return new
 
@@ -389,7 +457,10 @@ class Compliance:
         return _node_dofs(pos)
 
     def _ensure(self, nodes: np.ndarray) -> None:
-        new = [k for k in dict.fromkeys(int(k) for k in np.asarray(nodes).tolist()) if k not in self._columns]
+        wanted = [k for k in dict.fromkeys(int(k) for k in np.asarray(nodes).tolist()) if k not in self._columns]
+        for batch in dict.fromkeys(self._ahead[k] for k in wanted if k in self._ahead):
+            self._take(batch)
+        new = [k for k in wanted if k not in self._columns]
         if not new:
             return
         bad = [k for k in new if not 0 <= k < self.n_nodes]
@@ -401,6 +472,17 @@ class Compliance:
 
     def _solve_columns(self, new: list[int]) -> None:
         """Solve for and cache the columns of the nodes ``new`` (none cached yet) in one multi-column solve."""
+        self._keep(self._solved_columns(new))
+
+    def _keep(self, solved: list[tuple[int, np.ndarray, np.ndarray | None]]) -> None:
+        for k, column, surface_column in solved:
+            self._columns[k] = column
+            if surface_column is not None:
+                self._surface_columns[k] = surface_column
+
+    def _solved_columns(self, new: list[int]) -> list[tuple[int, np.ndarray, np.ndarray | None]]:
+        """(node, its kept rows, its surface rows or None) of the nodes ``new``, by one multi-column solve; reads
+        nothing that changes, so it may run in another thread (:meth:`solve_ahead`)."""
         # The unit loads (Qᵀ of them when rotated) on the free DOFs only, and only the kept rows of the
         # solution: at 100k vertices each (3n, 90) array is 225 MB.
         unit = np.eye(3) if self._rotation is None else self._rotation.T
@@ -409,7 +491,7 @@ class Compliance:
             at = self._free_position[3 * k: 3 * k + 3]
             rhs[at[at >= 0], 3 * j: 3 * j + 3] = unit[at >= 0]
         with outer_blas_threads():  # inside the tracking's one-thread limit too
-            with _SOLVE_LOCK:
+            with self._solve_lock():
                 sol = self._solve(rhs)
         del rhs
         rows = self._free_position if self._row_dofs is None else self._free_position[self._row_dofs]
@@ -417,10 +499,75 @@ class Compliance:
         del sol
         if self._rotation is not None:  # Q on the kept rows only (whole node blocks): a tenth of them above 20k
             cols = _rotate_nodes(cols, self._rotation)
-        for j, k in enumerate(new):
-            self._columns[k] = np.ascontiguousarray(cols[:, 3 * j: 3 * j + 3])
-            if self._surface_rows is not None and self._surface_columns is not self._columns:
-                self._surface_columns[k] = np.ascontiguousarray(cols[self._surface_rows, 3 * j: 3 * j + 3])
+        apart = self._surface_rows is not None and self._surface_columns is not self._columns
+        return [(k, np.ascontiguousarray(cols[:, 3 * j: 3 * j + 3]),
+                 np.ascontiguousarray(cols[self._surface_rows, 3 * j: 3 * j + 3]) if apart else None)
+                for j, k in enumerate(new)]
+
+    @contextlib.contextmanager
+    def solving_ahead(self) -> Iterator[None]:
+        """A section in which :meth:`solve_ahead` queues columns for a background thread (module notes, "Columns
+        solved ahead"); with a solver that holds the GIL it changes nothing.
+
+        BLAS keeps one thread throughout (:func:`~fem_grasp.threads.one_blas_thread`, and no solve gets the
+        threads back: :func:`~fem_grasp.threads.side_by_side`), so every column has the same round-off whichever
+        thread solves it and whenever; on leaving, the section waits for the columns it queued.
+        """
+        try:
+            import threadpoolctl  # noqa: F401  (a core dependency; without it BLAS threads could not be held)
+        except ImportError:
+            threadpoolctl = None
+        if not getattr(self._solve, "releases_gil", False) or self._ahead_on or threadpoolctl is None:
+            yield
+            return
+        with one_blas_thread(), side_by_side():
+            self._ahead_on = True
+            try:
+                yield
+            finally:
+                self._ahead_on = False
+                futures.wait([batch.result for batch in self._ahead.values()])
+
+    def solve_ahead(self, likely: np.ndarray, count: int) -> None:
+        """In a :meth:`solving_ahead` section, keep about ``count`` of the likeliest uncached nodes of ``likely``
+        (most likely first) queued for a background thread, which solves each batch in one multi-column solve;
+        a queued node's columns are taken when first asked for (waiting for its batch if need be).  Queued
+        batches none of whose nodes are among the ``2 count`` likeliest uncached any more are dropped.  Outside
+        a section, nothing.
+
+        What is queued depends only on the calls made, never on how far the background thread has got, so the
+        columns (and their round-off) are the same in every run.
+        """
+        if not self._ahead_on:
+            return
+        fresh: list[int] = []
+        for k in np.asarray(likely).tolist():
+            if len(fresh) >= 2 * AHEAD_BATCHES * count:
+                break
+            if k not in self._columns:
+                fresh.append(int(k))
+        near = set(fresh)
+        for batch in dict.fromkeys(self._ahead.values()):
+            if near.isdisjoint(batch.nodes):  # stale: the contacts went elsewhere
+                if not batch.shared:
+                    batch.result.cancel()  # not solved yet: spare the thread (nobody takes it either way)
+                for k in batch.nodes:
+                    self._ahead.pop(k, None)
+        nodes = [k for k in fresh if k not in self._ahead][:AHEAD_BATCHES * count - len(self._ahead)]
+        for start in range(0, len(nodes), count):
+            part = nodes[start:start + count]
+            if len(part) < AHEAD_MIN_NODES:
+                break
+            batch = _AheadBatch(tuple(part), _background().submit(self._solved_columns, part))
+            for k in part:
+                self._ahead[k] = batch
+
+    def _take(self, batch: "_AheadBatch") -> None:
+        """Move a queued batch's columns into the cache (waiting for its solve)."""
+        solved = batch.result.result()
+        for k in batch.nodes:
+            self._ahead.pop(k, None)
+        self._keep([entry for entry in solved if entry[0] not in self._columns])
 
     def prefetch(self, nodes: np.ndarray, likely: np.ndarray | None = None, count: int = 0) -> None:
         """Compute and cache the columns of every uncached node of ``nodes`` in one multi-column solve,
@@ -430,7 +577,8 @@ class Compliance:
         A sparse solve streams the whole factor once whatever the number of right-hand sides, so
         90 columns at once cost several times less per column than 3 (:data:`PREFETCH_NODES`).
         """
-        nodes = [k for k in dict.fromkeys(int(k) for k in np.asarray(nodes).tolist()) if k not in self._columns]
+        nodes = [k for k in dict.fromkeys(int(k) for k in np.asarray(nodes).tolist())
+                 if k not in self._columns and k not in self._ahead]
         if not nodes:
             return
         if likely is not None and len(nodes) < count:
@@ -438,13 +586,14 @@ class Compliance:
             for k in np.asarray(likely).tolist():
                 if len(nodes) >= count:
                     break
-                if k not in chosen and k not in self._columns:
+                if k not in chosen and k not in self._columns and k not in self._ahead:
                     nodes.append(int(k))
                     chosen.add(k)
         self._ensure(np.asarray(nodes, dtype=np.int64))
 
     def is_cached(self, node: int) -> bool:
-        return int(node) in self._columns
+        """Whether the node's columns are cached or queued (:meth:`solve_ahead`)."""
+        return int(node) in self._columns or int(node) in self._ahead
 
     def node_columns(self, nodes: np.ndarray, rows: np.ndarray | None = None) -> np.ndarray:
         """Columns of X for the DOFs of ``nodes``, computed once per node and cached.

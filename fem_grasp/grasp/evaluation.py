@@ -70,7 +70,7 @@ REST_RTOL = 1e-8
 #: fill the cores, so the accuracy loop's second lift test at a level runs after the first rather than beside it
 #: (``parallel_lift_tests``, the same numbers either way).  Beside it, an 8-candidate search of the tomato at 5 %
 #: on two workers took 1.16 times as long (243 and 211 s against 205 and 185 s, on the 2-core AMD EPYC).
-SEARCH_SETTINGS = DEFAULT_SETTINGS.replace(parallel_lift_tests=False)
+SEARCH_SETTINGS = DEFAULT_SETTINGS.replace(parallel_lift_tests=False, solve_ahead=False)
 
 #: The options every candidate of a search shares (a :class:`SearchSetup`'s); the others are the candidate's
 #: (``contacts``, ``directions``, ``ratio``, ``max_squeeze``), not run per candidate (the placement rule), or those

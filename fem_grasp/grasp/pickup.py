@@ -59,6 +59,7 @@ the default placement (p_i, p_j and the maximum squeeze) is :mod:`~fem_grasp.gra
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import time
 from dataclasses import replace
@@ -71,7 +72,7 @@ from ..contact.tracking import ContactEvent, ContactState, Tracker
 from ..contact.warm_up import prepare_kernels
 from ..elastic.body import Body
 from ..errors import ContactNodeError, PickupCheckError, TrackingError
-from ..settings import EngineSettings
+from ..settings import DEFAULT_SETTINGS, EngineSettings
 from .closure import placement_closure
 from .default_contacts import default_finger_contacts, default_max_squeeze
 from .lift import lift as run_lift
@@ -209,96 +210,101 @@ def pickup(body: Body, options: PickupOptions | None = None, *, rest_state: Rest
         timings["total"] = time.perf_counter() - t_start
         return result
 
-    # Steps 3-4: squeeze with the lift test.
-    t0 = time.perf_counter()
-    tracker = Tracker(posed, radius=finger_radius, mu_finger=mu_f, mu_table=mu_t, table=table, backend=backend,
-                      settings=settings)
-    hanging = Tracker(posed, radius=finger_radius, mu_finger=mu_f, mu_table=mu_t, table=None, backend=backend,
-                      settings=settings)
-    velocities = np.stack([d1, ratio * d2])
-
-    surface = posed.mesh.surface_nodes
-
-    def snap(st: ContactState, label: str, events: Sequence[ContactEvent] = ()) -> None:
-        result.snapshots.append(Snapshot.from_state(st, finger_radius, label, events, surface_nodes=surface))
-
-    try:
-        placed = initial_state(tracker, rs, ij)
-        state, ev0 = tracker.settle(placed, velocities, phase="squeeze")
-    except (TrackingError, ValueError) as exc:
-        result.reason = f"the fingers cannot be placed: {exc}"
-        result.outcome = "placement failed"
-        timings["total"] = time.perf_counter() - t_start
-        return result
-    result.events.extend(ev0)
-    snap(state, "initial", ev0)
-    if step is None:
-        k0 = _initial_stiffness(tracker, placed, velocities)
-        rho_star = posed.weight / (max(mu_f, 1e-3) * k0)
-        step = min(0.02 * max_squeeze, max(rho_star / 20.0, 1e-3 * max_squeeze))
-    result.max_squeeze = float(max_squeeze)
-    result.step = float(step)
-    result.step_divisions = opts.step_divisions
-    lt = LiftTest(hanging, posed.weight, opts.lift_test_step)
-    result.lift_test_step = float(lt.step)
-    t_squeeze = t0
-    timings["squeeze"] = timings["lift_test"] = timings["lift"] = 0.0
-    while True:
-        sq = squeeze(tracker, state, (d1, d2), ratio, lt, max_squeeze=max_squeeze, step=step,
-                     divisions=opts.step_divisions, first_test=opts.first_lift_test or 0.0,
-                     on_event=lambda st, ev: snap(st, "event", ev))
-        result.events.extend(sq.events)
-        result.liftable.extend(sq.liftable)
-        result.squeeze_depth = sq.state.squeeze_depth
-        timings["lift_test"] += sq.lift_test_time
-        timings["squeeze"] += time.perf_counter() - t_squeeze - sq.lift_test_time
-        if not sq.passed:
-            result.outcome = "squeeze failed" if sq.failed else "not liftable"
-            result.reason = sq.reason + "".join(
-                f"; lift attempt at ρ = {1e3 * a.squeeze_depth:.4g} mm failed: {a.reason}" for a in result.lift_attempts)
-            result.final = Snapshot.from_state(sq.state, finger_radius, "final", surface_nodes=surface)
-            result.finger_normal_force = result.final.finger_normal_force(table)
-            timings["total"] = time.perf_counter() - t_start
-            return result
-
-        # Step 5: lift.
+    # Steps 3-5, with the columns of the next likely contacts solved on the other core meanwhile.
+    ahead = posed.compliance.solving_ahead() if backend == "sparse" and (settings or DEFAULT_SETTINGS).solve_ahead \
+        else contextlib.nullcontext()
+    with ahead:
+        # Steps 3-4: squeeze with the lift test.
         t0 = time.perf_counter()
-        attempt = len(result.lift_attempts) + 1
-        snap(sq.state, "lift start" if attempt == 1 else f"lift start (attempt {attempt})")
-        if not opts.lift:
-            result.reason = "the lift test passed; the lift was not run (lift=False)"
-            result.outcome = "lift not run"
-            result.final = result.snapshots[-1]
-            result.finger_normal_force = result.final.finger_normal_force(table)
+        tracker = Tracker(posed, radius=finger_radius, mu_finger=mu_f, mu_table=mu_t, table=table, backend=backend,
+                          settings=settings)
+        hanging = Tracker(posed, radius=finger_radius, mu_finger=mu_f, mu_table=mu_t, table=None, backend=backend,
+                          settings=settings)
+        velocities = np.stack([d1, ratio * d2])
+
+        surface = posed.mesh.surface_nodes
+
+        def snap(st: ContactState, label: str, events: Sequence[ContactEvent] = ()) -> None:
+            result.snapshots.append(Snapshot.from_state(st, finger_radius, label, events, surface_nodes=surface))
+
+        try:
+            placed = initial_state(tracker, rs, ij)
+            state, ev0 = tracker.settle(placed, velocities, phase="squeeze")
+        except (TrackingError, ValueError) as exc:
+            result.reason = f"the fingers cannot be placed: {exc}"
+            result.outcome = "placement failed"
             timings["total"] = time.perf_counter() - t_start
             return result
-        if max_lift is None:
-            max_lift = float(np.ptp(rs.positions[:, 2]))
-        lf = run_lift(tracker, sq.state, max_height=max_lift, step=step,
-                      on_event=lambda st, ev: snap(st, "event", ev))
-        timings["lift"] += time.perf_counter() - t0
-        result.events.extend(lf.events)
-        result.lift_attempts.append(LiftAttempt(sq.state.squeeze_depth, lf.success, lf.reason,
-                                                lf.state.lift_height, len(lf.events)))
-        if lf.success or attempt >= opts.max_lift_attempts or sq.state.squeeze_depth >= max_squeeze * (1 - 1e-9):
-            break
-        # Algorithm 1 step 6, "otherwise go back to step 3": the simulated lift predicts a slip, so the
-        # planner squeezes on from the lift-start state and tries again at the next passing lift test.
-        log.info("lift attempt %d at ρ = %.4g m failed (%s); squeezing further", attempt,
-                 sq.state.squeeze_depth, lf.reason)
-        snap(lf.state, f"lift failed (attempt {attempt})")
-        state = replace(sq.state, phase="squeeze")
-        t_squeeze = time.perf_counter()
-    result.success = lf.success
-    result.outcome = "picked up" if lf.success else "lift failed"
-    result.reason = lf.reason if attempt == 1 or lf.success else (
-        f"{lf.reason} (after {attempt} lift attempts from ρ = {1e3 * result.lift_attempts[0].squeeze_depth:.4g} mm)")
-    result.final = Snapshot.from_state(lf.state, finger_radius, "lift-off" if lf.success else "final",
-                                       surface_nodes=surface)
-    result.snapshots.append(result.final)
-    result.finger_normal_force = result.final.finger_normal_force(table)
-    timings["total"] = time.perf_counter() - t_start
-    log.info("pickup %s: ρ = %.4g m, %d events, %d final contacts, finger normal force %.4g N, %.2f s",
-             "succeeded" if result.success else f"failed ({result.reason})", result.squeeze_depth,
-             len(result.events), result.n_final_contacts, result.finger_normal_force, timings["total"])
-    return result
+        result.events.extend(ev0)
+        snap(state, "initial", ev0)
+        if step is None:
+            k0 = _initial_stiffness(tracker, placed, velocities)
+            rho_star = posed.weight / (max(mu_f, 1e-3) * k0)
+            step = min(0.02 * max_squeeze, max(rho_star / 20.0, 1e-3 * max_squeeze))
+        result.max_squeeze = float(max_squeeze)
+        result.step = float(step)
+        result.step_divisions = opts.step_divisions
+        lt = LiftTest(hanging, posed.weight, opts.lift_test_step)
+        result.lift_test_step = float(lt.step)
+        t_squeeze = t0
+        timings["squeeze"] = timings["lift_test"] = timings["lift"] = 0.0
+        while True:
+            sq = squeeze(tracker, state, (d1, d2), ratio, lt, max_squeeze=max_squeeze, step=step,
+                         divisions=opts.step_divisions, first_test=opts.first_lift_test or 0.0,
+                         on_event=lambda st, ev: snap(st, "event", ev))
+            result.events.extend(sq.events)
+            result.liftable.extend(sq.liftable)
+            result.squeeze_depth = sq.state.squeeze_depth
+            timings["lift_test"] += sq.lift_test_time
+            timings["squeeze"] += time.perf_counter() - t_squeeze - sq.lift_test_time
+            if not sq.passed:
+                result.outcome = "squeeze failed" if sq.failed else "not liftable"
+                result.reason = sq.reason + "".join(f"; lift attempt at ρ = {1e3 * a.squeeze_depth:.4g} mm failed: "
+                                                    f"{a.reason}" for a in result.lift_attempts)
+                result.final = Snapshot.from_state(sq.state, finger_radius, "final", surface_nodes=surface)
+                result.finger_normal_force = result.final.finger_normal_force(table)
+                timings["total"] = time.perf_counter() - t_start
+                return result
+
+            # Step 5: lift.
+            t0 = time.perf_counter()
+            attempt = len(result.lift_attempts) + 1
+            snap(sq.state, "lift start" if attempt == 1 else f"lift start (attempt {attempt})")
+            if not opts.lift:
+                result.reason = "the lift test passed; the lift was not run (lift=False)"
+                result.outcome = "lift not run"
+                result.final = result.snapshots[-1]
+                result.finger_normal_force = result.final.finger_normal_force(table)
+                timings["total"] = time.perf_counter() - t_start
+                return result
+            if max_lift is None:
+                max_lift = float(np.ptp(rs.positions[:, 2]))
+            lf = run_lift(tracker, sq.state, max_height=max_lift, step=step,
+                          on_event=lambda st, ev: snap(st, "event", ev))
+            timings["lift"] += time.perf_counter() - t0
+            result.events.extend(lf.events)
+            result.lift_attempts.append(LiftAttempt(sq.state.squeeze_depth, lf.success, lf.reason,
+                                                    lf.state.lift_height, len(lf.events)))
+            if lf.success or attempt >= opts.max_lift_attempts or sq.state.squeeze_depth >= max_squeeze * (1 - 1e-9):
+                break
+            # Algorithm 1 step 6, "otherwise go back to step 3": the simulated lift predicts a slip, so the
+            # planner squeezes on from the lift-start state and tries again at the next passing lift test.
+            log.info("lift attempt %d at ρ = %.4g m failed (%s); squeezing further", attempt,
+                     sq.state.squeeze_depth, lf.reason)
+            snap(lf.state, f"lift failed (attempt {attempt})")
+            state = replace(sq.state, phase="squeeze")
+            t_squeeze = time.perf_counter()
+        result.success = lf.success
+        result.outcome = "picked up" if lf.success else "lift failed"
+        first = result.lift_attempts[0].squeeze_depth
+        result.reason = lf.reason if attempt == 1 or lf.success else (
+            f"{lf.reason} (after {attempt} lift attempts from ρ = {1e3 * first:.4g} mm)")
+        result.final = Snapshot.from_state(lf.state, finger_radius, "lift-off" if lf.success else "final",
+                                           surface_nodes=surface)
+        result.snapshots.append(result.final)
+        result.finger_normal_force = result.final.finger_normal_force(table)
+        timings["total"] = time.perf_counter() - t_start
+        log.info("pickup %s: ρ = %.4g m, %d events, %d final contacts, finger normal force %.4g N, %.2f s",
+                 "succeeded" if result.success else f"failed ({result.reason})", result.squeeze_depth,
+                 len(result.events), result.n_final_contacts, result.finger_normal_force, timings["total"])
+        return result

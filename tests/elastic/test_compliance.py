@@ -132,10 +132,20 @@ def test_bad_solver_names_and_inputs_are_refused(body, monkeypatch):
         cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver="superlu", rows=[-1, 2])
 
 
-@pytest.mark.skipif(cp.cholmod_available(), reason="scikit-sparse is installed")
-def test_explicit_cholmod_without_scikit_sparse_says_how_to_install():
-    with pytest.raises(ImportError, match="scikit-sparse"):
+def test_explicit_cholmod_without_a_library_says_how_to_install(monkeypatch):
+    """Neither a CHOLMOD library that loads nor scikit-sparse: asked for by name, CHOLMOD says how to get it;
+    chosen automatically, SuperLU."""
+    import sys
+
+    from fem_grasp.elastic import cholmod
+
+    monkeypatch.setattr(cholmod, "_LIBRARY_TRIED", True)
+    monkeypatch.setattr(cholmod, "_LIBRARY", None)
+    monkeypatch.setitem(sys.modules, "sksparse", None)
+    monkeypatch.setitem(sys.modules, "sksparse.cholmod", None)
+    with pytest.raises(ImportError, match="libcholmod3.*scikit-sparse"):
         cp.choose_solver("cholmod")
+    assert cp.choose_solver("auto") == "superlu"
 
 
 @pytest.mark.parametrize("solver", AVAILABLE)
@@ -301,17 +311,27 @@ def test_a_rigidly_moved_body_shares_the_factorisation_and_solves_the_same(monke
         body.compliance.rotated(2.0 * np.eye(3))
 
 
-@pytest.mark.skipif(not cp.cholmod_available(), reason="scikit-sparse is not installed (SuperLU has no such issue)")
-def test_factors_held_in_reference_cycles_are_freed_without_a_crash(tmp_path):
+@pytest.mark.parametrize("binding", ["ctypes", "scikit-sparse"])
+def test_factors_held_in_reference_cycles_are_freed_without_a_crash(tmp_path, binding):
     """scikit-sparse's Factor crashes the process if the garbage collector clears it before its Common: a
     factor reached twice from cyclic garbage (a moved body's compliance shares it) did so, at a collection
-    or at exit.  The module's registry keeps factors out of the garbage; bodies in cycles die cleanly."""
+    or at exit.  The module's registry keeps factors out of the garbage; bodies in cycles die cleanly, as
+    they do with the ctypes binding's factors (each freed with its own Common)."""
     import subprocess
     import sys
 
+    from fem_grasp.elastic import cholmod
+
+    if binding == "ctypes" and cholmod.library() is None:
+        pytest.skip("no CHOLMOD library of a supported version loads")
+    if binding == "scikit-sparse":
+        pytest.importorskip("sksparse.cholmod", reason="scikit-sparse is not installed")
     script = tmp_path / "cycles.py"
     script.write_text(
         "import copy, gc\n"
+        + ("import fem_grasp.elastic.cholmod as c\nc._LIBRARY_TRIED, c._LIBRARY = True, None\n"
+           if binding == "scikit-sparse" else "")
+        + "from fem_grasp.elastic.cholmod import CholmodFactor\n"
         "from fem_grasp import Body, box_mesh\n"
         "for i in range(20):\n"
         "    b = Body(box_mesh((0, 0, 0), (0.04, 0.03, 0.02), (4, 3, 3)), 5e4, 0.3, weight=1.0)\n"
@@ -321,8 +341,59 @@ def test_factors_held_in_reference_cycles_are_freed_without_a_crash(tmp_path):
         "        gc.collect()\n"
         "from fem_grasp.elastic import compliance\n"
         "gc.collect()\n"
-        "print(len(compliance._LIVE_FACTORS))\n")
+        "print(type(b.compliance._solve.factor) is CholmodFactor, len(compliance._LIVE_FACTORS))\n")
     env = {**__import__("os").environ, "FEM_GRASP_SOLVER": "cholmod"}
     run = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120, env=env)
     assert run.returncode == 0, (run.returncode, run.stderr[-2000:])
-    assert int(run.stdout.split()[-1]) <= 1  # the collected bodies' factors left the registry
+    direct, registered = run.stdout.split()[-2:]
+    assert direct == str(binding == "ctypes")
+    assert int(registered) <= 1  # the collected bodies' factors left the registry
+
+
+def _ahead_compliance(body):
+    comp = cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver="cholmod")
+    if not getattr(comp._solve, "releases_gil", False):
+        pytest.skip("no CHOLMOD library whose solves release the GIL")
+    return comp
+
+
+@pytest.mark.skipif("cholmod" not in AVAILABLE, reason="CHOLMOD is not installed")
+def test_columns_queued_ahead_are_taken_when_asked_for_with_the_round_off_of_their_batch(body):
+    """solve_ahead queues the likeliest uncached nodes for the background thread (inside solving_ahead only);
+    a queued node counts as cached, and its columns are those of a solve of the same batch, bit for bit, however
+    far the thread has got when they are asked for."""
+    comp = _ahead_compliance(body)
+    likely = body.mesh.surface_nodes[::-1]
+    comp.solve_ahead(likely, 12)
+    assert not comp.is_cached(int(likely[0]))  # outside a section: nothing queued
+    comp.node_columns(likely[:2])
+    with comp.solving_ahead():
+        comp.solve_ahead(likely, 12)
+        queued = [int(k) for k in likely[2:2 + 2 * 12]]  # two batches of 12 (cp.AHEAD_BATCHES), the cached skipped
+        assert cp.AHEAD_BATCHES == 2 and all(comp.is_cached(k) for k in queued)
+        assert not comp.is_cached(int(likely[2 + 2 * 12]))
+        got = comp.node_columns(queued[12:])  # the second batch, taken first
+    assert not comp._ahead_on and all(batch.result.done() for batch in comp._ahead.values())
+    alone = _ahead_compliance(body)
+    alone.prefetch(queued[12:])  # the same batch in one solve
+    np.testing.assert_array_equal(got, alone.node_columns(queued[12:]))
+    np.testing.assert_allclose(comp.node_columns(queued[:12]), alone.node_columns(queued[:12]), rtol=0,
+                               atol=1e-12 * np.abs(got).max())
+    assert not comp._ahead  # every queued column taken into the cache
+
+
+@pytest.mark.skipif("cholmod" not in AVAILABLE, reason="CHOLMOD is not installed")
+def test_a_queued_batch_the_contacts_moved_away_from_is_dropped(body):
+    """A batch none of whose nodes is among the likeliest uncached any more leaves the queue (its nodes are no
+    longer counted as cached); a branch (a lift test's tracker) takes what was queued when it was made."""
+    comp = _ahead_compliance(body)
+    surface = body.mesh.surface_nodes
+    with comp.solving_ahead():
+        comp.solve_ahead(surface[:20], 10)
+        twin = comp.branch()
+        comp.solve_ahead(surface[-20:], 10)
+    assert not any(comp.is_cached(int(k)) for k in surface[:20])
+    assert all(comp.is_cached(int(k)) for k in surface[-20:])
+    assert all(twin.is_cached(int(k)) for k in surface[:20])
+    np.testing.assert_allclose(twin.node_columns(surface[:3]), comp.node_columns(surface[:3]), rtol=0,
+                               atol=1e-12 * np.abs(comp.node_columns(surface[:3])).max())

@@ -128,12 +128,10 @@ def refinement_mesh(name: str, size: float, min_vertices: int) -> TetMesh:
 
 
 def has_cholmod() -> bool:
-    """Whether scikit-sparse's CHOLMOD is importable (fem_grasp's fastest sparse backend)."""
-    try:
-        import sksparse.cholmod  # noqa: F401
-    except ImportError:
-        return False
-    return True
+    """Whether fem_grasp can use CHOLMOD (its fastest sparse backend: the system's library or scikit-sparse)."""
+    from fem_grasp.elastic.compliance import cholmod_available
+
+    return cholmod_available()
 
 
 # ----------------------------------------------------------------- stages
