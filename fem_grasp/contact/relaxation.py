@@ -313,7 +313,7 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
 
     Parameters
     ----------
-    stiffness : (3m, 3m) reduced stiffness C of eq. (5) for the contact set
+    stiffness : (3m, 3m) reduced stiffness C of eq. (5) for the contact set (symmetric)
     forces : (m, 3) forces f⁰ at the start (every contact held at its start position)
     positions : (m, 3) start positions q⁰_k, each on its obstacle
     centers : m entries: the fingertip centre of a fingertip contact, None for a table contact
@@ -353,7 +353,10 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
     stick_tol = tol * fs_scale
     mu = np.asarray(mu, float)
     # The sweep's working state, as arrays (compiled) or lists (plain Python): see fem_grasp.contact.kernels.jit.
-    k_rec, k_ct, k_mu = as_kernel_data(rec), as_kernel_data(c.T), as_kernel_data(mu)  # the sweep reads C's columns
+    # The sweep reads C's columns; C is symmetric (eq. 5, and ContactResponse.reduced_stiffness exactly), so its
+    # rows serve, read in place: a transposed copy of C cost a sixth of a fine patch's return mappings.
+    k_rec, k_mu = as_kernel_data(rec), as_kernel_data(mu)
+    k_ct = np.ascontiguousarray(c) if isinstance(k_rec, np.ndarray) else as_kernel_data(c)
     if start is None:
         f, d, u = as_kernel_data(f0), as_kernel_data(np.zeros((m, 3))), as_kernel_data(np.zeros((m, 2)))
         has_u, status = as_kernel_data(np.zeros(m), np.int64), as_kernel_data(np.full(m, STICK), np.int64)
