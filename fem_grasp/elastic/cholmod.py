@@ -5,7 +5,8 @@ stopped every other Python thread (a pure-Python loop beside it ran 15 times slo
 the GIL around every foreign call: with this binding the columns of the likely next contacts are solved
 on the second core while the tracking goes on (:meth:`~fem_grasp.elastic.compliance.Compliance.solve_ahead`),
 and two lift tests solve their columns at once.  The factor is CHOLMOD's with its default settings, the
-same as scikit-sparse's: its solves agree with scikit-sparse's bit for bit (``tests/elastic/test_cholmod.py``).
+same as scikit-sparse's: its solves agree with scikit-sparse's bit for bit (``tests/elastic/test_cholmod.py``) up
+to :data:`SOLVE_COLUMNS` right-hand sides, and wider blocks are solved in blocks of that many.
 
 Each thread solves with a ``cholmod_common`` of its own (CHOLMOD keeps a solve's workspace and status
 there); the factor itself is only read by a solve.  The library is Debian's ``libcholmod`` (SuiteSparse
@@ -31,6 +32,9 @@ log = logging.getLogger(__name__)
 
 #: Bytes reserved for a ``cholmod_common`` (2,664 in CHOLMOD 3.0; a few kB in CHOLMOD 5).
 COMMON_BYTES = 1 << 16
+#: A solve takes at most this many right-hand sides at once: 600 columns of the steam bun's 5,652-vertex level took
+#: 1.3 s in one block and 0.64 s in blocks of 128 (CHOLMOD's workspace for a wide block outgrows the caches).
+SOLVE_COLUMNS = 128
 #: CHOLMOD major versions whose structs match those declared here.
 SUPPORTED_MAJOR = (3, 4, 5)
 _CHOLMOD_A = 0  # cholmod_solve's system: A x = b
@@ -160,24 +164,27 @@ class CholmodFactor:
         return common
 
     def solve(self, b: np.ndarray) -> np.ndarray:
-        """x with A x = b for a (N,) vector or an (N, k) block (returned in Fortran order); releases the GIL."""
+        """x with A x = b for a (N,) vector or an (N, k) block (returned in Fortran order), in blocks of at most
+        :data:`SOLVE_COLUMNS` columns; releases the GIL."""
         b = np.asarray(b, dtype=float)
         if b.shape[0] != self.n:
             raise ValueError(f"expected {self.n} rows, got shape {b.shape}")
         block = np.asfortranarray(b.reshape(self.n, -1))
         k = block.shape[1]
-        if k == 0:
-            return np.zeros(b.shape)
-        rhs = _Dense(self.n, k, self.n * k, self.n, block.ctypes.data, None, _REAL, _DOUBLE)
+        out = np.empty((self.n, k), order="F")
         common = self._thread_common()
-        x = self._lib.cholmod_solve(_CHOLMOD_A, self._factor, ctypes.byref(rhs), common)
-        if not x:
-            raise RuntimeError("CHOLMOD's solve failed (out of memory?)")
-        try:
-            values = ctypes.cast(x.contents.x, ctypes.POINTER(ctypes.c_double))
-            out = np.ctypeslib.as_array(values, shape=(k, self.n)).T.copy(order="K")
-        finally:
-            self._lib.cholmod_free_dense(ctypes.byref(x), common)
+        for start in range(0, k, SOLVE_COLUMNS):
+            part = block[:, start:start + SOLVE_COLUMNS]
+            width = part.shape[1]
+            rhs = _Dense(self.n, width, self.n * width, self.n, part.ctypes.data, None, _REAL, _DOUBLE)
+            x = self._lib.cholmod_solve(_CHOLMOD_A, self._factor, ctypes.byref(rhs), common)
+            if not x:
+                raise RuntimeError("CHOLMOD's solve failed (out of memory?)")
+            try:
+                values = ctypes.cast(x.contents.x, ctypes.POINTER(ctypes.c_double))
+                out[:, start:start + width] = np.ctypeslib.as_array(values, shape=(width, self.n)).T
+            finally:
+                self._lib.cholmod_free_dense(ctypes.byref(x), common)
         return out.reshape(b.shape) if b.ndim == 1 else out
 
     __call__ = solve

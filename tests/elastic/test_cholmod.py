@@ -30,8 +30,8 @@ def unit_columns(n, rows):
 
 def test_solves_vectors_and_blocks_to_round_off(stiffness, rng):
     factor = cholmod.CholmodFactor(stiffness)
-    b = rng.standard_normal((stiffness.shape[0], 7))
-    for rhs in (b[:, 0], b, b[:, :0]):
+    b = rng.standard_normal((stiffness.shape[0], cholmod.SOLVE_COLUMNS + 7))  # wider than one block
+    for rhs in (b[:, 0], b[:, :7], b, b[:, :0]):
         x = factor.solve(rhs)
         assert x.shape == rhs.shape
         assert np.abs(stiffness @ x - rhs).max(initial=0.0) <= 1e-9 * np.abs(rhs).max(initial=0.0)
