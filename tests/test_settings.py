@@ -141,7 +141,10 @@ def test_columns_solved_ahead_give_the_same_pickup(monkeypatch):
         queued.append(len(self._ahead) - before)
 
     monkeypatch.setattr(compliance.Compliance, "solve_ahead", counted)
+    from fem_grasp.contact import tracking
+
     monkeypatch.setattr(compliance, "AHEAD_MIN_NODES", 1)  # a coarse mesh's fingertips touch a few nodes at a time
+    monkeypatch.setattr(tracking, "AHEAD_MIN_VERTICES", 0)  # and a coarse mesh queues nothing by default
     implicit = EngineSettings(implicit_contacts=0)  # a return mapping per increment: new contacts at every one
     ahead = pickup(body, settings=implicit, **kw)
     assert sum(queued) > 0
