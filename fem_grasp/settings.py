@@ -110,9 +110,10 @@ class EngineSettings:
         Nodes whose compliance columns are solved for together when a new contact needs its own (30: at 31k
         vertices a column costs 10.7 ms in batches of 90, 12.2 in batches of 30, 40 for one node's three).
     solve_ahead : bool
-        While the squeeze and the lift are tracked, the columns of the next likely contacts are solved in a
-        background thread on the other core (True; :meth:`~fem_grasp.elastic.compliance.Compliance.solve_ahead`,
-        with a CHOLMOD library whose solves release the GIL).  The same answers either way, to round-off (the
+        While the squeeze and the lift of a body of 2,000 vertices or more are tracked, the columns of the next
+        likely contacts are solved in a background thread on the other core (True;
+        :meth:`~fem_grasp.elastic.compliance.Compliance.solve_ahead`, with a CHOLMOD library whose solves release
+        the GIL).  The same answers either way, to round-off (the
         columns are solved in other batches, on one BLAS thread).  A placement search's candidates use False
         (their workers fill the cores).
     neighbour_updates : bool

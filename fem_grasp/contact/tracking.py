@@ -228,7 +228,10 @@ class Tracker(EventLocation, ImplicitStep):
         """With the sparse backend, when new contact ``nodes`` lack their compliance columns, compute them
         together with those of the uncached surface nodes nearest an obstacle (the likely next contacts):
         ``settings.prefetch_nodes`` in one solve (a new contact's own three columns alone cost
-        several times more per column)."""
+        several times more per column).  With ``settings.solve_ahead``, the tracker with the table also queues the
+        nodes that would touch next, at the rate the gaps closed since its last call, for the background thread
+        (:meth:`~fem_grasp.elastic.compliance.Compliance.solve_ahead`; bodies of :data:`AHEAD_MIN_VERTICES` or
+        more)."""
         comp = self.body.compliance if self.backend == "sparse" else None
         if comp is None:
             return

@@ -531,9 +531,9 @@ class Compliance:
     def solve_ahead(self, likely: np.ndarray, count: int) -> None:
         """In a :meth:`solving_ahead` section, keep about ``count`` of the likeliest uncached nodes of ``likely``
         (most likely first) queued for a background thread, which solves each batch in one multi-column solve;
-        a queued node's columns are taken when first asked for (waiting for its batch if need be).  Queued
-        batches none of whose nodes are among the ``2 count`` likeliest uncached any more are dropped.  Outside
-        a section, nothing.
+        a queued node's columns are taken when first asked for (waiting for its batch if need be).  Up to
+        :data:`AHEAD_BATCHES` batches of ``count`` nodes are queued; a batch none of whose nodes is among the
+        ``2 × AHEAD_BATCHES × count`` likeliest uncached any more is dropped.  Outside a section, nothing.
 
         What is queued depends only on the calls made, never on how far the background thread has got, so the
         columns (and their round-off) are the same in every run.

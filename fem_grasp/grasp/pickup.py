@@ -67,6 +67,7 @@ from typing import Any, Sequence
 
 import numpy as np
 
+from ..contact import tracking as contact_tracking
 from ..contact.obstacles import FINGER1, FINGER2
 from ..contact.tracking import ContactEvent, ContactState, Tracker
 from ..contact.warm_up import prepare_kernels
@@ -210,9 +211,9 @@ def pickup(body: Body, options: PickupOptions | None = None, *, rest_state: Rest
         timings["total"] = time.perf_counter() - t_start
         return result
 
-    # Steps 3-5, with the columns of the next likely contacts solved on the other core meanwhile.
-    ahead = posed.compliance.solving_ahead() if backend == "sparse" and (settings or DEFAULT_SETTINGS).solve_ahead \
-        else contextlib.nullcontext()
+    # Steps 3-5, with the columns of the next likely contacts solved on the other core meanwhile (fine meshes).
+    ahead = posed.compliance.solving_ahead() if (backend == "sparse" and (settings or DEFAULT_SETTINGS).solve_ahead
+                                                 and posed.n_nodes >= contact_tracking.AHEAD_MIN_VERTICES) else contextlib.nullcontext()
     with ahead:
         # Steps 3-4: squeeze with the lift test.
         t0 = time.perf_counter()
