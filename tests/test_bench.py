@@ -84,7 +84,8 @@ def test_the_floor_counts_the_factor_that_cholmod_computes():
     from bench import bench
     from fem_grasp.elastic import compliance, fem
 
-    cholesky = pytest.importorskip("sksparse.cholmod", reason="the floor section counts scikit-sparse's factor").cholesky
+    sksparse = pytest.importorskip("sksparse.cholmod", reason="the floor section counts scikit-sparse's factor")
+    cholesky = sksparse.cholesky
 
     mesh = perturbed_box(np.random.default_rng(3), divisions=(3, 3, 4))
     k = fem.stiffness_matrix(mesh.points, mesh.tets, 1e4, 0.3)

@@ -118,10 +118,11 @@ CRAWL_TOGGLES = DEFAULT_SETTINGS.crawl_toggles
 #: ``EngineSettings.compiled_trials``).
 COMPILED_TRIALS = jit.ENABLED if DEFAULT_SETTINGS.compiled_trials is None else DEFAULT_SETTINGS.compiled_trials
 #: The squeeze's and the lift's tracker queues the columns of the surface nodes that would touch an obstacle
-#: within this many more calls of :meth:`Tracker.prefetch_columns` at the rate their gaps closed since the last ...
+#: within this many more calls of :meth:`Tracker.prefetch_columns` at the rate their gaps closed since the last.
 AHEAD_CALLS = 3.0
-#: ... on bodies of at least this many vertices: below, a batch of columns costs milliseconds, and ranking the
-#: surface at every new contact cost the shipped scenes' one-run pickups 4 % (0.47 against 0.49 s, the tomato).
+#: A pickup solves columns ahead (``EngineSettings.solve_ahead``) on bodies of at least this many vertices: below,
+#: a batch of columns costs milliseconds, and ranking the surface at every new contact cost the shipped scenes'
+#: one-run pickups 4 % (0.47 against 0.49 s, the tomato).
 AHEAD_MIN_VERTICES = 2000
 
 
@@ -228,17 +229,18 @@ class Tracker(EventLocation, ImplicitStep):
         """With the sparse backend, when new contact ``nodes`` lack their compliance columns, compute them
         together with those of the uncached surface nodes nearest an obstacle (the likely next contacts):
         ``settings.prefetch_nodes`` in one solve (a new contact's own three columns alone cost
-        several times more per column).  With ``settings.solve_ahead``, the tracker with the table also queues the
-        nodes that would touch next, at the rate the gaps closed since its last call, for the background thread
-        (:meth:`~fem_grasp.elastic.compliance.Compliance.solve_ahead`; bodies of :data:`AHEAD_MIN_VERTICES` or
-        more)."""
+        several times more per column).  Inside a :meth:`~fem_grasp.elastic.compliance.Compliance.solving_ahead`
+        section the tracker with the table also queues the nodes that would touch next, at the rate the gaps
+        closed since its last call, for the background thread
+        (:meth:`~fem_grasp.elastic.compliance.Compliance.solve_ahead`)."""
         comp = self.body.compliance if self.backend == "sparse" else None
         if comp is None:
             return
         missing = not all(comp.is_cached(k) for k in nodes)
         # The tracker with the table (squeeze, lift) queues the next likely contacts' columns for the other core
-        # (Compliance.solve_ahead, inside a solving_ahead section); the lift test's two trackers fill both cores.
-        ahead = self.settings.solve_ahead and self.table is not None and len(self.points) >= AHEAD_MIN_VERTICES
+        # while its compliance is in a solving_ahead section (the pickup decides where); the lift test's two
+        # trackers fill both cores.
+        ahead = self.table is not None and comp.solving_ahead_now
         if not (missing or ahead):
             return
         gaps = self.obstacle_gaps(surface_positions, centers)

@@ -528,6 +528,11 @@ class Compliance:
                 self._ahead_on = False
                 futures.wait([batch.result for batch in self._ahead.values()])
 
+    @property
+    def solving_ahead_now(self) -> bool:
+        """Whether a :meth:`solving_ahead` section is open (where :meth:`solve_ahead` queues)."""
+        return self._ahead_on
+
     def solve_ahead(self, likely: np.ndarray, count: int) -> None:
         """In a :meth:`solving_ahead` section, keep about ``count`` of the likeliest uncached nodes of ``likely``
         (most likely first) queued for a background thread, which solves each batch in one multi-column solve;

@@ -212,8 +212,8 @@ def pickup(body: Body, options: PickupOptions | None = None, *, rest_state: Rest
         return result
 
     # Steps 3-5, with the columns of the next likely contacts solved on the other core meanwhile (fine meshes).
-    ahead = posed.compliance.solving_ahead() if (backend == "sparse" and (settings or DEFAULT_SETTINGS).solve_ahead
-                                                 and posed.n_nodes >= contact_tracking.AHEAD_MIN_VERTICES) else contextlib.nullcontext()
+    wanted = (settings or DEFAULT_SETTINGS).solve_ahead and posed.n_nodes >= contact_tracking.AHEAD_MIN_VERTICES
+    ahead = posed.compliance.solving_ahead() if backend == "sparse" and wanted else contextlib.nullcontext()
     with ahead:
         # Steps 3-4: squeeze with the lift test.
         t0 = time.perf_counter()
