@@ -486,7 +486,7 @@ class Compliance:
         # The unit loads (Qᵀ of them when rotated) on the free DOFs only, and only the kept rows of the
         # solution: at 100k vertices each (3n, 90) array is 225 MB.
         unit = np.eye(3) if self._rotation is None else self._rotation.T
-        rhs = np.zeros((len(self.free), 3 * len(new)))
+        rhs = np.zeros((len(self.free), 3 * len(new)), order="F")  # CHOLMOD's layout: not copied again
         for j, k in enumerate(new):
             at = self._free_position[3 * k: 3 * k + 3]
             rhs[at[at >= 0], 3 * j: 3 * j + 3] = unit[at >= 0]
