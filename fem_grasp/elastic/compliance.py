@@ -96,6 +96,11 @@ AHEAD_BATCHES = 2
 #: are solved in blocks.  (The steam bun's flat base puts 2,714 nodes on the table at 21k vertices: their 8,142
 #: columns at once needed two dense 129k × 8,142 arrays, 7.8 GiB each.)
 SOLVE_BLOCK_BYTES = 512 * 2**20
+#: ... and at most this many nodes' columns (126, within one of CHOLMOD's blocks) are solved at once: the dense
+#: arrays of a solve (about 30 MB each at 10k vertices) are then reused by the allocator from one solve to the
+#: next, where a few hundred nodes at once (a flat base on the table) mapped a gigabyte of fresh pages, whose
+#: page faults took longer than copying the columns out.
+SOLVE_NODES = 42
 
 
 def cholmod_available() -> bool:
@@ -466,7 +471,7 @@ class Compliance:
         bad = [k for k in new if not 0 <= k < self.n_nodes]
         if bad:
             raise ValueError(f"node {bad[0]} is not a node of the body (0 … {self.n_nodes - 1})")
-        block = max(1, SOLVE_BLOCK_BYTES // (2 * 8 * 3 * len(self.free)))  # nodes per solve: rhs + solution
+        block = max(1, min(SOLVE_NODES, SOLVE_BLOCK_BYTES // (2 * 8 * 3 * len(self.free))))  # nodes per solve
         for start in range(0, len(new), block):
             self._solve_columns(new[start:start + block])
 

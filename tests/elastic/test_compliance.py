@@ -174,13 +174,18 @@ def test_prefetch_fills_up_with_the_likely_next_contacts_in_one_solve(body):
     assert calls == [3, 9] and not comp.is_cached(50)
 
 
-def test_many_columns_are_solved_in_blocks_of_bounded_memory(body, monkeypatch):
-    """More columns than SOLVE_BLOCK_BYTES allows at once (a flat base of thousands of table contacts) are
-    solved block by block, each block's right-hand sides and solution within the bound, with the same columns."""
+@pytest.mark.parametrize("bound", ["bytes", "nodes"])
+def test_many_columns_are_solved_in_blocks_of_bounded_memory(body, monkeypatch, bound):
+    """More columns than SOLVE_BLOCK_BYTES allows at once (a flat base of thousands of table contacts), or
+    than SOLVE_NODES nodes' (the allocator's reuse), are solved block by block, each block's right-hand sides
+    and solution within the bound, with the same columns."""
     comp = cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver="superlu")
     single = cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver="superlu")
     per_node = 2 * 8 * 3 * len(comp.free)  # bytes of one node's right-hand sides and solution
-    monkeypatch.setattr(cp, "SOLVE_BLOCK_BYTES", 2 * per_node)
+    if bound == "bytes":
+        monkeypatch.setattr(cp, "SOLVE_BLOCK_BYTES", 2 * per_node)
+    else:
+        monkeypatch.setattr(cp, "SOLVE_NODES", 2)
     calls = []
     inner = comp._solve
     comp._solve = lambda b: calls.append(b.shape[1]) or inner(b)
