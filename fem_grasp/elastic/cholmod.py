@@ -11,8 +11,9 @@ to :data:`SOLVE_COLUMNS` right-hand sides, and wider blocks are solved in blocks
 Each thread solves with a ``cholmod_common`` of its own (CHOLMOD keeps a solve's workspace and status
 there); the factor itself is only read by a solve.  The library is Debian's ``libcholmod`` (SuiteSparse
 5, CHOLMOD 3) or any CHOLMOD 3 to 5, found by :func:`ctypes.util.find_library`; the structs declared
-here (``cholmod_sparse``, ``cholmod_dense`` and the head of ``cholmod_factor``) have kept their layout
-across those versions, and ``cholmod_common`` is given more room than any of them needs.
+here (``cholmod_sparse``, ``cholmod_dense`` and the heads of ``cholmod_factor`` and ``cholmod_common``) have kept
+their layout across those versions, and ``cholmod_common`` is given more room than any of them needs.  CHOLMOD
+prints nothing: its failures are this module's exceptions.
 """
 
 from __future__ import annotations
@@ -56,6 +57,27 @@ class _Dense(ctypes.Structure):
     _fields_ = [("nrow", ctypes.c_size_t), ("ncol", ctypes.c_size_t), ("nzmax", ctypes.c_size_t),
                 ("d", ctypes.c_size_t), ("x", ctypes.c_void_p), ("z", ctypes.c_void_p), ("xtype", ctypes.c_int),
                 ("dtype", ctypes.c_int)]
+
+
+class _CommonHead(ctypes.Structure):
+    """The first fields of ``cholmod_common``, up to ``print`` (the same from CHOLMOD 1 to 5)."""
+    _fields_ = [("dbound", ctypes.c_double), ("grow0", ctypes.c_double), ("grow1", ctypes.c_double),
+                ("grow2", ctypes.c_size_t), ("maxrank", ctypes.c_size_t), ("supernodal_switch", ctypes.c_double),
+                ("supernodal", ctypes.c_int), ("final_asis", ctypes.c_int), ("final_super", ctypes.c_int),
+                ("final_ll", ctypes.c_int), ("final_pack", ctypes.c_int), ("final_monotonic", ctypes.c_int),
+                ("final_resymbol", ctypes.c_int), ("zrelax", ctypes.c_double * 3), ("nrelax", ctypes.c_size_t * 3),
+                ("prefer_zomplex", ctypes.c_int), ("prefer_upper", ctypes.c_int),
+                ("quick_return_if_not_posdef", ctypes.c_int), ("prefer_binary", ctypes.c_int),
+                ("print", ctypes.c_int)]
+
+
+#: CHOLMOD's defaults of those fields after ``cholmod_start``: where they read so, the layout is the one declared.
+_COMMON_DEFAULTS = {"grow0": 1.2, "grow1": 1.2, "grow2": 5, "maxrank": 8, "supernodal_switch": 40.0,
+                    "zrelax": (0.8, 0.1, 0.05), "nrelax": (4, 16, 48), "prefer_upper": 1, "print": 3}
+#: CHOLMOD prints nothing (``print`` 0; at its default 3 it wrote "CHOLMOD warning: matrix not positive definite"
+#: to standard output, in the middle of a command's output): every failure raises an exception of its own here
+#: (:class:`NotPositiveDefiniteError`, or RuntimeError for want of memory), which says what CHOLMOD would have.
+_PRINT_NOTHING = 0
 
 
 class _FactorHead(ctypes.Structure):
@@ -110,6 +132,12 @@ def _load() -> ctypes.CDLL | None:
 def _new_common(lib: ctypes.CDLL) -> ctypes.Array:
     common = ctypes.create_string_buffer(COMMON_BYTES)
     lib.cholmod_start(common)
+    head = _CommonHead.from_buffer(common)
+    read = {k: tuple(getattr(head, k)) if k in ("zrelax", "nrelax") else getattr(head, k) for k in _COMMON_DEFAULTS}
+    if read == _COMMON_DEFAULTS:
+        head.print = _PRINT_NOTHING
+    else:  # another layout: leave CHOLMOD's printing as it is
+        log.debug("cholmod_common does not start as expected (%s): CHOLMOD's warnings stay on", read)
     return common
 
 

@@ -46,10 +46,13 @@ def test_the_solves_are_scikit_sparses_bit_for_bit(stiffness):
     np.testing.assert_array_equal(cholmod.CholmodFactor(stiffness).solve(b), sksparse.cholesky(stiffness)(b))
 
 
-def test_a_matrix_that_is_not_positive_definite_is_refused(stiffness):
-    """The negative of a grounded stiffness: CHOLMOD's LL' stops at its first column."""
+def test_a_matrix_that_is_not_positive_definite_is_refused(stiffness, capfd):
+    """The negative of a grounded stiffness: CHOLMOD's LL' stops at its first column.  The exception says so, and
+    CHOLMOD's own warning line does not reach the output (it wrote one to standard output)."""
     with pytest.raises(cholmod.NotPositiveDefiniteError, match="not positive definite"):
         cholmod.CholmodFactor(-stiffness)
+    out, err = capfd.readouterr()
+    assert "CHOLMOD" not in out + err
 
 
 def test_two_threads_solving_at_once_get_what_one_gets_alone(stiffness):
