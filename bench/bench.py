@@ -781,28 +781,38 @@ def _source(ref: dict[str, Any]) -> str:
 def accuracy_worker(name: str, run: str) -> None:
     """Run in a subprocess: one of :data:`ACCURACY_RUNS` of a shipped scene, one JSON line with its answer, its
     wall time (``Scene.run()`` with no mesh or rest cache: loading the mesh, the rest, the pickup; the numba
-    kernels loaded before) and the error it states."""
+    kernels loaded before) and the error it states.  The run is made twice: the first call of the process
+    (``seconds``: what a command pays) and a later one (``later_seconds``: a session that runs several, its
+    imports and the allocator's pages paid already), with ``later_same``, whether it gave the same answer."""
     from fem_grasp.grasp.answer import answer_of
     from fem_grasp.io.scene import Scene
 
-    scene = Scene.load(name)
-    if run == "one_level":
-        scene = scene.with_(accuracy=None)
-    elif run == "adaptive":
-        scene = scene.with_(accuracy=ACCURACY_TARGET)
-    elif run != "default":
+    if run not in dict(ACCURACY_RUNS):
         raise SystemExit(f"unknown run {run!r}; expected one of {', '.join(k for k, _ in ACCURACY_RUNS)}")
+
+    def scene() -> Scene:
+        shipped = Scene.load(name)
+        if run == "one_level":
+            return shipped.with_(accuracy=None)
+        return shipped.with_(accuracy=ACCURACY_TARGET) if run == "adaptive" else shipped
+
     from fem_grasp.contact.warm_up import prepare_kernels
 
     kernels_s, _ = timed(prepare_kernels)  # numba's kernels loaded (or compiled: a cold cache) before the clock
-    seconds, result = timed(lambda: scene.run(cache_dir=None))
+    first = scene()
+    seconds, result = timed(lambda: first.run(cache_dir=None))
     answer = answer_of(result, seconds).to_dict()
+    again = scene()
+    later_seconds, later = timed(lambda: again.run(cache_dir=None))
+    later_answer = answer_of(later, later_seconds).to_dict()
+    later_same = all(later_answer[k] == answer[k] for k in ("success", "squeeze_depth", "finger_force"))
     acc = result.accuracy or {}
     est = acc.get("estimated_error") or {}
     # A single run states the scene's expected_error, or nothing (single_run_report then puts inf there).
     stated_any = acc.get("expected_error_stated", True) and est
     stated = {q: float(est[q]) for q in ACCURACY_QUANTITIES if stated_any and q in est}
-    print(json.dumps({"seconds": seconds, "kernels_s": kernels_s, "vertices": answer["n_vertices"],
+    print(json.dumps({"seconds": seconds, "later_seconds": later_seconds, "later_same": later_same,
+                      "kernels_s": kernels_s, "vertices": answer["n_vertices"],
                       "answer": {k: answer[k] for k in ("success", "reason", "squeeze_depth", "finger_force",
                                                         "max_liftable", "weight")},
                       "stated": stated, "converged": acc.get("converged"), "levels": len(acc.get("levels", [])),
@@ -847,7 +857,8 @@ def accuracy_errors(raw: dict[str, Any], reference: dict[str, Any]) -> dict[str,
         covers = all(stated[q] >= e for q, e in error.items() if math.isfinite(e))
         # the reference is itself uncertain: the run and it agree within their two errors
         covers_with_reference = all(stated[q] + band[q] >= e for q, e in error.items() if math.isfinite(e))
-    row = {"status": "ok", "seconds": raw["seconds"], "vertices": raw.get("vertices"), "success": bool(ans["success"]),
+    row = {"status": "ok", "seconds": raw["seconds"], "later_seconds": raw.get("later_seconds"),
+           "later_same": raw.get("later_same"), "vertices": raw.get("vertices"), "success": bool(ans["success"]),
            "verdict_ok": verdict_ok, "rho": ans["squeeze_depth"], "force": ans["finger_force"], "error": error,
            "stated": stated or None, "covers": covers, "covers_with_reference": covers_with_reference,
            "converged": raw.get("converged"),
@@ -935,7 +946,8 @@ def print_accuracy(sec: dict[str, Any]) -> None:
     print("    error: relative to the reference (or 'wrong verdict'); stated: the run's own estimate of its error in "
           "rho* / force\n    (the scene's expected_error, or the adaptive loop's); covers: stated >= actual for both "
           "('NO, ref' where only\n    the stated error plus the reference's own uncertainty covers the difference)")
-    print(f"{'object':<11} {'run':<28} {'seconds':>8} {'vertices':>8} {'verdict':<22} {'rho* mm':>8} "
+    print("    seconds: the first call of a process (a command's) / a later call in it (a session's)")
+    print(f"{'object':<11} {'run':<28} {'seconds':>11} {'vertices':>8} {'verdict':<22} {'rho* mm':>8} "
           f"{'error':>15} {'force N':>8} {'error':>15} {'stated':>15} {'covers':>7}")
     for name, obj in sec["objects"].items():
         ref = obj.get("reference")
@@ -950,14 +962,14 @@ def print_accuracy(sec: dict[str, Any]) -> None:
                 return f"±{_pct(q['error'])} {q['method']}" if math.isfinite(q["error"]) else q["method"]
 
             label = "reference, rule's grasp" if ref.get("kind") == "pinned" else "reference"
-            print(f"{name:<11} {label:<28} {'':>8} {ref['vertices']:8d} {verdict:<22} "
+            print(f"{name:<11} {label:<28} {'':>11} {ref['vertices']:8d} {verdict:<22} "
                   f"{1e3 * rho['value']:8.3f} {band(rho):>15} {force['value']:8.3f} {band(force):>15}"
                   f"  ({_source(ref)})")
         else:
-            print(f"{name:<11} {'reference':<28} {'':>8} {ref['vertices']:8d} {verdict:<22}  ({_source(ref)})")
+            print(f"{name:<11} {'reference':<28} {'':>11} {ref['vertices']:8d} {verdict:<22}  ({_source(ref)})")
         study = obj.get("study_reference")
         if study and study.get("success"):
-            print(f"{'':<11} {'study, grasps at own nodes':<28} {'':>8} {study['vertices']:8d} {'':<22} "
+            print(f"{'':<11} {'study, grasps at own nodes':<28} {'':>11} {study['vertices']:8d} {'':<22} "
                   f"{1e3 * study['rho']['value']:8.3f} {'':>15} {study['force']['value']:8.3f} {'':>15}"
                   f"  ({_source(study)})")
         for run, label in ACCURACY_RUNS:
@@ -978,7 +990,11 @@ def print_accuracy(sec: dict[str, Any]) -> None:
             if r["covers"] is False and r.get("covers_with_reference"):
                 covers = "NO, ref"
             e = r["error"]
-            print(f"{'':<11} {label:<28} {r['seconds']:8.1f} {r['vertices']:8d} {v:<22} {1e3 * r['rho']:8.3f} "
+            later = r.get("later_seconds")
+            secs = f"{r['seconds']:.1f}" + ("" if later is None else f"/{later:.1f}")
+            if r.get("later_same") is False:
+                v += ", later call differs"
+            print(f"{'':<11} {label:<28} {secs:>11} {r['vertices']:8d} {v:<22} {1e3 * r['rho']:8.3f} "
                   f"{_pct(e['squeeze_depth']):>15} {r['force']:8.3f} {_pct(e['finger_force']):>15} {stated:>15} "
                   f"{covers:>7}" + (f"  {r['levels']} levels, {'converged' if r['converged'] else 'not converged'}"
                                     if (r.get("levels") or 0) > 1 else "")

@@ -312,7 +312,8 @@ def test_the_tracker_section_runs_a_placement_search_in_both_workers():
 
 
 def _fake_answer(success=True, rho=0.011, force=6.6, seconds=2.0, stated=None, vertices=600, max_liftable=2.0):
-    return {"seconds": seconds, "vertices": vertices, "levels": 1, "converged": False, "note": "",
+    return {"seconds": seconds, "later_seconds": 0.75 * seconds, "later_same": True, "vertices": vertices,
+            "levels": 1, "converged": False, "note": "",
             "stated": stated if stated is not None else {},
             "answer": {"success": success, "reason": "" if success else "lift test did not pass",
                        "squeeze_depth": rho, "finger_force": force, "max_liftable": max_liftable, "weight": 2.0}}
@@ -379,6 +380,7 @@ def test_the_accuracy_section_measures_each_run_against_the_study_reference(monk
     assert "not run (cap" in text and "no reference" in text
     assert not any("wrong verdict" in line for line in text.splitlines() if "picked up" in line)
     assert "10 %" in text and "yes" in text and "NO" in text
+    assert "2.0/1.5" in text  # the first call of the process and a later one
 
     # where the scene's default is the adaptive loop at the target, that run is not made twice: its row repeats
     monkeypatch.setattr(bench, "default_accuracy", lambda name: bench.ACCURACY_TARGET)
@@ -424,9 +426,9 @@ def test_the_accuracy_section_measures_against_the_pinned_reference_where_an_obj
 
 
 def test_the_accuracy_section_runs_a_shipped_scene_in_a_subprocess_within_its_cap():
-    """The accuracy section's worker runs the shipped foam block once on its own grid (accuracy off): it picks the
-    block up, on the scene's mesh, and states the error the scene states for such a run; a cap shorter than the
-    run stops it and says so."""
+    """The accuracy section's worker runs the shipped foam block on its own grid (accuracy off): it picks the
+    block up, on the scene's mesh, and states the error the scene states for such a run; the later call in the
+    same process gives the same answer to the bit; a cap shorter than the run stops it and says so."""
     from bench import bench
     from fem_grasp.io.scene import Scene
 
@@ -434,6 +436,7 @@ def test_the_accuracy_section_runs_a_shipped_scene_in_a_subprocess_within_its_ca
     raw = bench.run_accuracy_worker("foam_block", "one_level", cap=600.0)
     assert raw["answer"]["success"] and raw["answer"]["squeeze_depth"] > 0 and raw["answer"]["finger_force"] > 0
     assert raw["vertices"] == scene.load_mesh().n_points and raw["levels"] == 1 and raw["seconds"] > 0
+    assert raw["later_seconds"] > 0 and raw["later_same"] is True
     assert raw["stated"] == {"squeeze_depth": scene.expected_error, "finger_force": scene.expected_error}
     assert bench.run_accuracy_worker("foam_block", "one_level", cap=0.5) == {"status": "cap", "cap_s": 0.5}
 
