@@ -34,7 +34,8 @@ import contextlib
 import threading
 from typing import Any, Iterator
 
-__all__ = ["one_blas_thread", "outer_blas_threads", "blas_threads_for", "side_by_side", "DENSE_THREADS_MIN"]
+__all__ = ["one_blas_thread", "outer_blas_threads", "blas_threads_for", "blas_threads_held", "side_by_side",
+           "DENSE_THREADS_MIN"]
 
 #: Dense systems of at least this many rows are solved on every BLAS thread, also while tracking (module notes).
 DENSE_THREADS_MIN = 1200
@@ -57,6 +58,15 @@ def side_by_side() -> Iterator[None]:
     finally:
         with _SECTIONS_LOCK:
             _SECTIONS -= 1
+
+
+def blas_threads_held() -> bool:
+    """Whether :func:`one_blas_thread` can hold BLAS to one thread (threadpoolctl imports)."""
+    try:
+        import threadpoolctl  # noqa: F401
+    except ImportError:
+        return False
+    return True
 
 
 @contextlib.contextmanager

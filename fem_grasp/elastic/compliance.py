@@ -71,7 +71,7 @@ import scipy.sparse.linalg as spla
 from ..errors import MissingExtraError
 from ..mesh.tetmesh import check_rotation
 from ..settings import DEFAULT_SETTINGS
-from ..threads import one_blas_thread, outer_blas_threads, side_by_side
+from ..threads import blas_threads_held, one_blas_thread, outer_blas_threads, side_by_side
 
 __all__ = ["Compliance", "PREFETCH_NODES", "SOLVERS", "SOLVER_ENV", "cholmod_available", "choose_solver",
            "factorize", "grounding_dofs"]
@@ -518,11 +518,7 @@ class Compliance:
         threads back: :func:`~fem_grasp.threads.side_by_side`), so every column has the same round-off whichever
         thread solves it and whenever; on leaving, the section waits for the columns it queued.
         """
-        try:
-            import threadpoolctl  # noqa: F401  (a core dependency; without it BLAS threads could not be held)
-        except ImportError:
-            threadpoolctl = None
-        if not getattr(self._solve, "releases_gil", False) or self._ahead_on or threadpoolctl is None:
+        if not getattr(self._solve, "releases_gil", False) or self._ahead_on or not blas_threads_held():
             yield
             return
         with one_blas_thread(), side_by_side():
