@@ -133,7 +133,8 @@ def _new_common(lib: ctypes.CDLL) -> ctypes.Array:
     common = ctypes.create_string_buffer(COMMON_BYTES)
     lib.cholmod_start(common)
     head = _CommonHead.from_buffer(common)
-    read = {k: tuple(getattr(head, k)) if k in ("zrelax", "nrelax") else getattr(head, k) for k in _COMMON_DEFAULTS}
+    read = {k: tuple(v) if isinstance(v, ctypes.Array) else v for k, v in
+            ((k, getattr(head, k)) for k in _COMMON_DEFAULTS)}
     if read == _COMMON_DEFAULTS:
         head.print = _PRINT_NOTHING
     else:  # another layout: leave CHOLMOD's printing as it is
