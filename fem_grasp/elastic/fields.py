@@ -16,24 +16,35 @@ import numpy as np
 
 from .fem import lame_parameters, lumped_volumes, rigid_modes, shape_gradients
 
-__all__ = ["elastic_displacement", "element_strains", "element_stresses", "strain_energy_density", "von_mises"]
+__all__ = ["elastic_displacement", "element_strains", "element_stresses", "energy_density_of_strains", "hooke_stresses",
+           "strain_energy_density", "von_mises"]
 
 
-def element_strains(points: np.ndarray, tets: np.ndarray, displacement: np.ndarray) -> np.ndarray:
-    """(t, 3, 3) small-strain tensor ε = ½(∇δ + ∇δᵀ) in each tetrahedron (dimensionless)."""
-    grads, _ = shape_gradients(points, tets)
+def element_strains(points: np.ndarray, tets: np.ndarray, displacement: np.ndarray,
+                    grads: np.ndarray | None = None) -> np.ndarray:
+    """(t, 3, 3) small-strain tensor ε = ½(∇δ + ∇δᵀ) in each tetrahedron (dimensionless).
+
+    ``grads``: the (t, 4, 3) shape gradients of ``points`` and ``tets``
+    (:func:`~fem_grasp.elastic.fem.shape_gradients`), when many displacements of one mesh are evaluated.
+    """
+    if grads is None:
+        grads, _ = shape_gradients(points, tets)
     u = np.asarray(displacement, dtype=float).reshape(-1, 3)[tets]  # (t, 4, 3)
-    g = np.einsum("tai,taj->tij", u, grads)  # ∂u_i/∂x_j
+    g = np.matmul(u.transpose(0, 2, 1), grads)  # ∂u_i/∂x_j = Σ_a u_ai ∂φ_a/∂x_j
     return 0.5 * (g + g.transpose(0, 2, 1))
+
+
+def hooke_stresses(strains: np.ndarray, young: float, poisson: float) -> np.ndarray:
+    """(t, 3, 3) Cauchy stress σ = λ tr(ε) I + 2μ ε of (t, 3, 3) strains, Pa."""
+    lam, mu = lame_parameters(young, poisson)
+    tr = np.trace(strains, axis1=1, axis2=2)
+    return lam * tr[:, None, None] * np.eye(3) + 2.0 * mu * strains
 
 
 def element_stresses(points: np.ndarray, tets: np.ndarray, displacement: np.ndarray, young: float,
                      poisson: float) -> np.ndarray:
     """(t, 3, 3) Cauchy stress σ = λ tr(ε) I + 2μ ε in each tetrahedron, Pa."""
-    lam, mu = lame_parameters(young, poisson)
-    eps = element_strains(points, tets, displacement)
-    tr = np.trace(eps, axis1=1, axis2=2)
-    return lam * tr[:, None, None] * np.eye(3) + 2.0 * mu * eps
+    return hooke_stresses(element_strains(points, tets, displacement), young, poisson)
 
 
 def von_mises(stress: np.ndarray) -> np.ndarray:
@@ -46,18 +57,24 @@ def von_mises(stress: np.ndarray) -> np.ndarray:
 def strain_energy_density(points: np.ndarray, tets: np.ndarray, displacement: np.ndarray, young: float,
                           poisson: float) -> np.ndarray:
     """(t,) strain energy per unit volume ½ σ:ε, J/m³ (summed with the volumes: U of eq. 2)."""
-    eps = element_strains(points, tets, displacement)
+    return energy_density_of_strains(element_strains(points, tets, displacement), young, poisson)
+
+
+def energy_density_of_strains(strains: np.ndarray, young: float, poisson: float) -> np.ndarray:
+    """(t,) ½ σ:ε = ½ λ (tr ε)² + μ ε:ε of (t, 3, 3) strains, J/m³."""
     lam, mu = lame_parameters(young, poisson)
-    tr = np.trace(eps, axis1=1, axis2=2)
-    return 0.5 * lam * tr ** 2 + mu * np.einsum("tij,tij->t", eps, eps)
+    tr = np.trace(strains, axis1=1, axis2=2)
+    return 0.5 * lam * tr ** 2 + mu * np.einsum("tij,tij->t", strains, strains)
 
 
-def elastic_displacement(points: np.ndarray, tets: np.ndarray, displacement: np.ndarray) -> np.ndarray:
+def elastic_displacement(points: np.ndarray, tets: np.ndarray, displacement: np.ndarray,
+                         volumes: np.ndarray | None = None) -> np.ndarray:
     """(n, 3) ``displacement`` less its best-fitting rigid motion (least squares over the six fields of
-    Theorem 1, each node weighted by its lumped volume; rotations about the volume centroid)."""
+    Theorem 1, each node weighted by its lumped volume; rotations about the volume centroid).  ``volumes``:
+    the nodes' lumped volumes (:func:`~fem_grasp.elastic.fem.lumped_volumes`), when given."""
     points = np.asarray(points, dtype=float)
     u = np.asarray(displacement, dtype=float).reshape(-1, 3)
-    w = lumped_volumes(points, tets)
+    w = lumped_volumes(points, tets) if volumes is None else np.asarray(volumes, dtype=float)
     center = (w @ points) / w.sum()
     r = rigid_modes(points, center)  # (3n, 6)
     sw = np.sqrt(np.repeat(w, 3))

@@ -174,16 +174,20 @@ class Snapshot:
                                    f"{self.lift_height:.6g} m fails its checks: " + "; ".join(figures["failures"]))
         return figures
 
-    def to_dict(self) -> dict[str, Any]:
-        return {
+    def to_dict(self, geometry: bool = True) -> dict[str, Any]:
+        """The snapshot as JSON-ready values; ``geometry=False`` leaves out the node positions."""
+        out = {
             "label": self.label, "phase": self.phase, "squeeze_depth": self.squeeze_depth,
             "lift_height": self.lift_height, "finger_radius": self.finger_radius,
-            "finger_centers": self.finger_centers.tolist(), "positions": self.positions.tolist(),
+            "finger_centers": self.finger_centers.tolist(),
             "contact_nodes": {k: v.tolist() for k, v in self.contact_nodes.items()},
             "contact_forces": {k: v.tolist() for k, v in self.contact_forces.items()},
             "sliding": {k: v.tolist() for k, v in self.sliding.items()},
             "events": [e.to_dict() for e in self.events],
         }
+        if geometry:
+            out["positions"] = self.positions.tolist()
+        return out
 
 
 # =================================================================== result
@@ -312,7 +316,9 @@ class PickupResult:
                                raise_on_failure=raise_on_failure))
         return out
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_dict(self, geometry: bool = True) -> dict[str, Any]:
+        """The result as JSON-ready values; ``geometry=False`` leaves out the mesh (``reference_points``,
+        ``tets``) and every snapshot's node positions, which a time series holds."""
         rigid = None
         if self.rigid is not None:
             rigid = {"feasible": self.rigid.feasible, "total_normal_force": self.rigid.total_normal_force,
@@ -338,10 +344,10 @@ class PickupResult:
             "rigid": rigid, "timings": self.timings,
             "lift_attempts": [a.to_dict() for a in self.lift_attempts],
             "lift_test_step": self.lift_test_step, "accuracy": self.accuracy,
-            "reference_points": self.body.mesh.points.tolist(),
-            "tets": self.body.mesh.tets.tolist(),
-            "snapshots": [s.to_dict() for s in self.snapshots],
-            "final": None if self.final is None else self.final.to_dict(),
+            **({"reference_points": self.body.mesh.points.tolist(), "tets": self.body.mesh.tets.tolist()}
+               if geometry else {}),
+            "snapshots": [s.to_dict(geometry) for s in self.snapshots],
+            "final": None if self.final is None else self.final.to_dict(geometry),
         }
 
     def to_json(self, path: str | Path | None = None, indent: int | None = None) -> str:

@@ -31,7 +31,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from .._files import atomic_write_bytes, atomic_write_mesh, atomic_write_text
+from .._files import atomic_write_bytes, atomic_write_text
 from ..errors import OutputError
 from .folder import (
     FILE_SUFFIXES,
@@ -56,6 +56,7 @@ from .series import (
     write_series,
     write_vtu,
 )
+from .vtu import cells_xml, write_grid
 from .xdmf import write_xdmf
 
 __all__ = ["SCHEMA", "SCHEMA_VERSION", "OutputError", "atomic_write_bytes", "atomic_write_text", "json_safe", "prepare_out_dir",
@@ -91,9 +92,6 @@ def json_safe(x: Any) -> Any:
     return x
 
 
-_HEAVY = ("positions", "reference_points", "tets")
-
-
 def result_summary(result: Any) -> dict[str, Any]:
     """The figures a user reads first."""
     from ..grasp.forces import TABLE_III_MEASURE
@@ -123,13 +121,7 @@ def write_result_json(out: str | Path, result: Any, scene: Any = None, series: d
     rest, result (:meth:`PickupResult.to_dict` without node positions and
     tetrahedra, which the time series holds), series, plus ``extra``.
     """
-    res = result.to_dict()
-    for k in _HEAVY:
-        res.pop(k, None)
-    for s in res.get("snapshots", []):
-        s.pop("positions", None)
-    if res.get("final"):
-        res["final"].pop("positions", None)
+    res = result.to_dict(geometry=False)
     rs = result.rest
     doc = {
         "schema": SCHEMA, "schema_version": SCHEMA_VERSION, "fem_grasp_version": package_version(),
@@ -192,8 +184,6 @@ def write_run(out: str | Path, result: Any, scene: Any = None, force: bool = Fal
 def write_rest(out: str | Path, state: Any, scene: Any = None, force: bool = False,
                extra: dict[str, Any] | None = None) -> Path:
     """Write a resting state: ``rest.json`` and ``rest.vtu`` (displacement, contact point data)."""
-    import meshio
-
     out = prepare_out_dir(out, force)
     n = state.body.n_nodes
     frame = {"contact_nodes": {"finger1": [], "finger2": [], "table": state.contact_nodes},
@@ -205,8 +195,8 @@ def write_rest(out: str | Path, state: Any, scene: Any = None, force: bool = Fal
                            state.body.poisson)
     pd.update(extra_pd)
     pd.update(contact_point_data(n, frame))
-    atomic_write_mesh(out / "rest.vtu", meshio.Mesh(state.positions, [("tetra", state.body.mesh.tets)],
-                                                    point_data=pd, cell_data={k: [v] for k, v in cd.items()}))
+    write_grid(out / "rest.vtu", state.positions, cells_xml("tetra", state.body.mesh.tets), len(state.body.mesh.tets),
+               pd, cd)
     figures = state.check(raise_on_failure=False)
     doc = {"schema": "fem_grasp.rest", "schema_version": SCHEMA_VERSION, "fem_grasp_version": package_version(),
            "scene": None if scene is None else scene.to_dict(), "check": figures,

@@ -40,9 +40,10 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from .._files import atomic_write, atomic_write_mesh, atomic_write_text
+from .._files import atomic_write_text
 from ..errors import OutputError
 from .folder import add_to_marker
+from .vtu import cells_xml, write_grid
 from .xdmf import has_h5py, write_xdmf
 
 __all__ = ["BODY_CODES", "PHASE_CODES", "TIME_TICK", "contact_point_data", "finger_path", "fingertip_surface",
@@ -188,51 +189,52 @@ def _pvd(entries: Sequence[tuple[float, str]]) -> str:
 
 
 def write_vtu(path: str | Path, mesh: Any, field_data: dict[str, np.ndarray] | None = None) -> Path:
-    """Write a ``meshio.Mesh`` as VTU, atomically, with VTK field data (one tuple per array, ``<FieldData>``:
-    meshio's VTU writer drops field data; its reader, ParaView and VTK read it)."""
-    import meshio
-
-    def write(tmp: Path) -> None:
-        meshio.write(tmp, mesh, file_format="vtu")
-        if not field_data:
-            return
-        arrays = []
-        for name, v in field_data.items():
-            v = np.atleast_1d(np.asarray(v))
-            kind = "Int32" if np.issubdtype(v.dtype, np.integer) else "Float64"
-            text = " ".join(str(int(x)) if kind == "Int32" else format(float(x), ".17g") for x in v.ravel())
-            arrays.append(f'<DataArray type="{kind}" Name={quoteattr(name)} NumberOfTuples="{len(v)}" '
-                          f'format="ascii">{text}</DataArray>')
-        xml = tmp.read_text(encoding="utf-8")
-        head = "<UnstructuredGrid>"
-        if head not in xml:  # pragma: no cover - meshio's layout changed
-            raise OutputError(f"cannot add field data to {path}: no {head} element in meshio's VTU")
-        tmp.write_text(xml.replace(head, head + "\n<FieldData>\n" + "\n".join(arrays) + "\n</FieldData>", 1),
-                       encoding="utf-8")
-
-    return atomic_write(path, write)
+    """Write a ``meshio.Mesh`` of one block of triangles or tetrahedra as VTU, atomically, with VTK field data
+    (one tuple per array, ``<FieldData>``, which meshio's own VTU writer drops; its reader, ParaView and VTK
+    read it).  :mod:`fem_grasp.io.vtu` writes it."""
+    if len(mesh.cells) != 1:
+        raise OutputError(f"cannot write {path}: one block of cells expected, got {len(mesh.cells)}")
+    block = mesh.cells[0]
+    cell_data = {k: v[0] for k, v in mesh.cell_data.items()}
+    return write_grid(path, mesh.points, cells_xml(block.type, block.data), len(block.data), mesh.point_data,
+                      cell_data, field_data)
 
 
 def mechanics_fields(reference: np.ndarray, tets: np.ndarray, displacement: np.ndarray, young: float,
-            poisson: float) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+                     poisson: float, grads: np.ndarray | None = None,
+                     volumes: np.ndarray | None = None) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     """(point data, cell data) a mechanician reads: ``elastic_displacement`` (m, less the rigid motion) per node,
-    ``von_mises`` (Pa) and ``strain_energy_density`` (J/m³) per tetrahedron (:mod:`fem_grasp.elastic.fields`)."""
-    from ..elastic.fields import elastic_displacement, element_stresses, strain_energy_density, von_mises
+    ``von_mises`` (Pa) and ``strain_energy_density`` (J/m³) per tetrahedron (:mod:`fem_grasp.elastic.fields`).
 
-    pd = {"elastic_displacement": elastic_displacement(reference, tets, displacement)}
-    cd = {"von_mises": von_mises(element_stresses(reference, tets, displacement, young, poisson)),
-          "strain_energy_density": strain_energy_density(reference, tets, displacement, young, poisson)}
+    ``grads`` and ``volumes``: the reference's shape gradients and lumped volumes, when a series of
+    displacements of one mesh is evaluated (computed here otherwise).
+    """
+    from ..elastic.fields import (
+        elastic_displacement,
+        element_strains,
+        energy_density_of_strains,
+        hooke_stresses,
+        von_mises,
+    )
+
+    eps = element_strains(reference, tets, displacement, grads)
+    pd = {"elastic_displacement": elastic_displacement(reference, tets, displacement, volumes)}
+    cd = {"von_mises": von_mises(hooke_stresses(eps, young, poisson)),
+          "strain_energy_density": energy_density_of_strains(eps, young, poisson)}
     return pd, cd
 
 
 def write_series(out: str | Path, result: Any, progress: Callable[[int, int], None] | None = None) -> dict[str, Any]:
     """Write the time series of ``result`` into ``out`` (module notes); return its index for result.json."""
-    import meshio
+    from ..elastic.fem import lumped_volumes, shape_gradients
 
     out = Path(out)
     reference = result.body.mesh.points
     tets = result.body.mesh.tets
     n = len(reference)
+    grads, _ = shape_gradients(reference, tets)
+    volumes = lumped_volumes(reference, tets)
+    tetra_cells = cells_xml("tetra", tets)
     frames = frames_of(result)
     times = frame_times(frames)
     path = finger_path(frames)
@@ -255,7 +257,8 @@ def write_series(out: str | Path, result: Any, progress: Callable[[int, int], No
         [(finger name, file)])."""
         disp = np.asarray(fr["positions"], float) - reference
         pd = {"displacement": disp}
-        extra_pd, cd = mechanics_fields(reference, tets, disp, result.body.young, result.body.poisson)
+        extra_pd, cd = mechanics_fields(reference, tets, disp, result.body.young, result.body.poisson, grads,
+                                        volumes)
         pd.update(extra_pd)
         pd.update(contact_point_data(n, fr))
         field = {"phase": PHASE_CODES.get(fr["phase"], 1), "squeeze_depth": fr["squeeze_depth"],
@@ -263,20 +266,18 @@ def write_series(out: str | Path, result: Any, progress: Callable[[int, int], No
                  "finger_path": float(path[k]), "frame": k}
         field_data = {key: np.array([v], dtype=np.int32 if key in ("phase", "frame") else float)
                       for key, v in field.items()}
-        mesh = meshio.Mesh(np.asarray(fr["positions"], float), [("tetra", tets)], point_data=pd,
-                           cell_data={key: [v] for key, v in cd.items()})
-        write_vtu(out / f"series/object_{k:04d}.vtu", mesh, field_data)
+        write_grid(out / f"series/object_{k:04d}.vtu", fr["positions"], tetra_cells, len(tets), pd, cd, field_data)
         fingers = []
         if fr["finger_centers"] is not None:
             for f, (name, axis) in enumerate((("finger1", d1), ("finger2", d2))):
                 pts, tris = fingertip_surface(fr["finger_centers"][f], fr["finger_radius"], axis)
                 rel_f = f"series/{name}_{k:04d}.vtu"
-                atomic_write_mesh(out / rel_f, meshio.Mesh(pts, [("triangle", tris)]))
+                write_grid(out / rel_f, pts, cells_xml("triangle", tris), len(tris))
                 fingers.append((name, rel_f))
         return pd, cd, field, fingers
 
     # Frames are written on two threads: most of a step's time is zlib's compression and numpy's element
-    # fields, which release the GIL (a 5,901-vertex pickup's 50 steps took 7.8 s on one).
+    # fields, which release the GIL.
     with ThreadPoolExecutor(max_workers=SERIES_THREADS) as pool:
         written = pool.map(write_frame, range(len(frames)), frames)
         for k, (fr, (pd, cd, field, fingers)) in enumerate(zip(frames, written)):
@@ -312,7 +313,7 @@ def write_series(out: str | Path, result: Any, progress: Callable[[int, int], No
     c, half = 0.5 * (lo + hi), 0.75 * float(max(hi[0] - lo[0], hi[1] - lo[1]))
     sq = np.array([[c[0] - half, c[1] - half, z], [c[0] + half, c[1] - half, z],
                    [c[0] + half, c[1] + half, z], [c[0] - half, c[1] + half, z]])
-    atomic_write_mesh(out / "table.vtu", meshio.Mesh(sq, [("triangle", np.array([[0, 1, 2], [0, 2, 3]]))]))
+    write_grid(out / "table.vtu", sq, cells_xml("triangle", np.array([[0, 1, 2], [0, 2, 3]])), 2)
     files.append("table.vtu")
     series["table"] = "table.vtu"
     series["files"] = files

@@ -61,3 +61,22 @@ def test_a_rigid_motion_has_no_strain_and_no_elastic_part(mesh):
     np.testing.assert_allclose(element_strains(mesh.points, mesh.tets, elastic),
                                element_strains(mesh.points, mesh.tets, stretch), atol=1e-15)
     assert np.abs(elastic).max() < 2e-5  # millimetres of lift gone, micrometres of stretch left
+
+
+def test_a_series_of_one_mesh_gives_the_same_fields_from_its_precomputed_gradients_and_volumes(mesh):
+    """The time series evaluates every frame with the reference's shape gradients and lumped volumes computed
+    once: the same strains, stresses, energy densities and elastic part as from the points alone."""
+    from fem_grasp.elastic.fem import lumped_volumes, shape_gradients
+    from fem_grasp.io.series import mechanics_fields
+
+    u = 1e-4 * np.random.default_rng(2).normal(size=mesh.points.shape)
+    grads, _ = shape_gradients(mesh.points, mesh.tets)
+    np.testing.assert_array_equal(element_strains(mesh.points, mesh.tets, u, grads),
+                                  element_strains(mesh.points, mesh.tets, u))
+    pd, cd = mechanics_fields(mesh.points, mesh.tets, u, E, NU, grads, lumped_volumes(mesh.points, mesh.tets))
+    np.testing.assert_allclose(pd["elastic_displacement"], elastic_displacement(mesh.points, mesh.tets, u),
+                               rtol=0, atol=1e-15)
+    np.testing.assert_allclose(cd["von_mises"], von_mises(element_stresses(mesh.points, mesh.tets, u, E, NU)),
+                               rtol=1e-13)
+    np.testing.assert_allclose(cd["strain_energy_density"], strain_energy_density(mesh.points, mesh.tets, u, E, NU),
+                               rtol=1e-13)

@@ -2,6 +2,7 @@
 
 import json
 import xml.etree.ElementTree as ET
+from pathlib import Path
 
 import meshio
 import numpy as np
@@ -42,6 +43,10 @@ def test_result_json_has_schema_summary_and_no_stray_files(run):
         doc["summary"]["finger_normal_force"], rel=1e-12)
     assert {"resultant", "magnitude", "grip", "vertical", "normal_sum", "contacts"} <= set(forces["finger1"])
     assert doc["summary"]["n_events"] == len(doc["result"]["events"]) == sum(doc["summary"]["event_counts"].values())
+    # the mesh and the node positions are in the time series, not in result.json
+    assert not {"reference_points", "tets"} & set(doc["result"])
+    assert all("positions" not in snap for snap in doc["result"]["snapshots"] + [doc["result"]["final"] or {}])
+    assert doc["result"]["snapshots"] and all("contact_forces" in snap for snap in doc["result"]["snapshots"])
     json.loads((out / "result.json").read_text(), parse_constant=lambda c: pytest.fail(f"non-strict JSON {c}"))
     assert not list(out.rglob("*.tmp*")) and not list(out.rglob(".*.vtu"))  # atomic writes leave nothing behind
     listed = set(json.loads((out / MARKER).read_text())["files"])
@@ -247,7 +252,7 @@ def _files(folder):
 
 def test_an_interrupted_mesh_write_keeps_the_previous_file_and_leaves_no_temporary(tmp_path, monkeypatch):
     from fem_grasp import box_mesh
-    from fem_grasp.io.output import atomic_write_mesh
+    from fem_grasp._files import atomic_write_mesh
 
     old, new = box_mesh((0, 0, 0), (1, 1, 1), (1, 1, 1)), box_mesh((0, 0, 0), (2, 2, 2), (2, 2, 2))
     dest = atomic_write_mesh(tmp_path / "object.vtu", old.to_meshio())
@@ -291,20 +296,24 @@ def test_an_interrupted_run_leaves_only_complete_files_and_the_folder_reusable(t
     """Ctrl-C while the CLI writes the third file of the time series: exit 130, every file left is complete
     (the previous run's result.json, listed in its manifest, was cleared when the run started), and the
     next run writes the folder whole again."""
+    from fem_grasp._files import _atomic
     from fem_grasp.cli import main
+    from fem_grasp.io import vtu
 
     out = tmp_path / "o"
     argv = ["run", "football", "--quick", "--no-lift", "--no-cache", "--quiet", "--out", str(out)]
     assert main(argv) == 1
     complete = _files(out)
     calls = []
-    real = meshio.write
+    real = vtu.atomic_write_text
 
-    def third_call_interrupted(path, *args, **kwargs):
+    def third_call_interrupted(path, text):
         calls.append(path)
-        return (_interrupted_after_half(real) if len(calls) == 3 else real)(path, *args, **kwargs)
+        if len(calls) == 3:  # half of the text in the temporary file, then Ctrl-C
+            return _atomic(Path(path), _interrupted_after_half(lambda tmp: tmp.write_bytes(text.encode())))
+        return real(path, text)
 
-    monkeypatch.setattr(meshio, "write", third_call_interrupted)
+    monkeypatch.setattr(vtu, "atomic_write_text", third_call_interrupted)
     assert main(argv) == 130
     assert "interrupted" in capsys.readouterr().err
     monkeypatch.undo()
