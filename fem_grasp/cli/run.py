@@ -5,7 +5,9 @@ printed after it, and report.html from a run's output folder.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import logging
+import time
 from pathlib import Path
 from typing import Any
 
@@ -154,8 +156,7 @@ def _accuracy_lines(acc: dict[str, Any], quick: bool) -> list[str]:
 
 # ------------------------------------------------------------------ commands
 def cmd_run(args: argparse.Namespace) -> int:
-    from ..io.output import check_out_path, prepare_out_dir, write_run
-    from ..io.scene import pickup_scene
+    from ..io.output import check_out_path, prepare_out_dir
 
     scene = scene_of(args)
     out = Path(args.out) if args.out else None
@@ -171,31 +172,52 @@ def cmd_run(args: argparse.Namespace) -> int:
     cache = cache_dir_of(args)
     phases = ["mesh", "rest", "pickup"] + (["write"] if out else []) + (["report"] if args.report else [])
     bar = Progress(phases, progress_on(args))
-    try:
-        result, cached = pickup_scene(scene, cache, phase=bar.phase)
-        code = EXIT_OK if result.success else EXIT_FAILED
-        if out is not None:
-            with bar.phase("writing results"):
-                write_run(out, result, scene, force=True,
-                          extra={"exit_code": code, "rest_from_cache": cached, "command": list(args.argv)})
-        if args.report:
-            from ..io.report import write_report
+    with contextlib.ExitStack() as stack:
+        pool = None
+        if args.report:  # the renderer starts in its own process while the pickup runs
+            from ..io.report import render_process
 
-            with bar.phase("rendering the report"):
-                write_report(out)
-    finally:
-        bar.close()
+            pool = stack.enter_context(render_process(warm=True))
+        result, cached, t_write = _run_and_write(args, scene, out, cache, bar, pool)
     for line in _summary_lines(scene, result, cached):
         echo(args, line)
+    code = EXIT_OK if result.success else EXIT_FAILED
     if scene.expect is not None and (scene.expect == "success") != result.success:
         log.warning("scene %s expects %s but the pickup %s", scene.name, scene.expect,
                     "succeeded" if result.success else "failed")
     if out is not None:
         echo(args, f"output     {out}/result.json, {out}/object.pvd (ParaView: open object.pvd, finger1.pvd, "
-                   f"finger2.pvd, table.vtu; time = the finger path in metres)")
+                   f"finger2.pvd, table.vtu; time = the finger path in metres), written in {t_write:.1f} s")
         if args.report:
             echo(args, f"report     {out}/report.html")
     return code
+
+
+def _run_and_write(args: argparse.Namespace, scene: Any, out: Path | None, cache: Any, bar: Progress,
+                   pool: Any) -> tuple[Any, bool, float]:
+    """The pickup of ``scene``, its output written into ``out`` and its report drawn (in ``pool``) when asked;
+    (result, whether the rest came from the cache, seconds spent writing)."""
+    from ..io.output import write_run
+    from ..io.scene import pickup_scene
+
+    t_write = 0.0
+    try:
+        result, cached = pickup_scene(scene, cache, phase=bar.phase)
+        if out is not None:
+            t0 = time.perf_counter()
+            with bar.phase("writing results"):
+                write_run(out, result, scene, force=True,
+                          extra={"exit_code": EXIT_OK if result.success else EXIT_FAILED,
+                                 "rest_from_cache": cached, "command": list(args.argv)})
+            t_write = time.perf_counter() - t0
+        if args.report:
+            from ..io.report import write_report
+
+            with bar.phase("rendering the report"):
+                write_report(out, pool=pool)
+    finally:
+        bar.close()
+    return result, cached, t_write
 
 
 def cmd_rest(args: argparse.Namespace) -> int:

@@ -53,6 +53,21 @@ def test_pictures_are_rendered_and_not_blank(report):
         assert (centre.min(axis=2) < 0.9).mean() > 0.2, name  # at least a fifth of the centre is not white
 
 
+def test_run_with_report_draws_in_the_renderer_it_started_beside_the_pickup():
+    """``fem-grasp run --report`` starts the render process (warmed: pyvista loaded, one picture drawn) before
+    the pickup and draws the report's pictures in it: every picture there and not blank, as the report
+    command's."""
+    from fem_grasp.io.render import render_process, warm_renderer
+
+    code, out = cli_run("foam_block", "--report")
+    assert code == 0 and (out / "report.html").exists()
+    for name in PICTURES:
+        rgb = (_image(out / name).reshape(-1, 3) * 255).astype(np.int64)
+        assert len(np.unique(rgb[:, 0] * 65536 + rgb[:, 1] * 256 + rgb[:, 2])) > 50, name
+    with render_process(warm=True) as pool:
+        assert pool.apply(warm_renderer) is None  # warming twice is harmless
+
+
 def test_force_arrows_point_at_their_nodes_from_outside_the_object_and_both_fingers_are_seen(views):
     """Each finger-force arrow ends at its contact node and starts outside the object; the fingertips are
     translucent and the camera looks across the squeeze axis, so the arrows of both fingers are seen (red) in the
