@@ -69,3 +69,16 @@ def test_what_is_not_written_is_refused():
         cells_xml("hexahedron", np.zeros((2, 8), int))
     with pytest.raises(ValueError, match=r"\(n, 3\)"):
         write_grid("/nonexistent/never.vtu", np.zeros((4, 2)), cells_xml("triangle", [[0, 1, 2]]), 1)
+
+
+def test_a_meshio_mesh_is_written_with_its_field_data(tmp_path):
+    """``fem_grasp.io.output.write_vtu``: a meshio.Mesh of one cell block, with VTK field data beside it."""
+    from fem_grasp.io.output import write_vtu
+
+    points, tets, pd, cd = _grid(n=300, cells=800, seed=3)
+    mesh = meshio.Mesh(points, [("tetra", tets)], point_data={"displacement": pd["displacement"]},
+                       cell_data={"von_mises": [cd["von_mises"]]})
+    m = meshio.read(write_vtu(tmp_path / "m.vtu", mesh, {"lift_height": np.array([0.004])}))
+    np.testing.assert_array_equal(m.cells[0].data, tets)
+    np.testing.assert_array_equal(m.cell_data["von_mises"][0], cd["von_mises"])
+    assert m.field_data["lift_height"][0] == 0.004
