@@ -41,6 +41,7 @@ or ``fem-grasp report DIR``).
 
 from __future__ import annotations
 
+import contextlib
 import html
 import logging
 from pathlib import Path
@@ -254,10 +255,13 @@ def write_report(out: str | Path, colour: str = "von_mises", pool: Any = None) -
     if colour not in COLOURINGS:
         raise ValueError(f"colour must be one of {', '.join(COLOURINGS)}, got {colour!r}")
     require_report_extra("report.html")
-    render_frames(out, doc, colour=colour, pool=pool)
-    plot_patches(out, doc, out / "patches.png")
-    plot_liftable(doc, out / "liftable.png")
-    plot_timeline(doc, out / "timeline.png")
+    with contextlib.ExitStack() as stack:
+        if pool is None:  # its renderer starts while the plots are drawn here
+            pool = stack.enter_context(render_process(warm=True))
+        plot_patches(out, doc, out / "patches.png")
+        plot_liftable(doc, out / "liftable.png")
+        plot_timeline(doc, out / "timeline.png")
+        render_frames(out, doc, colour=colour, pool=pool)
     path = atomic_write_text(out / "report.html", _html(doc))
     if (out / MARKER).exists():
         add_to_marker(out, list(PICTURES) + ["report.html"])
