@@ -19,7 +19,7 @@ import numpy as np
 from .frames import SLIP, STICK, finger_centres, pick_frames, read_frame
 
 __all__ = ["COLOURINGS", "LIFTED_CLEARANCE", "VIEW_ELEVATION", "bar_title_above", "render_frames", "render_process",
-           "render_views", "view_direction", "warm_renderer"]
+           "render_views", "start_views", "view_direction", "warm_renderer"]
 
 #: What the 3D views can be coloured by: (field in the time series, label with its unit, factor from SI).
 COLOURINGS = {
@@ -46,14 +46,6 @@ def render_process(warm: bool = False) -> Iterator[Any]:
         if warm:
             pool.apply_async(warm_renderer)
         yield pool
-
-
-def _map(pool: Any, fn: Any, jobs: list[dict[str, Any]]) -> list[Any]:
-    """``fn`` over ``jobs`` in ``pool``, or in a freshly spawned process when ``pool`` is None."""
-    if pool is not None:
-        return pool.map(fn, jobs)
-    with render_process() as own:
-        return own.map(fn, jobs)
 
 
 #: How far (degrees) the 3D views look down from the horizontal.
@@ -101,6 +93,16 @@ def render_views(out: Path, doc: dict[str, Any], size: tuple[int, int] = (1000, 
     picture's heading and its small print).  ``pool``: a
     :func:`render_process` to draw in (default: a new one).
     """
+    if pool is None:
+        with render_process() as own:
+            return start_views(out, doc, own, size, colour).get()
+    return start_views(out, doc, pool, size, colour).get()
+
+
+def start_views(out: Path, doc: dict[str, Any], pool: Any, size: tuple[int, int] = (1000, 760),
+                colour: str = "von_mises") -> Any:
+    """:func:`render_views` without waiting: the pictures are drawn in ``pool`` (a :func:`render_process`) while
+    the caller goes on; the returned handle's ``get()`` waits and gives what :func:`render_views` returns."""
     if colour not in COLOURINGS:
         raise ValueError(f"colour must be one of {', '.join(COLOURINGS)}, got {colour!r}")
     picks = pick_frames(doc)
@@ -158,7 +160,7 @@ def render_views(out: Path, doc: dict[str, Any], size: tuple[int, int] = (1000, 
             "centers": cen, "radius": float(res["finger_radius"]),
             "directions": np.asarray(res["directions"], float), "table_z": table_z,
             "lo": allp.min(axis=0), "hi": allp.max(axis=0), "fmax": fmax})
-    return _map(pool, _draw_frame, jobs)
+    return pool.map_async(_draw_frame, jobs)
 
 
 def render_frames(out: Path, doc: dict[str, Any], size: tuple[int, int] = (1000, 760),

@@ -60,6 +60,7 @@ from .render import (
     render_frames,
     render_process,
     render_views,
+    start_views,
     view_direction,
 )
 
@@ -256,12 +257,13 @@ def write_report(out: str | Path, colour: str = "von_mises", pool: Any = None) -
         raise ValueError(f"colour must be one of {', '.join(COLOURINGS)}, got {colour!r}")
     require_report_extra("report.html")
     with contextlib.ExitStack() as stack:
-        if pool is None:  # its renderer starts while the plots are drawn here
+        if pool is None:
             pool = stack.enter_context(render_process(warm=True))
+        views = start_views(out, doc, pool, colour=colour)  # drawn in the render process while the plots are here
         plot_patches(out, doc, out / "patches.png")
         plot_liftable(doc, out / "liftable.png")
         plot_timeline(doc, out / "timeline.png")
-        render_frames(out, doc, colour=colour, pool=pool)
+        views.get()
     path = atomic_write_text(out / "report.html", _html(doc))
     if (out / MARKER).exists():
         add_to_marker(out, list(PICTURES) + ["report.html"])

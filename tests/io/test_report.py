@@ -56,8 +56,8 @@ def test_pictures_are_rendered_and_not_blank(report):
 def test_run_with_report_draws_in_the_renderer_it_started_beside_the_pickup():
     """``fem-grasp run --report`` starts the render process (warmed: pyvista loaded, one picture drawn) before
     the pickup and draws the report's pictures in it: every picture there and not blank, as the report
-    command's."""
-    from fem_grasp.io.render import render_process, warm_renderer
+    command's; ``start_views`` hands the 3-D views to the process and returns at once."""
+    from fem_grasp.io.render import render_process, start_views, warm_renderer
 
     code, out = cli_run("foam_block", "--report")
     assert code == 0 and (out / "report.html").exists()
@@ -66,6 +66,10 @@ def test_run_with_report_draws_in_the_renderer_it_started_beside_the_pickup():
         assert len(np.unique(rgb[:, 0] * 65536 + rgb[:, 1] * 256 + rgb[:, 2])) > 50, name
     with render_process(warm=True) as pool:
         assert pool.apply(warm_renderer) is None  # warming twice is harmless
+        handle = start_views(out, read_result(out), pool)  # drawn while this process goes on
+        drawn = handle.get(timeout=300)
+    assert sorted(v["path"].rsplit("/", 1)[-1] for v in drawn) == ["lift_start.png", "lifted.png", "rest.png"]
+    assert all(v["n_stick"] + v["n_slip"] > 0 for v in drawn[1:])  # the squeezed frames show their contacts
 
 
 def test_force_arrows_point_at_their_nodes_from_outside_the_object_and_both_fingers_are_seen(views):
