@@ -189,7 +189,17 @@ def test_rest_command_uses_the_cache_and_writes_rest_files(capsys, tmp_path):
     assert "[cached]" not in first and "[cached]" in second and "checks     pass" in second
     doc = json.loads((tmp_path / "o" / "rest.json").read_text())
     assert doc["check"]["ok"] and doc["rest_from_cache"] is True
-    assert (tmp_path / "o" / "rest.vtu").exists()
+    # rest.vtu: the table's forces on the object hold its weight; each contact node carries its force of rest.json
+    import meshio
+    import numpy as np
+
+    m = meshio.read(tmp_path / "o" / "rest.vtu")
+    assert m.cells[0].type == "tetra" and set(m.cell_data) == {"von_mises", "strain_energy_density"}
+    weight = doc["scene"]["weight"]
+    np.testing.assert_allclose(m.point_data["contact_force"].sum(axis=0), [0.0, 0.0, weight], atol=1e-9 * weight)
+    np.testing.assert_allclose(m.point_data["contact_force"][doc["contact_nodes"]], doc["contact_forces"], rtol=0,
+                               atol=1e-15)
+    assert (m.point_data["contact_body"][doc["contact_nodes"]] == 3).all()
 
 
 def test_help_of_every_command_explains_units(capsys):
