@@ -235,6 +235,9 @@ def write_series(out: str | Path, result: Any, progress: Callable[[int, int], No
     grads, _ = shape_gradients(reference, tets)
     volumes = lumped_volumes(reference, tets)
     tetra_cells = cells_xml("tetra", tets)
+    # Every fingertip surface has the same triangles (only its centre, radius and axis move the points).
+    _, tip_triangles = fingertip_surface(np.zeros(3), 1.0, np.array([0.0, 1.0, 0.0]))
+    tip_cells = cells_xml("triangle", tip_triangles)
     frames = frames_of(result)
     times = frame_times(frames)
     path = finger_path(frames)
@@ -270,9 +273,9 @@ def write_series(out: str | Path, result: Any, progress: Callable[[int, int], No
         fingers = []
         if fr["finger_centers"] is not None:
             for f, (name, axis) in enumerate((("finger1", d1), ("finger2", d2))):
-                pts, tris = fingertip_surface(fr["finger_centers"][f], fr["finger_radius"], axis)
+                pts, _ = fingertip_surface(fr["finger_centers"][f], fr["finger_radius"], axis)
                 rel_f = f"series/{name}_{k:04d}.vtu"
-                write_grid(out / rel_f, pts, cells_xml("triangle", tris), len(tris))
+                write_grid(out / rel_f, pts, tip_cells, len(tip_triangles))
                 fingers.append((name, rel_f))
         return pd, cd, field, fingers
 
