@@ -171,11 +171,11 @@ def machine() -> dict[str, Any]:
     import scipy
 
     from fem_grasp.contact.kernels import jit
-    from fem_grasp.elastic import compliance
+    from fem_grasp.elastic import sparse_solvers
 
     return {"cpu": cpu, "cores": os.cpu_count(), "memory_gib": round(mem, 1), "python": platform.python_version(),
-            "numpy": np.__version__, "scipy": scipy.__version__, "default_solver": compliance.choose_solver(),
-            "cholmod": compliance.cholmod_available(), "inner_loops": jit.backend_name(),
+            "numpy": np.__version__, "scipy": scipy.__version__, "default_solver": sparse_solvers.choose_solver(),
+            "cholmod": sparse_solvers.cholmod_available(), "inner_loops": jit.backend_name(),
             "date": time.strftime("%Y-%m-%d")}
 
 
@@ -200,9 +200,9 @@ def demo_contacts(body) -> tuple[np.ndarray, np.ndarray]:
 
 
 def available_solvers() -> list[str]:
-    from fem_grasp.elastic import compliance
+    from fem_grasp.elastic import sparse_solvers
 
-    out = ["cholmod"] if compliance.cholmod_available() else []
+    out = ["cholmod"] if sparse_solvers.cholmod_available() else []
     out.append("superlu")
     try:
         import petsc4py  # noqa: F401
@@ -576,14 +576,14 @@ def dense_peak_gflops(n: int = 4000, reps: int = 3) -> float:
 def floor_worker(size: int, reps: int) -> None:
     """Run in a subprocess: one JSON line with the factorisation's and one column's flops and rates."""
     from bench.meshes import cached_mesh
-    from fem_grasp.elastic import compliance
+    from fem_grasp.elastic import compliance, sparse_solvers
 
     mesh = cached_mesh("orange", size)
     body = orange_body(mesh, SCALING_YOUNG)
     k = body.stiffness
     free = np.setdiff1d(np.arange(k.shape[0]), compliance.grounding_dofs(mesh.points, body.rigid_modes))
     kff = k[free][:, free]
-    t_factor, solve = timed(lambda: compliance.factorize(kff, "cholmod"))
+    t_factor, solve = timed(lambda: sparse_solvers.factorize(kff, "cholmod"))
     width = 3 * compliance.PREFETCH_NODES  # one batch of the tracking's column solves
     rhs = np.zeros((len(free), width))
     rhs[(np.arange(width) * 7) % len(free), np.arange(width)] = 1.0

@@ -197,7 +197,7 @@ def test_quick_run_without_gmsh_exits_2_naming_the_mesh_extra(monkeypatch, capsy
 
 def test_python_callers_get_the_same_message(monkeypatch):
     _missing(monkeypatch, "gmsh", "sksparse", "sksparse.cholmod")
-    from fem_grasp.elastic import cholmod, compliance
+    from fem_grasp.elastic import cholmod, sparse_solvers
 
     monkeypatch.setattr(cholmod, "_LIBRARY_TRIED", True)  # and no CHOLMOD library loads either
     monkeypatch.setattr(cholmod, "_LIBRARY", None)
@@ -207,7 +207,7 @@ def test_python_callers_get_the_same_message(monkeypatch):
         shapes.ellipsoid((0.01, 0.01, 0.01), 0.005)
     assert info.value.extra == "mesh"
     with pytest.raises(errors.MissingExtraError, match=r'pip install "fem_grasp\[cholmod\]"'):
-        compliance.choose_solver("cholmod")
+        sparse_solvers.choose_solver("cholmod")
 
 
 # ----------------------------------------------------------------- numba: said once, not silently slow

@@ -9,23 +9,8 @@ X_cc and (XG)_c without changing the contact forces (DESIGN.md, "Eq. (3) is a
 Dirichlet problem").  Columns of X are computed the first time a node enters
 contact and cached, so every later contact set costs a small dense solve.
 
-Sparse solvers
---------------
-``"cholmod"``
-    Supernodal Cholesky from SuiteSparse: the system's CHOLMOD library called
-    directly (:mod:`~fem_grasp.elastic.cholmod`; Debian's ``libcholmod3``),
-    whose solves release the GIL, or where that does not load, through
-    scikit-sparse (optional extra ``fem_grasp[cholmod]``).  About ten times
-    faster than SuperLU on 3D elasticity, with far less fill.
-``"superlu"``
-    SciPy's SuperLU in symmetric mode: always available.
-``"mumps"``
-    MUMPS Cholesky through petsc4py (Debian's, which comes with dolfinx).
-    Never chosen automatically: it loads PETSc into the process.
-
-The solver is chosen, in order, by the ``solver`` argument, the environment
-variable ``FEM_GRASP_SOLVER`` (``cholmod``, ``superlu``, ``mumps`` or
-``auto``), and otherwise automatically: CHOLMOD when importable, else SuperLU.
+K_g is factorised by one of the sparse direct solvers of :mod:`~fem_grasp.elastic.sparse_solvers` (CHOLMOD
+where it loads, else SuperLU; ``$FEM_GRASP_SOLVER``).
 
 Memory: rows kept per cached column
 -----------------------------------
@@ -52,36 +37,27 @@ BLAS keeps one thread throughout the section, so the columns and their round-off
 
 from __future__ import annotations
 
-import atexit
 import contextlib
 import copy
 import logging
-import os
 import threading
-import weakref
 from concurrent import futures
 from dataclasses import dataclass
-from typing import Callable, Iterator
+from typing import Iterator
 
 import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
-from ..errors import MissingExtraError
 from ..mesh.tetmesh import check_rotation
 from ..settings import DEFAULT_SETTINGS
 from ..threads import blas_threads_held, one_blas_thread, outer_blas_threads, side_by_side
+from .sparse_solvers import SOLVER_ENV, SOLVERS, cholmod_available, choose_solver, factorize, solve_lock  # noqa: F401  (importable from here as before)
 
-__all__ = ["Compliance", "PREFETCH_NODES", "SOLVERS", "SOLVER_ENV", "cholmod_available", "choose_solver",
-           "factorize", "grounding_dofs"]
+__all__ = ["Compliance", "PREFETCH_NODES", "grounding_dofs"]
 
 log = logging.getLogger(__name__)
 
-#: Sparse solvers of :func:`factorize`.
-SOLVERS = ("cholmod", "superlu", "mumps")
-#: Environment variable naming the solver (``auto`` or one of :data:`SOLVERS`).
-SOLVER_ENV = "FEM_GRASP_SOLVER"
 #: Nodes whose columns are solved for together when a new contact needs its own (:meth:`Compliance.prefetch`;
 #: ``make bench``, section ``columns``, 31k vertices: 10.7 ms per column in batches of 90, 12.2 in batches of
 #: 30, 40 for one node's three): the default of ``EngineSettings.prefetch_nodes``, which the contact trackers
@@ -101,52 +77,6 @@ SOLVE_BLOCK_BYTES = 512 * 2**20
 #: next, where a few hundred nodes at once (a flat base on the table) mapped a gigabyte of fresh pages, whose
 #: page faults took longer than copying the columns out.
 SOLVE_NODES = 42
-
-
-def cholmod_available() -> bool:
-    """True when a CHOLMOD library loads (:mod:`~fem_grasp.elastic.cholmod`) or scikit-sparse's wrapper imports."""
-    from .cholmod import library
-
-    if library() is not None:
-        return True
-    try:
-        import sksparse.cholmod  # type: ignore # noqa: F401
-    except ImportError:
-        return False
-    return True
-
-
-def choose_solver(solver: str | None = None) -> str:
-    """The sparse solver to use: ``solver`` if given, else ``$FEM_GRASP_SOLVER``, else CHOLMOD or SuperLU.
-
-    Raises
-    ------
-    ValueError
-        For an unknown solver name.
-    MissingExtraError
-        When CHOLMOD is asked for explicitly but scikit-sparse is not installed (an ImportError).
-    """
-    source = "solver argument"
-    if solver is None:
-        solver = os.environ.get(SOLVER_ENV, "").strip().lower() or "auto"
-        source = f"${SOLVER_ENV}"
-    if solver == "auto":
-        return "cholmod" if cholmod_available() else "superlu"
-    if solver not in SOLVERS:
-        raise ValueError(f"unknown sparse solver {solver!r} ({source}); choose 'auto' or one of {SOLVERS}")
-    if solver == "cholmod" and not cholmod_available():
-        raise MissingExtraError("the CHOLMOD solver needs a CHOLMOD library (3.x to 5.x) that loads, such as Debian's "
-                                "libcholmod3 (apt install libsuitesparse-dev), or the 'cholmod' extra (scikit-sparse): "
-                                "pip install \"fem_grasp[cholmod]\"; or choose 'superlu'", extra="cholmod",
-                                name="sksparse")
-    return solver
-
-
-#: Every live CHOLMOD factor, by the id of the solve function that owns it (see _cholmod).
-_LIVE_FACTORS: dict[int, object] = {}
-#: One scikit-sparse solve at a time: it works in its factor's shared workspace (``Common``), so two threads (a
-#: speculative lift test beside the squeeze's) take turns; the ctypes binding gives each thread a ``Common``.
-_SOLVE_LOCK = threading.Lock()
 
 
 @dataclass(eq=False)  # hashed by identity
@@ -170,123 +100,6 @@ def _background() -> futures.ThreadPoolExecutor:
         if _BACKGROUND is None:
             _BACKGROUND = futures.ThreadPoolExecutor(max_workers=1, thread_name_prefix="fem_grasp-columns")
         return _BACKGROUND
-
-
-def _keep_factors_at_exit() -> None:
-    """At interpreter exit, leave the live factors to the operating system (see _cholmod)."""
-    import ctypes
-
-    for factor in _LIVE_FACTORS.values():
-        ctypes.pythonapi.Py_IncRef(ctypes.py_object(factor))
-
-
-atexit.register(_keep_factors_at_exit)
-
-
-def _cholmod(matrix: sp.csc_matrix) -> Callable[[np.ndarray], np.ndarray]:
-    """CHOLMOD's factorisation and its solve function: through ctypes (:mod:`~fem_grasp.elastic.cholmod`, whose
-    solves release the GIL) where a CHOLMOD library loads, else through scikit-sparse.
-
-    scikit-sparse's ``Factor`` frees itself through its ``Common`` in ``__dealloc__``; if the garbage
-    collector breaks a reference cycle that holds a factor by clearing the factor first, the ``Common``
-    is gone by then and the process crashes (at exit, or at any collection).  So each factor is also
-    held by the module's registry until the solve function that owns it is collected (a weakref
-    finalizer, which the collector runs before it clears anything): a factor is then never garbage
-    itself, and dies by reference counting with its ``Common`` intact.  At exit the factors still
-    alive are kept for the operating system to reclaim.
-    """
-    from .cholmod import CholmodFactor, library
-
-    if library() is not None:
-        direct = CholmodFactor(matrix)
-
-        def solve_direct(b: np.ndarray) -> np.ndarray:
-            return direct.solve(b)
-
-        solve_direct.factor = direct  # type: ignore[attr-defined]
-        solve_direct.releases_gil = True  # type: ignore[attr-defined]
-        return solve_direct
-    from sksparse.cholmod import cholesky  # type: ignore
-
-    factor = cholesky(matrix)
-
-    def solve(b: np.ndarray) -> np.ndarray:
-        return factor(np.asarray(b, dtype=float))
-
-    solve.factor = factor  # type: ignore[attr-defined]
-    _LIVE_FACTORS[id(solve)] = factor
-    weakref.finalize(solve, _LIVE_FACTORS.pop, id(solve), None).atexit = False
-    return solve
-
-
-def _superlu(matrix: sp.csc_matrix) -> Callable[[np.ndarray], np.ndarray]:
-    lu = spla.splu(matrix, permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0, options={"SymmetricMode": True})
-    return lu.solve
-
-
-def _mumps(matrix: sp.csc_matrix, block: int = 256) -> Callable[[np.ndarray], np.ndarray]:
-    from petsc4py import PETSc
-
-    csr = matrix.tocsr()
-    csr.sort_indices()
-    mat = PETSc.Mat().createAIJ(size=csr.shape, comm=PETSc.COMM_SELF,
-                                csr=(csr.indptr.astype(PETSc.IntType), csr.indices.astype(PETSc.IntType),
-                                     csr.data.astype(PETSc.ScalarType)))
-    mat.assemble()
-    mat.setOption(PETSc.Mat.Option.SYMMETRIC, True)
-    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
-    ksp.setOperators(mat)
-    ksp.setType("preonly")
-    pc = ksp.getPC()
-    pc.setType("cholesky")
-    pc.setFactorSolverType("mumps")
-    ksp.setUp()
-    x, b = mat.createVecRight(), mat.createVecLeft()
-
-    def solve(rhs: np.ndarray) -> np.ndarray:
-        rhs = np.asarray(rhs, dtype=float)
-        if rhs.ndim == 1:
-            b.array[:] = rhs
-            ksp.solve(b, x)
-            return x.array.copy()
-        out = np.empty_like(rhs)
-        factor = ksp.getPC().getFactorMatrix()
-        for start in range(0, rhs.shape[1], block):
-            cols = np.asfortranarray(rhs[:, start:start + block])
-            bmat = PETSc.Mat().createDense(cols.shape, array=cols, comm=PETSc.COMM_SELF)
-            xmat = PETSc.Mat().createDense(cols.shape, comm=PETSc.COMM_SELF)
-            xmat.setUp()
-            factor.matSolve(bmat, xmat)
-            out[:, start:start + block] = xmat.getDenseArray()
-            bmat.destroy()
-            xmat.destroy()
-        return out
-
-    solve.keep = (mat, ksp, x, b)  # type: ignore[attr-defined]  # PETSc objects live with the closure
-    return solve
-
-
-def factorize(matrix: sp.spmatrix, solver: str | None = None) -> Callable[[np.ndarray], np.ndarray]:
-    """Factorise a sparse symmetric positive-definite matrix; return its solve function.
-
-    Parameters
-    ----------
-    matrix : (N, N) sparse SPD matrix
-    solver : {"cholmod", "superlu", "mumps", "auto"}, optional
-        Default: ``$FEM_GRASP_SOLVER``, else CHOLMOD when scikit-sparse is
-        installed, else SuperLU (module notes).
-
-    Returns
-    -------
-    solve : callable
-        ``solve(b)`` for a (N,) vector or an (N, k) block of right-hand sides.
-    """
-    name = choose_solver(solver)
-    matrix = sp.csc_matrix(matrix)
-    if matrix.shape[0] != matrix.shape[1]:
-        raise ValueError(f"cannot factorise a non-square {matrix.shape} matrix")
-    log.debug("%s factorisation of %d DOFs, %d non-zeros", name, matrix.shape[0], matrix.nnz)
-    return {"cholmod": _cholmod, "superlu": _superlu, "mumps": _mumps}[name](matrix)
 
 
 def grounding_dofs(points: np.ndarray, modes: np.ndarray) -> np.ndarray:
@@ -416,8 +229,8 @@ class Compliance:
         return out
 
     def _solve_lock(self) -> contextlib.AbstractContextManager:
-        """_SOLVE_LOCK for a solver whose solves share a workspace; none for the ctypes CHOLMOD binding."""
-        return contextlib.nullcontext() if getattr(self._solve, "releases_gil", False) else _SOLVE_LOCK
+        """:func:`~fem_grasp.elastic.sparse_solvers.solve_lock` of this factor's solve."""
+        return solve_lock(self._solve)
 
     def branch(self) -> "Compliance":
         """The same compliance with column caches of its own (copies of this one's): a second tracker in another
@@ -428,8 +241,9 @@ class Compliance:
         return self._sharing_factor(dict(self._columns), dict(self._surface_columns), dict(self._ahead))
 
     def _sharing_factor(self, columns: dict, surface_columns: dict, ahead: dict) -> "Compliance":
-        """A copy sharing this one's factor (whose solves take _SOLVE_LOCK unless they release the GIL), with the
-        given column caches (one cache where this one's kept rows are its surface rows) and queued columns."""
+        """A copy sharing this one's factor (its solves hold :func:`~fem_grasp.elastic.sparse_solvers.solve_lock`),
+        with the given column caches (one cache where this one's kept rows are its surface rows) and queued
+        columns."""
         new = copy.copy(self)
         new._columns = columns
         new._surface_columns = columns if self._surface_columns is self._columns else surface_columns

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from fem_grasp import Body
-from fem_grasp.elastic import cholmod
+from fem_grasp.elastic import cholmod, sparse_solvers
 from fem_grasp.elastic import compliance as cp
 from tests.helpers import perturbed_box
 
@@ -77,5 +77,5 @@ def test_two_threads_solving_at_once_get_what_one_gets_alone(stiffness):
 
 
 def test_the_compliance_uses_the_binding_where_it_loads(stiffness):
-    solve = cp.factorize(stiffness, "cholmod")
+    solve = sparse_solvers.factorize(stiffness, "cholmod")
     assert getattr(solve, "releases_gil", False) and isinstance(solve.factor, cholmod.CholmodFactor)

@@ -1,4 +1,5 @@
-"""The generalised inverse X of K (fem_grasp.elastic.compliance): every sparse solver, the column cache, kept rows."""
+"""The generalised inverse X of K (fem_grasp.elastic.compliance) with every sparse solver of
+fem_grasp.elastic.sparse_solvers: the solvers, the column cache, kept rows."""
 
 import numpy as np
 import pytest
@@ -6,43 +7,14 @@ import scipy.sparse as sp
 
 from fem_grasp import Body, ContactResponse, solve_contact
 from fem_grasp.elastic import compliance as cp
+from fem_grasp.elastic import sparse_solvers as ss
+from tests.elastic.test_sparse_solvers import AVAILABLE
 from tests.helpers import perturbed_box
-
-
-def _available():
-    out = ["superlu"]
-    if cp.cholmod_available():
-        out.append("cholmod")
-    try:
-        import petsc4py  # noqa: F401
-        out.append("mumps")
-    except ImportError:
-        pass
-    return out
-
-
-AVAILABLE = _available()
 
 
 @pytest.fixture(scope="module")
 def body():
     return Body(perturbed_box(np.random.default_rng(7), divisions=(4, 3, 3)), 3e4, 0.35, weight=1.5)
-
-
-def spd(rng, n=60):
-    a = sp.random(n, n, 0.08, random_state=np.random.RandomState(3))
-    return (a @ a.T + sp.eye(n) * 0.5).tocsc()
-
-
-@pytest.mark.parametrize("solver", AVAILABLE)
-def test_factorize_solves_vectors_and_blocks(rng, solver):
-    a = spd(rng)
-    solve = cp.factorize(a, solver)
-    b = rng.standard_normal((a.shape[0], 4))
-    for rhs in (b[:, 0], b):
-        x = solve(rhs)
-        assert x.shape == rhs.shape
-        assert np.abs(a @ x - rhs).max() <= 1e-12 * np.abs(rhs).max() * 1e3
 
 
 @pytest.mark.parametrize("solver", AVAILABLE)
@@ -77,7 +49,7 @@ def test_solvers_agree(body, rng):
 @pytest.mark.parametrize("solver", AVAILABLE)
 def test_contact_solutions_agree_across_solvers_and_with_spectral(body, monkeypatch, solver):
     """The environment variable picks the solver of Body.compliance; forces and fields match the paper's route."""
-    monkeypatch.setenv(cp.SOLVER_ENV, solver)
+    monkeypatch.setenv(ss.SOLVER_ENV, solver)
     fresh = body.with_material()
     assert fresh.compliance.solver == solver
     nodes = np.array([0, 4, 19, 33, 45])
@@ -117,12 +89,12 @@ def test_columns_are_cached_once_per_node(body):
 
 def test_bad_solver_names_and_inputs_are_refused(body, monkeypatch):
     with pytest.raises(ValueError, match="unknown sparse solver 'umfpack'"):
-        cp.factorize(sp.eye(3).tocsc(), "umfpack")
-    monkeypatch.setenv(cp.SOLVER_ENV, "pardiso")
+        ss.factorize(sp.eye(3).tocsc(), "umfpack")
+    monkeypatch.setenv(ss.SOLVER_ENV, "pardiso")
     with pytest.raises(ValueError, match=r"unknown sparse solver 'pardiso' \(\$FEM_GRASP_SOLVER\)"):
-        cp.choose_solver()
-    monkeypatch.setenv(cp.SOLVER_ENV, "auto")
-    assert cp.choose_solver() == ("cholmod" if cp.cholmod_available() else "superlu")
+        ss.choose_solver()
+    monkeypatch.setenv(ss.SOLVER_ENV, "auto")
+    assert ss.choose_solver() == ("cholmod" if ss.cholmod_available() else "superlu")
     comp = cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver="superlu")
     with pytest.raises(ValueError, match="not a node of the body"):
         comp.node_columns([body.n_nodes])
@@ -130,22 +102,6 @@ def test_bad_solver_names_and_inputs_are_refused(body, monkeypatch):
         comp.apply(np.zeros(5))
     with pytest.raises(ValueError, match="rows must be node indices"):
         cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver="superlu", rows=[-1, 2])
-
-
-def test_explicit_cholmod_without_a_library_says_how_to_install(monkeypatch):
-    """Neither a CHOLMOD library that loads nor scikit-sparse: asked for by name, CHOLMOD says how to get it;
-    chosen automatically, SuperLU."""
-    import sys
-
-    from fem_grasp.elastic import cholmod
-
-    monkeypatch.setattr(cholmod, "_LIBRARY_TRIED", True)
-    monkeypatch.setattr(cholmod, "_LIBRARY", None)
-    monkeypatch.setitem(sys.modules, "sksparse", None)
-    monkeypatch.setitem(sys.modules, "sksparse.cholmod", None)
-    with pytest.raises(ImportError, match="libcholmod3.*scikit-sparse"):
-        cp.choose_solver("cholmod")
-    assert cp.choose_solver("auto") == "superlu"
 
 
 @pytest.mark.parametrize("solver", AVAILABLE)
@@ -263,7 +219,7 @@ def test_a_branch_shares_the_factor_and_keeps_columns_of_its_own(body, monkeypat
     comp = cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver="superlu")
     comp.node_columns([3])
     calls = []
-    factorize = cp.factorize
+    factorize = ss.factorize
     monkeypatch.setattr(cp, "factorize", lambda *a, **k: calls.append(1) or factorize(*a, **k))
     twin = comp.branch()
     assert twin.is_cached(3) and not calls
@@ -283,7 +239,7 @@ def test_a_rigidly_moved_body_shares_the_factorisation_and_solves_the_same(monke
     body = Body(perturbed_box(np.random.default_rng(11), divisions=(4, 3, 3)), 3e4, 0.35, weight=1.5)
     body.compliance
     calls = []
-    factorize = cp.factorize
+    factorize = ss.factorize
     monkeypatch.setattr(cp, "factorize", lambda *a, **k: calls.append(1) or factorize(*a, **k))
     rot = rotation_between(np.array([0.3, -0.5, 0.8]), np.array([0.0, 0.0, -1.0]))
     moved = body.transformed(rot, np.array([0.1, -0.2, 0.05]))
@@ -344,9 +300,9 @@ def test_factors_held_in_reference_cycles_are_freed_without_a_crash(tmp_path, bi
         "    holder['self'] = holder\n"
         "    if i % 5 == 4:\n"
         "        gc.collect()\n"
-        "from fem_grasp.elastic import compliance\n"
+        "from fem_grasp.elastic import sparse_solvers\n"
         "gc.collect()\n"
-        "print(type(b.compliance._solve.factor) is CholmodFactor, len(compliance._LIVE_FACTORS))\n")
+        "print(type(b.compliance._solve.factor) is CholmodFactor, len(sparse_solvers._LIVE_FACTORS))\n")
     env = {**__import__("os").environ, "FEM_GRASP_SOLVER": "cholmod"}
     run = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120, env=env)
     assert run.returncode == 0, (run.returncode, run.stderr[-2000:])

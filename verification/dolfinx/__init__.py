@@ -129,7 +129,7 @@ def refinement_mesh(name: str, size: float, min_vertices: int) -> TetMesh:
 
 def has_cholmod() -> bool:
     """Whether fem_grasp can use CHOLMOD (its fastest sparse backend: the system's library or scikit-sparse)."""
-    from fem_grasp.elastic.compliance import cholmod_available
+    from fem_grasp.elastic.sparse_solvers import cholmod_available
 
     return cholmod_available()
 

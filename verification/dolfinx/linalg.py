@@ -16,7 +16,7 @@ from typing import Callable, Iterator
 import numpy as np
 import scipy.sparse as sp
 
-from fem_grasp.elastic.compliance import factorize as _package_factorize
+from fem_grasp.elastic.sparse_solvers import factorize as _package_factorize
 
 log = logging.getLogger(__name__)
 
@@ -110,7 +110,7 @@ def fem_grasp_factorization_by_mumps() -> Iterator[None]:
     own setting (``$FEM_GRASP_SOLVER``, read at each factorisation), not a
     replaced function.
     """
-    from fem_grasp.elastic.compliance import SOLVER_ENV
+    from fem_grasp.elastic.sparse_solvers import SOLVER_ENV
 
     try:
         import petsc4py  # noqa: F401
