@@ -13,7 +13,7 @@ an instrument (at a knife edge round-off decides them, not the model).
 fem_grasp with each SETTING applied — ``settings.FIELD=VALUE`` (a field of
 :class:`fem_grasp.settings.EngineSettings`, e.g. ``settings.implicit_contacts=0``: every tracker of the worker is
 built with it, ``Tracker.default_settings``; an unknown field is refused naming it), ``module.ATTRIBUTE=VALUE``
-(any other switch, such as ``fem_grasp.elastic.response.NEIGHBOUR_UPDATES=False``, set after import; VALUE a
+(any other switch, such as ``fem_grasp.grasp.lift_test.DEFAULT_STEP_FRACTION=0.1``, set after import; VALUE a
 Python literal) or ``ENV:NAME=VALUE`` (an environment variable of the worker, e.g. ``ENV:FEM_GRASP_NO_JIT=1``):
 what one step of the engine is worth, measured in one interleaved run.  A constant that other modules import by value (``from
 fem_grasp.elastic.compliance import PREFETCH_NODES``) keeps its old value there: the worker warns, naming those
@@ -573,7 +573,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--against", nargs="+", default=[], metavar="SETTING",
                     help="instead of a commit, this checkout with these settings: settings.FIELD=VALUE (a field "
                          "of fem_grasp.settings.EngineSettings, e.g. settings.implicit_contacts=0), "
-                         "module.ATTRIBUTE=VALUE (e.g. fem_grasp.elastic.response.NEIGHBOUR_UPDATES=False) or "
+                         "module.ATTRIBUTE=VALUE (e.g. fem_grasp.grasp.lift_test.DEFAULT_STEP_FRACTION=0.1) or "
                          "ENV:NAME=VALUE (e.g. ENV:FEM_GRASP_NO_JIT=1)")
     ap.add_argument("--serve", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)

@@ -117,8 +117,9 @@ class EngineSettings:
         columns are solved in other batches, on one BLAS thread).  A placement search's candidates use False
         (their workers fill the cores).
     neighbour_updates : bool
-        A tracker derives a new contact set's response from a cached neighbouring set's by rank-3 updates (True)
-        instead of factorising every set afresh (False, the reference; the same answers to round-off).
+        A tracker (and the rest on a frictionless table) derives a new contact set's response from a cached
+        neighbouring set's by rank-3 updates (True) instead of factorising every set afresh (False, the
+        reference; the same answers to round-off).
     drift_sweeps : int
         Return mapping (:func:`~fem_grasp.contact.relaxation.relax_contacts`): sweeps of unchanged statuses over
         which a steady drift, whose motion still to come at its rate of decay would carry a contact past the

@@ -194,17 +194,18 @@ def test_the_tracker_section_runs_a_baseline_commit_beside_this_checkout(tmp_pat
 
 
 def test_the_tracker_section_compares_this_checkout_with_a_switch_set(tmp_path):
-    """--against: the baseline worker is this checkout with a module switch (derived contact responses off) and an
-    environment variable set; the switch reaches the worker (a wrong name stops it) and the answers agree."""
+    """--against: the baseline worker is this checkout with a setting (derived contact responses off) and an
+    environment variable set; the switch reaches the worker (a wrong module attribute stops it) and the answers
+    agree."""
     from bench.tracker import _against, section_tracker
 
-    assert _against(["fem_grasp.elastic.response.NEIGHBOUR_UPDATES=False", "ENV:FEM_GRASP_X=1"]) == (
-        {"FEM_GRASP_X": "1"}, [["fem_grasp.elastic.response.NEIGHBOUR_UPDATES", "False"]])
+    assert _against(["fem_grasp.elastic.response.NEIGHBOUR_SHARE=0.5", "ENV:FEM_GRASP_X=1"]) == (
+        {"FEM_GRASP_X": "1"}, [["fem_grasp.elastic.response.NEIGHBOUR_SHARE", "0.5"]])
     with pytest.raises(SystemExit, match="expected"):
-        _against(["NEIGHBOUR_UPDATES"])
+        _against(["NEIGHBOUR_SHARE"])
     sec = section_tracker(reps=1, scenes=("foam_block",), warm_up=None, quick=True,
-                          against=("fem_grasp.elastic.response.NEIGHBOUR_UPDATES=False", "ENV:OMP_NUM_THREADS=1"))
-    assert sec["baseline"].startswith("this checkout with fem_grasp.elastic.response.NEIGHBOUR_UPDATES=False")
+                          against=("settings.neighbour_updates=False", "ENV:OMP_NUM_THREADS=1"))
+    assert sec["baseline"].startswith("this checkout with settings.neighbour_updates=False")
     row = sec["rows"][0]
     assert row["answer"]["same"] and row["repeatable"] and row["answer"]["events"][0] > 0
     with pytest.raises(RuntimeError, match="no attribute .NO_SUCH_SWITCH."):

@@ -36,7 +36,7 @@ if TYPE_CHECKING:
     from .body import Body
 
 __all__ = ["BACKENDS", "COLLINEAR_TOLERANCE", "CollinearContactError", "ContactResponse", "ContactSolution",
-           "MAX_CONDITION", "NEIGHBOUR_BACKWARD_ERROR", "NEIGHBOUR_NODES", "NEIGHBOUR_SHARE", "NEIGHBOUR_UPDATES",
+           "MAX_CONDITION", "NEIGHBOUR_BACKWARD_ERROR", "NEIGHBOUR_NODES", "NEIGHBOUR_SHARE",
            "WARN_CONDITION", "check_contact_set", "contact_dofs", "contact_response", "equilibrium_residual",
            "neighbour_limit", "principal_submatrix", "solve_contact"]
 
@@ -75,9 +75,6 @@ NEIGHBOUR_SHARE = 0.125
 def neighbour_limit(m: int) -> int:
     """How many nodes two contact sets, the larger of ``m``, may differ by for one to be derived from the other."""
     return max(NEIGHBOUR_NODES, int(NEIGHBOUR_SHARE * m))
-#: False: :meth:`ContactResponse.neighbour` derives nothing (every set factorised afresh, the reference the tests
-#: compare with).  A contact tracker derives only with ``EngineSettings.neighbour_updates`` too (its own switch).
-NEIGHBOUR_UPDATES = True
 #: Largest backward error ‖M x − r‖∞ / (‖M‖∞ ‖x‖∞) of a derived response's solves (x = M⁻¹ r for a probe r)
 #: before it is refused and the set factorised afresh.  A fresh LU solve reaches ~2e-17 here, a chain of 100
 #: derived tomato sets 3e-16 at worst (median 3e-17); the bound keeps a derived C within cond(M) × 1e-14 (≈ 1e-10
@@ -337,7 +334,7 @@ class ContactResponse:
         CollinearContactError
             For the sets the constructor refuses by their nodes alone (:func:`check_contact_set`).
         """
-        if not NEIGHBOUR_UPDATES or self.backend != "sparse":
+        if self.backend != "sparse":
             return None
         nodes = check_contact_set(self.body.mesh.points, nodes)  # refused as a fresh set would be
         new_set = set(nodes.tolist())

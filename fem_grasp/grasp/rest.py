@@ -103,7 +103,7 @@ from ..elastic.response import (
     contact_response,
 )
 from ..errors import RestCheckError, RestConvergenceError, TrackingError
-from ..settings import EngineSettings
+from ..settings import DEFAULT_SETTINGS, EngineSettings
 from ..threads import one_blas_thread
 from .checks import contact_law_figures
 from .pose import RestingPose, resting_pose
@@ -445,10 +445,12 @@ def _roller_solution(body: Body, table: TablePlane, resp: ContactResponse, held:
 
 
 def _frictionless_rest(posed: Body, table: TablePlane, triangle: np.ndarray, backend: str, tol: float,
-                       history: _History) -> tuple[np.ndarray, np.ndarray, np.ndarray, ContactResponse]:
+                       history: _History, neighbour_updates: bool = True
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, ContactResponse]:
     """The rest on a frictionless table (module notes): the roller support's contact set, by landing the nodes
     below the table (A) and releasing the most tensile contact (B) until neither is left; the final contact
-    nodes, their displacements Δ̄, sliding flags (all set) and contact response."""
+    nodes, their displacements Δ̄, sliding flags (all set) and contact response; ``neighbour_updates``: each set's
+    response derived from the last one's (``EngineSettings.neighbour_updates``)."""
     points = posed.mesh.points
     surface = posed.mesh.surface_nodes
     nodes = np.asarray(triangle, dtype=np.int64)
@@ -456,7 +458,8 @@ def _frictionless_rest(posed: Body, table: TablePlane, triangle: np.ndarray, bac
     force_tol = FORCE_TOL * posed.weight
     resp: ContactResponse | None = None
     while True:
-        resp = contact_response(posed, nodes, backend=backend, cached=() if resp is None else (resp,))
+        resp = contact_response(posed, nodes, backend=backend,
+                                cached=() if resp is None or not neighbour_updates else (resp,))
         sol = _roller_solution(posed, table, resp, held)
         held = sol.displacements[nodes]
         height = table.signed_distance(sol.positions[surface])
@@ -556,7 +559,8 @@ def rest(body: Body, mu_table: float, *, down: np.ndarray | None = None, table_z
     history = _History(posed, table, int(max_iterations))
     if mu_table == 0:
         nodes, disp, sliding, resp = _frictionless_rest(posed, table, pose.triangle, backend,
-                                                  penetration_tol * posed.mesh.diameter, history)
+                                                        penetration_tol * posed.mesh.diameter, history,
+                                                        (settings or DEFAULT_SETTINGS).neighbour_updates)
     else:
         try:
             nodes, disp, sliding, resp = _tracked_rest(posed, table, pose.triangle, float(mu_table), backend,

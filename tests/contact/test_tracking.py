@@ -13,6 +13,7 @@ from fem_grasp.contact.obstacles import Fingertip
 from fem_grasp.contact.slip_system import CompiledSlipSystem
 from fem_grasp.contact.tracking import FINGER1, TABLE, MixedSlipSystem, Tracker
 from fem_grasp.grasp.rest import rest
+from fem_grasp.settings import EngineSettings
 from tests.helpers import RADIUS, WEIGHT, box_squeezed_3mm, central_difference_jacobian, face_centres, pickup_box
 
 
@@ -265,7 +266,7 @@ def test_a_node_crawling_through_stick_slip_toggles_is_crossed_by_an_implicit_in
 def test_a_pickup_with_derived_contact_responses_is_the_pickup_with_fresh_ones(monkeypatch):
     """The box picked up at μ = 0.5 with each new contact set's response derived from a cached neighbour's
     (ContactResponse.neighbour, the default) or factorised afresh: the same verdict and events, ρ* to 1e-9 and
-    the final contact forces to 1e-9 of the weight (issue #27's "same answer")."""
+    the final contact forces to 1e-9 of the weight (EngineSettings.neighbour_updates)."""
     from fem_grasp.elastic import response
     from tests.helpers import pick_up_box
 
@@ -278,10 +279,9 @@ def test_a_pickup_with_derived_contact_responses_is_the_pickup_with_fresh_ones(m
         return out
 
     results = {}
+    monkeypatch.setattr(response.ContactResponse, "neighbour", counted)
     for updates in (False, True):
-        monkeypatch.setattr(response, "NEIGHBOUR_UPDATES", updates)
-        monkeypatch.setattr(response.ContactResponse, "neighbour", counted)
-        results[updates] = pick_up_box(0.5)
+        results[updates] = pick_up_box(0.5, settings=EngineSettings(neighbour_updates=updates))
     fresh, new = results[False], results[True]
     assert sum(derived) >= 10  # the default path did derive responses
     assert new.success == fresh.success and len(fresh.events) > 10

@@ -304,8 +304,9 @@ def test_a_neighbour_is_refused_where_it_would_not_pay_or_is_not_a_contact_set(b
     with pytest.raises(CollinearContactError):
         resp.neighbour(nodes[:2])  # refused as the constructor refuses it
     assert ContactResponse(body, nodes, backend="spectral").neighbour(nodes[:4]) is None
-    monkeypatch.setattr(response, "NEIGHBOUR_UPDATES", False)
-    assert resp.neighbour(nodes[:4]) is None
+    # with no cached set to derive from (EngineSettings.neighbour_updates=False), a set is factorised afresh
+    fresh = response.contact_response(body, nodes[:4], cached=())
+    assert fresh._lu is not None and resp.neighbour(nodes[:4])._lu is None
 
 
 def test_a_large_set_is_derived_across_a_share_of_its_nodes(rng):

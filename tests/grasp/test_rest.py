@@ -19,6 +19,7 @@ from fem_grasp.grasp.pose import (
     triangle_margin,
 )
 from fem_grasp.grasp.rest import RestCheckError, RestConvergenceError, rest
+from fem_grasp.settings import EngineSettings
 
 #: A soft modulus that makes the sag visible (millimetres); Table I's 1e9–6e9 Pa give micrometres.
 SOFT_YOUNG = 3e4
@@ -309,6 +310,34 @@ def test_frictionless_rest_matches_a_direct_sliding_support_solve(box):
     order = np.argsort(state.contact_nodes)
     np.testing.assert_allclose(state.contact_forces[order], reactions[np.sort(state.contact_nodes)],
                                atol=1e-9 * box.weight)
+
+
+def test_a_frictionless_rest_with_derived_responses_is_the_rest_with_fresh_ones():
+    """μ = 0 on an ellipsoid, whose contact set grows node by node: each set's response derived from the last
+    one's (the default) or factorised afresh (EngineSettings.neighbour_updates=False) gives the same contact set
+    and displacements to 1e-9 of the largest."""
+    from fem_grasp.elastic import response
+    from fem_grasp.mesh import shapes
+
+    body = Body(TetMesh(*shapes.ellipsoid((0.02, 0.02, 0.015), 0.006)), 2e4, 0.4, weight=1.0)
+    derived = []
+    neighbour = response.ContactResponse.neighbour
+
+    def counted(self, nodes):
+        out = neighbour(self, nodes)
+        derived.append(out is not None)
+        return out
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(response.ContactResponse, "neighbour", counted)
+        state = rest(body, 0.0)
+        assert sum(derived) >= 10
+        derived.clear()
+        fresh = rest(body, 0.0, settings=EngineSettings(neighbour_updates=False))
+        assert not any(derived)
+    np.testing.assert_array_equal(np.sort(fresh.contact_nodes), np.sort(state.contact_nodes))
+    np.testing.assert_allclose(fresh.displacements, state.displacements, rtol=0,
+                               atol=1e-9 * np.abs(state.displacements).max())
 
 
 def test_history_accounts_for_every_contact(box):
