@@ -329,3 +329,20 @@ def force_along(result, rho):
     order = np.argsort(depths, kind="stable")
     assert depths.min() <= rho <= depths.max() * (1 + 1e-12)
     return float(np.interp(rho, depths[order], forces[order]))
+
+
+def count_derived_responses(monkeypatch) -> list[bool]:
+    """Record each ContactResponse.neighbour call from now on (for ``monkeypatch``'s lifetime) as whether it
+    derived a response (True) or refused (False); returns the list it appends to."""
+    from fem_grasp.elastic import response
+
+    derived: list[bool] = []
+    neighbour = response.ContactResponse.neighbour
+
+    def counted(self, nodes):
+        out = neighbour(self, nodes)
+        derived.append(out is not None)
+        return out
+
+    monkeypatch.setattr(response.ContactResponse, "neighbour", counted)
+    return derived

@@ -316,20 +316,12 @@ def test_a_frictionless_rest_with_derived_responses_is_the_rest_with_fresh_ones(
     """μ = 0 on an ellipsoid, whose contact set grows node by node: each set's response derived from the last
     one's (the default) or factorised afresh (EngineSettings.neighbour_updates=False) gives the same contact set
     and displacements to 1e-9 of the largest."""
-    from fem_grasp.elastic import response
     from fem_grasp.mesh import shapes
+    from tests.helpers import count_derived_responses
 
     body = Body(TetMesh(*shapes.ellipsoid((0.02, 0.02, 0.015), 0.006)), 2e4, 0.4, weight=1.0)
-    derived = []
-    neighbour = response.ContactResponse.neighbour
-
-    def counted(self, nodes):
-        out = neighbour(self, nodes)
-        derived.append(out is not None)
-        return out
-
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(response.ContactResponse, "neighbour", counted)
+        derived = count_derived_responses(mp)
         state = rest(body, 0.0)
         assert sum(derived) >= 10
         derived.clear()
