@@ -52,9 +52,14 @@ import scipy.sparse as sp
 from ..mesh.tetmesh import check_rotation
 from ..settings import DEFAULT_SETTINGS
 from ..threads import blas_threads_held, one_blas_thread, outer_blas_threads, side_by_side
-from .sparse_solvers import SOLVER_ENV, SOLVERS, cholmod_available, choose_solver, factorize, solve_lock  # noqa: F401  (importable from here as before)
+from . import sparse_solvers
+from .sparse_solvers import choose_solver, factorize, solve_lock
 
 __all__ = ["Compliance", "PREFETCH_NODES", "grounding_dofs"]
+
+# The solvers' names, importable from here as before they had a module of their own.
+SOLVERS, SOLVER_ENV = sparse_solvers.SOLVERS, sparse_solvers.SOLVER_ENV
+cholmod_available = sparse_solvers.cholmod_available
 
 log = logging.getLogger(__name__)
 
