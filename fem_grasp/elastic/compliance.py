@@ -66,7 +66,7 @@ log = logging.getLogger(__name__)
 #: Nodes whose columns are solved for together when a new contact needs its own (:meth:`Compliance.prefetch`;
 #: ``make bench``, section ``columns``, 31k vertices: 10.7 ms per column in batches of 90, 12.2 in batches of
 #: 30, 40 for one node's three): the default of ``EngineSettings.prefetch_nodes``, which the contact trackers
-#: read; the resting iteration reads this name.
+#: read (this name stays for the scripts and benchmarks that read it).
 PREFETCH_NODES = DEFAULT_SETTINGS.prefetch_nodes
 #: :meth:`Compliance.solve_ahead` queues no batch of fewer nodes than this (a solve of few columns costs
 #: several times more per column).
