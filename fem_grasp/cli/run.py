@@ -181,7 +181,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         result, cached, t_write = _run_and_write(args, scene, out, cache, bar, pool)
     for line in _summary_lines(scene, result, cached):
         echo(args, line)
-    code = EXIT_OK if result.success else EXIT_FAILED
+    code = _exit_code(result)
     if scene.expect is not None and (scene.expect == "success") != result.success:
         log.warning("scene %s expects %s but the pickup %s", scene.name, scene.expect,
                     "succeeded" if result.success else "failed")
@@ -191,6 +191,11 @@ def cmd_run(args: argparse.Namespace) -> int:
         if args.report:
             echo(args, f"report     {out}/report.html")
     return code
+
+
+def _exit_code(result: Any) -> int:
+    """What ``fem-grasp run`` exits with for ``result`` (and records in result.json)."""
+    return EXIT_OK if result.success else EXIT_FAILED
 
 
 def _run_and_write(args: argparse.Namespace, scene: Any, out: Path | None, cache: Any, bar: Progress,
@@ -207,7 +212,7 @@ def _run_and_write(args: argparse.Namespace, scene: Any, out: Path | None, cache
             t0 = time.perf_counter()
             with bar.phase("writing results"):
                 write_run(out, result, scene, force=True,
-                          extra={"exit_code": EXIT_OK if result.success else EXIT_FAILED,
+                          extra={"exit_code": _exit_code(result),
                                  "rest_from_cache": cached, "command": list(args.argv)})
             t_write = time.perf_counter() - t0
         if args.report:
