@@ -195,8 +195,7 @@ def write_rest(out: str | Path, state: Any, scene: Any = None, force: bool = Fal
                            state.body.poisson)
     pd.update(extra_pd)
     pd.update(contact_point_data(n, frame))
-    write_grid(out / "rest.vtu", state.positions, cells_xml("tetra", state.body.mesh.tets), len(state.body.mesh.tets),
-               pd, cd)
+    write_grid(out / "rest.vtu", state.positions, cells_xml("tetra", state.body.mesh.tets), pd, cd)
     figures = state.check(raise_on_failure=False)
     doc = {"schema": "fem_grasp.rest", "schema_version": SCHEMA_VERSION, "fem_grasp_version": package_version(),
            "scene": None if scene is None else scene.to_dict(), "check": figures,

@@ -196,8 +196,7 @@ def write_vtu(path: str | Path, mesh: Any, field_data: dict[str, np.ndarray] | N
         raise OutputError(f"cannot write {path}: one block of cells expected, got {len(mesh.cells)}")
     block = mesh.cells[0]
     cell_data = {k: v[0] for k, v in mesh.cell_data.items()}
-    return write_grid(path, mesh.points, cells_xml(block.type, block.data), len(block.data), mesh.point_data,
-                      cell_data, field_data)
+    return write_grid(path, mesh.points, cells_xml(block.type, block.data), mesh.point_data, cell_data, field_data)
 
 
 def mechanics_fields(reference: np.ndarray, tets: np.ndarray, displacement: np.ndarray, young: float,
@@ -269,13 +268,13 @@ def write_series(out: str | Path, result: Any, progress: Callable[[int, int], No
                  "finger_path": float(path[k]), "frame": k}
         field_data = {key: np.array([v], dtype=np.int32 if key in ("phase", "frame") else float)
                       for key, v in field.items()}
-        write_grid(out / f"series/object_{k:04d}.vtu", fr["positions"], tetra_cells, len(tets), pd, cd, field_data)
+        write_grid(out / f"series/object_{k:04d}.vtu", fr["positions"], tetra_cells, pd, cd, field_data)
         fingers = []
         if fr["finger_centers"] is not None:
             for f, (name, axis) in enumerate((("finger1", d1), ("finger2", d2))):
                 pts, _ = fingertip_surface(fr["finger_centers"][f], fr["finger_radius"], axis)
                 rel_f = f"series/{name}_{k:04d}.vtu"
-                write_grid(out / rel_f, pts, tip_cells, len(tip_triangles))
+                write_grid(out / rel_f, pts, tip_cells)
                 fingers.append((name, rel_f))
         return pd, cd, field, fingers
 
@@ -316,7 +315,7 @@ def write_series(out: str | Path, result: Any, progress: Callable[[int, int], No
     c, half = 0.5 * (lo + hi), 0.75 * float(max(hi[0] - lo[0], hi[1] - lo[1]))
     sq = np.array([[c[0] - half, c[1] - half, z], [c[0] + half, c[1] - half, z],
                    [c[0] + half, c[1] + half, z], [c[0] - half, c[1] + half, z]])
-    write_grid(out / "table.vtu", sq, cells_xml("triangle", np.array([[0, 1, 2], [0, 2, 3]])), 2)
+    write_grid(out / "table.vtu", sq, cells_xml("triangle", np.array([[0, 1, 2], [0, 2, 3]])))
     files.append("table.vtu")
     series["table"] = "table.vtu"
     series["files"] = files

@@ -13,14 +13,14 @@ from __future__ import annotations
 import base64
 import zlib
 from pathlib import Path
-from typing import Mapping
+from typing import Mapping, NamedTuple
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
 from .._files import atomic_write_text
 
-__all__ = ["VTK_CELL_TYPES", "cells_xml", "data_array", "write_grid"]
+__all__ = ["VTK_CELL_TYPES", "Cells", "cells_xml", "data_array", "write_grid"]
 
 #: VTK's cell type codes of the cells written here.
 VTK_CELL_TYPES = {"triangle": 5, "tetra": 10}
@@ -61,7 +61,14 @@ def data_array(name: str, values: np.ndarray) -> str:
             f"{_encoded(a)}</DataArray>")
 
 
-def cells_xml(cell_type: str, connectivity: np.ndarray) -> str:
+class Cells(NamedTuple):
+    """A grid's encoded ``<Cells>`` element and how many cells it holds (:func:`cells_xml`)."""
+
+    xml: str
+    count: int
+
+
+def cells_xml(cell_type: str, connectivity: np.ndarray) -> Cells:
     """The ``<Cells>`` element of cells of one ``cell_type`` (``"triangle"`` or ``"tetra"``), (c, k) node indices.
 
     Encoded once, it serves every grid on the same cells (:func:`write_grid`'s ``cells``).
@@ -73,8 +80,8 @@ def cells_xml(cell_type: str, connectivity: np.ndarray) -> str:
     c, k = conn.shape
     offsets = np.arange(k, k * c + 1, k, dtype=np.int64)
     types = np.full(c, VTK_CELL_TYPES[cell_type], dtype=np.uint8)
-    return ("<Cells>\n" + data_array("connectivity", conn.ravel()) + "\n" + data_array("offsets", offsets) + "\n"
-            + data_array("types", types) + "\n</Cells>")
+    return Cells("<Cells>\n" + data_array("connectivity", conn.ravel()) + "\n" + data_array("offsets", offsets)
+                 + "\n" + data_array("types", types) + "\n</Cells>", c)
 
 
 def _field_data(field_data: Mapping[str, np.ndarray]) -> str:
@@ -89,7 +96,7 @@ def _field_data(field_data: Mapping[str, np.ndarray]) -> str:
     return "<FieldData>\n" + "\n".join(arrays) + "\n</FieldData>\n"
 
 
-def write_grid(path: str | Path, points: np.ndarray, cells: str, n_cells: int,
+def write_grid(path: str | Path, points: np.ndarray, cells: Cells,
                point_data: Mapping[str, np.ndarray] | None = None,
                cell_data: Mapping[str, np.ndarray] | None = None,
                field_data: Mapping[str, np.ndarray] | None = None) -> Path:
@@ -99,9 +106,9 @@ def write_grid(path: str | Path, points: np.ndarray, cells: str, n_cells: int,
     ----------
     points : (n, 3) array
         Node positions.
-    cells : str
-        The grid's ``<Cells>`` element (:func:`cells_xml`), ``n_cells`` cells.
-    point_data, cell_data : mappings of name to (n,) / (n, k) and (n_cells,) / (n_cells, k) arrays
+    cells : Cells
+        The grid's cells, encoded (:func:`cells_xml`).
+    point_data, cell_data : mappings of name to (n,) / (n, k) and (cells.count,) / (cells.count, k) arrays
     field_data : mapping of name to a value or a 1-D array
         VTK field data (one tuple per array), as ParaView shows a grid's global values.
     """
@@ -114,9 +121,9 @@ def write_grid(path: str | Path, points: np.ndarray, cells: str, n_cells: int,
              "<UnstructuredGrid>"]
     if field_data:
         parts.append(_field_data(field_data))
-    parts.append(f'<Piece NumberOfPoints="{len(pts)}" NumberOfCells="{int(n_cells)}">')
+    parts.append(f'<Piece NumberOfPoints="{len(pts)}" NumberOfCells="{cells.count}">')
     parts.append("<Points>\n" + data_array("Points", pts) + "\n</Points>")
-    parts.append(cells)
+    parts.append(cells.xml)
     for tag, data in (("PointData", point_data), ("CellData", cell_data)):
         if data:
             parts.append(f"<{tag}>\n" + "\n".join(data_array(k, v) for k, v in data.items()) + f"\n</{tag}>")

@@ -22,7 +22,7 @@ def test_a_grid_is_read_back_bit_for_bit_by_meshio_and_vtk(tmp_path):
     points, tets, pd, cd = _grid()
     assert tets.nbytes > 3 * BLOCK_BYTES and tets.nbytes % BLOCK_BYTES
     field = {"phase": np.array([2], np.int32), "squeeze_depth": np.array([0.0123456789012345])}
-    path = write_grid(tmp_path / "g.vtu", points, cells_xml("tetra", tets), len(tets), pd, cd, field)
+    path = write_grid(tmp_path / "g.vtu", points, cells_xml("tetra", tets), pd, cd, field)
     m = meshio.read(path)
     np.testing.assert_array_equal(m.points, points)
     assert m.cells[0].type == "tetra"
@@ -49,7 +49,7 @@ def test_a_grid_is_read_back_bit_for_bit_by_meshio_and_vtk(tmp_path):
 def test_triangles_and_empty_data(tmp_path):
     pts = np.array([[0.0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]])
     tris = np.array([[0, 1, 2], [0, 2, 3]])
-    m = meshio.read(write_grid(tmp_path / "t.vtu", pts, cells_xml("triangle", tris), 2))
+    m = meshio.read(write_grid(tmp_path / "t.vtu", pts, cells_xml("triangle", tris)))
     assert m.cells[0].type == "triangle"
     np.testing.assert_array_equal(m.cells[0].data, tris)
     np.testing.assert_array_equal(m.points, pts)
@@ -58,7 +58,7 @@ def test_triangles_and_empty_data(tmp_path):
 def test_the_connectivity_is_compressed(tmp_path):
     """Node indices compress (zlib at level 1); the file is well under the raw connectivity's size."""
     points, tets, _, _ = _grid(n=500, cells=20000, seed=1)
-    path = write_grid(tmp_path / "c.vtu", points, cells_xml("tetra", tets), len(tets))
+    path = write_grid(tmp_path / "c.vtu", points, cells_xml("tetra", tets))
     assert path.stat().st_size < 0.6 * (tets.nbytes + points.nbytes)
 
 
@@ -68,7 +68,7 @@ def test_what_is_not_written_is_refused():
     with pytest.raises(ValueError, match="'hexahedron'"):
         cells_xml("hexahedron", np.zeros((2, 8), int))
     with pytest.raises(ValueError, match=r"\(n, 3\)"):
-        write_grid("/nonexistent/never.vtu", np.zeros((4, 2)), cells_xml("triangle", [[0, 1, 2]]), 1)
+        write_grid("/nonexistent/never.vtu", np.zeros((4, 2)), cells_xml("triangle", [[0, 1, 2]]))
 
 
 def test_a_meshio_mesh_is_written_with_its_field_data(tmp_path):
