@@ -2,7 +2,9 @@
 of :mod:`~fem_grasp.mesh.scan` share it.
 
 Every gmsh call runs in its own quiet, single-threaded, deterministic session (:func:`gmsh_model`): the
-same arguments give bit-identical arrays.  The tetrahedra are read back with boundary slivers removed and
+same arguments give bit-identical arrays.  The points it is given (refinement centres, points to embed) are
+rounded to :data:`POINT_QUANTUM` of the mesh size first (:func:`snapped`), so that arguments that differ by
+round-off give the same mesh too.  The tetrahedra are read back with boundary slivers removed and
 vertices renumbered (:func:`extract_tets`); :func:`mesh_with_vertex_count` finds the mesh size that gives a
 wanted number of vertices; :class:`Refinement` grades the mesh around given points (where the fingertips
 touch).  gmsh is an optional dependency (the ``mesh`` extra, or Debian's ``python3-gmsh``), imported only
@@ -29,7 +31,7 @@ import numpy as np
 from ..errors import require
 
 __all__ = ["AUTO_MESHADAPT_MAX_VERTICES", "Builder", "GMSH_OPTIONS", "Refinement", "SLIVER_QUALITY",
-           "SURFACE_ALGORITHMS", "apply_refinement", "embed_surface_points", "check_lengths", "extract_tets", "generate", "gmsh_model",
+           "SURFACE_ALGORITHMS", "POINT_QUANTUM", "apply_refinement", "rounded_length", "snapped", "embed_surface_points", "check_lengths", "extract_tets", "generate", "gmsh_model",
            "import_gmsh", "mesh_with_vertex_count", "orient_positive", "remove_boundary_slivers", "shape_quality",
            "surface_algorithm"]
 
@@ -71,6 +73,34 @@ class Refinement:
         return cls(tuple(tuple(float(x) for x in row) for row in np.asarray(centers, float)), 2.0 * r, 0.5 * r, r)
 
 
+#: Points handed to gmsh are rounded to about this share of the mesh size (:func:`snapped`), and the lengths of
+#: its size fields to about this share of themselves (:func:`rounded_length`).  gmsh's mesh follows the last bits
+#: of what it is given: the orange's level-1 mesh of the accuracy loop had 2,454, 2,456, 2,511 or 2,537 vertices
+#: as its grasp and patch points were moved by 1e-15 of themselves, which is what another CPU's round-off (numpy's
+#: AVX-512 kernels, OpenBLAS's) does to them.  Rounded, the mesh, and the answer computed on it, are the same on
+#: every machine; a point moves by at most 1e-8 of a spacing.
+POINT_QUANTUM = 1e-8
+
+
+def _grid(length: float) -> float:
+    """The power of two nearest below :data:`POINT_QUANTUM` × ``length``: a grid that round-off in ``length``
+    does not move, on which rounding is exact."""
+    return 2.0 ** math.floor(math.log2(POINT_QUANTUM * float(length)))
+
+
+def snapped(points: Any, size: float) -> np.ndarray:
+    """(k, 3) ``points`` rounded to a grid of about :data:`POINT_QUANTUM` × ``size`` (metres): round-off in them
+    no longer changes the mesh, short of a coordinate within round-off of a half-step of the grid."""
+    q = _grid(size)
+    return np.round(np.asarray(points, float).reshape(-1, 3) / q) * q
+
+
+def rounded_length(length: float) -> float:
+    """``length`` rounded to a grid of about :data:`POINT_QUANTUM` of itself (see :func:`snapped`)."""
+    q = _grid(length)
+    return float(round(float(length) / q) * q)
+
+
 def apply_refinement(gmsh: Any, refine: "Refinement | Sequence[Refinement] | None", mesh_size: float) -> None:
     """Set the background size field of the current model (no-op without a refinement).
 
@@ -82,11 +112,12 @@ def apply_refinement(gmsh: Any, refine: "Refinement | Sequence[Refinement] | Non
     field = gmsh.model.mesh.field
     balls = []
     for ref in ((refine,) if isinstance(refine, Refinement) else tuple(refine)):
-        for x, y, z in ref.centers:
+        lengths = {"Radius": ref.radius, "Thickness": ref.thickness, "VIn": min(ref.size, mesh_size),
+                   "VOut": mesh_size}
+        lengths = {key: rounded_length(value) for key, value in lengths.items()}
+        for x, y, z in snapped(ref.centers, lengths["VIn"]):
             f = field.add("Ball")
-            for key, value in (("Radius", ref.radius), ("Thickness", ref.thickness),
-                               ("VIn", min(ref.size, mesh_size)), ("VOut", mesh_size),
-                               ("XCenter", x), ("YCenter", y), ("ZCenter", z)):
+            for key, value in (*lengths.items(), ("XCenter", x), ("YCenter", y), ("ZCenter", z)):
                 field.setNumber(f, key, float(value))
             balls.append(f)
     if not balls:
@@ -106,7 +137,7 @@ def embed_surface_points(gmsh: Any, volume: int, points: np.ndarray | None, mesh
     Call before :func:`apply_refinement` and :func:`generate`, with the OCC model not yet synchronised after the
     volume was made.  Returns the number embedded (points off the surface by more than
     :data:`EMBED_TOLERANCE` × ``mesh_size`` are not)."""
-    pts = np.zeros((0, 3)) if points is None else np.asarray(points, float).reshape(-1, 3)
+    pts = np.zeros((0, 3)) if points is None else snapped(points, mesh_size)
     occ = gmsh.model.occ
     tags = [occ.addPoint(*map(float, p)) for p in pts]
     occ.synchronize()
@@ -225,7 +256,7 @@ def _gmsh_model(name: str, mesh_size: float, surface_algorithm: int) -> Iterator
             gmsh.initialize([], False)  # no argv, do not read the user's gmshrc
     try:
         options = dict(GMSH_OPTIONS)
-        options["Mesh.MeshSizeMax"] = float(mesh_size)
+        options["Mesh.MeshSizeMax"] = rounded_length(mesh_size)
         options["Mesh.Algorithm"] = surface_algorithm
         for key, value in options.items():
             if nested:

@@ -225,7 +225,7 @@ def test_points_on_a_paper_shapes_curved_surface_become_nodes_and_the_mesh_stays
     refine = patch_refinement(points, 2e-3, 6e-3, 8e-3)
     plain, embedded = geo.build(8e-3, [refine]), geo.build(8e-3, [refine], embed=points)
     at = embedded.points[nearest_surface_nodes(embedded, points)]
-    assert np.allclose(at, points, atol=1e-12)
+    assert np.allclose(at, points, rtol=0, atol=1e-9)  # within the grid gmsh's points are rounded to
     assert embedded.volume == pytest.approx(geo.volume, rel=0.03)
     assert 0.8 < len(embedded.points) / len(plain.points) < 1.25
     off = points + [[0.0, -1e-3, 0.0], [0.0, 1e-3, 0.0]]  # a millimetre outside
@@ -234,3 +234,33 @@ def test_points_on_a_paper_shapes_curved_surface_become_nodes_and_the_mesh_stays
     assert PaperGeometry(name).embeds_points and not PaperGeometry(name, embed_points=False).embeds_points
     plain = PaperGeometry(name, embed_points=False).build(8e-3, [refine], embed=points)
     assert np.linalg.norm(plain.points[nearest_surface_nodes(plain, points)] - points, axis=1).max() > 1e-6
+
+
+@pytest.mark.gmsh
+def test_round_off_in_what_gmsh_is_given_does_not_change_the_mesh(gmsh):
+    """gmsh's mesh follows the last bits of its points and lengths, and another CPU's round-off moves them (the
+    accuracy loop's grasp and patch points, its level's spacings): they are rounded to a grid of about 1e-8 of the
+    spacing first (``POINT_QUANTUM``), so a mesh moved by 1e-15 of itself is the same mesh, and each point given to
+    embed is a node within that grid of where it was asked."""
+    from fem_grasp.mesh.gmsh_session import POINT_QUANTUM
+    from fem_grasp.mesh.remesh import PaperGeometry, nearest_surface_nodes, patch_refinement
+
+    geo = PaperGeometry("orange", embed_points=True)
+    samples = geo.surface_points(0.3e-3)
+    grasp = samples[[int(np.argmin(samples[:, 1])), int(np.argmax(samples[:, 1]))]]
+    fingers = samples[np.linalg.norm(samples[:, None, :] - grasp[None], axis=2).min(axis=1) < 4e-3]
+    table = samples[samples[:, 2] < samples[:, 2].min() + 2e-3]
+    inner, outer = 2.45e-3, 6.9e-3
+
+    def mesh(points, fingers, table, inner, outer):
+        refs = [patch_refinement(fingers, inner, 2 * inner, outer), patch_refinement(table, 2 * inner, 4 * inner, outer)]
+        return geo.build(outer, refs, embed=points)
+
+    first = mesh(grasp, fingers, table, inner, outer)
+    at = first.points[nearest_surface_nodes(first, grasp)]
+    np.testing.assert_allclose(at, grasp, rtol=0, atol=2 * POINT_QUANTUM * outer)
+    rng = np.random.default_rng(7)
+    for k in range(4):
+        jitter = lambda a: a * (1.0 + 1e-15 * rng.standard_normal(np.shape(a)))
+        again = mesh(jitter(grasp), jitter(fingers), jitter(table), jitter(inner), jitter(outer))
+        assert again.n_points == first.n_points and np.array_equal(again.points, first.points), k
