@@ -31,7 +31,8 @@ import numpy as np
 from ..errors import require
 
 __all__ = ["AUTO_MESHADAPT_MAX_VERTICES", "Builder", "GMSH_OPTIONS", "Refinement", "SLIVER_QUALITY",
-           "SURFACE_ALGORITHMS", "POINT_QUANTUM", "apply_refinement", "rounded_length", "snapped", "embed_surface_points", "check_lengths", "extract_tets", "generate", "gmsh_model",
+           "SURFACE_ALGORITHMS", "POINT_QUANTUM", "apply_refinement", "rounded_length", "snapped",
+           "embed_surface_points", "check_lengths", "extract_tets", "generate", "gmsh_model",
            "import_gmsh", "mesh_with_vertex_count", "orient_positive", "remove_boundary_slivers", "shape_quality",
            "surface_algorithm"]
 

@@ -253,7 +253,8 @@ def test_round_off_in_what_gmsh_is_given_does_not_change_the_mesh(gmsh):
     inner, outer = 2.45e-3, 6.9e-3
 
     def mesh(points, fingers, table, inner, outer):
-        refs = [patch_refinement(fingers, inner, 2 * inner, outer), patch_refinement(table, 2 * inner, 4 * inner, outer)]
+        refs = [patch_refinement(fingers, inner, 2 * inner, outer),
+                patch_refinement(table, 2 * inner, 4 * inner, outer)]
         return geo.build(outer, refs, embed=points)
 
     first = mesh(grasp, fingers, table, inner, outer)
