@@ -92,7 +92,14 @@ Sections (``--only NAME``, repeatable; default all):
     else from the full study's committed references
     (``verification/converge/references.json``); an object with neither is
     skipped (``--accuracy-compute`` computes the study's: hours, minutes for
-    the quick study).
+    the quick study).  The default is run again on ``--accuracy-draws``
+    other draws of its meshes: each rounds the points and lengths gmsh is
+    given to another grid (``POINT_QUANTUM`` times 2, 4, ...: a move of at
+    most a millionth of a spacing, which gives gmsh's mesh of the same level
+    other tetrahedra, as another CPU's round-off did before gmsh's inputs
+    were rounded); the row gives how often the loop converges, the spread of
+    its time, its answer's error and its stated error, and how often that
+    covers the error.
 ``divisions``
     Per shipped scene, the pickup at its squeeze increment s, at s with the
     increment in which the lift test passes divided in four
@@ -733,6 +740,9 @@ ACCURACY_RUNS = (("one_level", "one level (accuracy off)"), ("default", "Scene.r
                  ("adaptive", f"adaptive, accuracy = {100 * ACCURACY_TARGET:g} %"))
 #: The quantities compared, as named in the answer and in the loop's estimate.
 ACCURACY_QUANTITIES = ("squeeze_depth", "finger_force")
+#: Other draws of the default's meshes (``--accuracy-draws``): draw k rounds gmsh's inputs to a grid 2**k times
+#: :data:`fem_grasp.mesh.gmsh_session.POINT_QUANTUM`.
+ACCURACY_DRAWS = 4
 
 
 def study_references(quick: bool = False, compute: bool = False,
@@ -778,17 +788,21 @@ def _source(ref: dict[str, Any]) -> str:
     return f"verification/converge/references.json: {made} of {src.get('date')} on {src.get('machine')}"
 
 
-def accuracy_worker(name: str, run: str) -> None:
+def accuracy_worker(name: str, run: str, draw: int = 0) -> None:
     """Run in a subprocess: one of :data:`ACCURACY_RUNS` of a shipped scene, one JSON line with its answer, its
     wall time (``Scene.run()`` with no mesh or rest cache: loading the mesh, the rest, the pickup; the numba
     kernels loaded before) and the error it states.  The run is made twice: the first call of the process
     (``seconds``: what a command pays) and a later one (``later_seconds``: a session that runs several, its
-    imports and the allocator's pages paid already), with ``later_same``, whether it gave the same answer."""
+    imports and the allocator's pages paid already), with ``later_same``, whether it gave the same answer.
+    ``draw`` k > 0: gmsh's inputs rounded to a grid 2**k times as coarse (another draw of the same levels'
+    meshes), the first call only."""
     from fem_grasp.grasp.answer import answer_of
     from fem_grasp.io.scene import Scene
+    from fem_grasp.mesh import gmsh_session
 
     if run not in dict(ACCURACY_RUNS):
         raise SystemExit(f"unknown run {run!r}; expected one of {', '.join(k for k, _ in ACCURACY_RUNS)}")
+    gmsh_session.POINT_QUANTUM *= 2.0 ** int(draw)
 
     def scene() -> Scene:
         shipped = Scene.load(name)
@@ -802,10 +816,12 @@ def accuracy_worker(name: str, run: str) -> None:
     first = scene()
     seconds, result = timed(lambda: first.run(cache_dir=None))
     answer = answer_of(result, seconds).to_dict()
-    again = scene()
-    later_seconds, later = timed(lambda: again.run(cache_dir=None))
-    later_answer = answer_of(later, later_seconds).to_dict()
-    later_same = all(later_answer[k] == answer[k] for k in ("success", "squeeze_depth", "finger_force"))
+    later_seconds = later_same = None
+    if not int(draw):
+        again = scene()
+        later_seconds, later = timed(lambda: again.run(cache_dir=None))
+        later_answer = answer_of(later, later_seconds).to_dict()
+        later_same = all(later_answer[k] == answer[k] for k in ("success", "squeeze_depth", "finger_force"))
     acc = result.accuracy or {}
     est = acc.get("estimated_error") or {}
     # A single run states the scene's expected_error, or nothing (single_run_report then puts inf there).
@@ -868,10 +884,10 @@ def accuracy_errors(raw: dict[str, Any], reference: dict[str, Any]) -> dict[str,
     return row
 
 
-def run_accuracy_worker(name: str, run: str, cap: float) -> dict[str, Any]:
+def run_accuracy_worker(name: str, run: str, cap: float, draw: int = 0) -> dict[str, Any]:
     """:func:`accuracy_worker` in a subprocess of at most ``cap`` seconds: its JSON line, or a ``status`` that says
     why there is none ("cap" or the error)."""
-    cmd = [sys.executable, "-m", "bench.bench", "--worker-accuracy", f"{name}:{run}"]
+    cmd = [sys.executable, "-m", "bench.bench", "--worker-accuracy", f"{name}:{run}:{int(draw)}"]
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         out, err = proc.communicate(timeout=cap)
@@ -892,17 +908,18 @@ def default_accuracy(name: str) -> float | None:
 
 
 def section_accuracy(cap: float = 600.0, quick: bool = False, compute: bool = False,
-                     objects: tuple[str, ...] = ACCURACY_OBJECTS) -> dict[str, Any]:
+                     objects: tuple[str, ...] = ACCURACY_OBJECTS, draws: int = ACCURACY_DRAWS) -> dict[str, Any]:
     """Per shipped object, the wall time and the actual error of the one level run, the default and the adaptive
     loop (module notes) against the object's reference: its pinned one (the placement rule's own grasp points,
     :mod:`verification.converge.references`) where it has one, with the error against the study's (each mesh
     grasping at its own nodes) beside it as ``error_study``; else the study's.  Objects without either are
-    skipped."""
+    skipped.  The default is run again on ``draws`` other draws of its meshes (``rows["draws"]``, a list of
+    rows)."""
     from verification.converge import references
 
     refs = study_references(quick=quick, compute=compute, objects=objects)
     out: dict[str, Any] = {"study": "quick" if quick else "full", "cap_s": cap, "target": ACCURACY_TARGET,
-                           "objects": {}}
+                           "draws": draws, "objects": {}}
     for name in objects:
         ref = refs.get(name)
         if not ref:
@@ -925,6 +942,11 @@ def section_accuracy(cap: float = 600.0, quick: bool = False, compute: bool = Fa
             if "answer" in raw and pinned and study:
                 rows[run]["error_study"] = accuracy_errors(raw, study)["error"]
             log.info("accuracy %s, %s: %s", name, run, rows[run].get("status"))
+        rows["draws"] = []
+        for draw in range(1, draws + 1):
+            raw = run_accuracy_worker(name, "default", cap, draw)
+            rows["draws"].append(accuracy_errors(raw, reference) if "answer" in raw else raw)
+            log.info("accuracy %s, default, mesh draw %d: %s", name, draw, rows["draws"][-1].get("status"))
         out["objects"][name] = {"reference": reference, "study_reference": study if pinned else None, "rows": rows}
     return out
 
@@ -977,33 +999,52 @@ def print_accuracy(sec: dict[str, Any]) -> None:
             if r.get("same_as"):
                 print(f"{'':<11} {label:<28} the same run as {dict(ACCURACY_RUNS)[r['same_as']]}")
                 continue
-            if r["status"] == "cap":
-                print(f"{'':<11} {label:<28} not run (cap: beyond {r['cap_s']:g} s)")
-                continue
-            if r["status"] != "ok":
-                print(f"{'':<11} {label:<28} failed: {r.get('error', r['status'])}")
-                continue
-            v = ("picked up" if r["success"] else "NOT picked up") + (", ok" if r["verdict_ok"] else ", WRONG")
-            st = r["stated"]
-            stated = "unknown" if not st else f"{_pct(st['squeeze_depth'])}/{_pct(st['finger_force'])}"
-            covers = {None: "–", True: "yes", False: "NO"}[r["covers"]]
-            if r["covers"] is False and r.get("covers_with_reference"):
-                covers = "NO, ref"
-            e = r["error"]
-            later = r.get("later_seconds")
-            secs = f"{r['seconds']:.1f}" + ("" if later is None else f"/{later:.1f}")
-            if r.get("later_same") is False:
-                v += ", later call differs"
-            print(f"{'':<11} {label:<28} {secs:>11} {r['vertices']:8d} {v:<22} {1e3 * r['rho']:8.3f} "
-                  f"{_pct(e['squeeze_depth']):>15} {r['force']:8.3f} {_pct(e['finger_force']):>15} {stated:>15} "
-                  f"{covers:>7}" + (f"  {r['levels']} levels, {'converged' if r['converged'] else 'not converged'}"
-                                    if (r.get("levels") or 0) > 1 else "")
-                  + (f"  (study's: {_pct(r['error_study']['squeeze_depth'])} / "
-                     f"{_pct(r['error_study']['finger_force'])})" if r.get("error_study") else ""))
-            if (r.get("levels") or 0) > 1 and r.get("level_answers"):
-                print(f"{'':<11} {'':<28} levels: " + "; ".join(
-                    f"{v:,} v {1e3 * rho:.3f} mm {f:.3f} N" + ("" if ok else " (not picked up)")
-                    for v, rho, f, ok in r["level_answers"]))
+            _print_accuracy_row(label, r)
+        draws = obj["rows"].get("draws") or []
+        for k, r in enumerate(draws, 1):
+            _print_accuracy_row(f"Scene.run(), mesh draw {k}", r)
+        runs = [obj["rows"]["default"]] + draws
+        ok = [r for r in runs if r.get("status") == "ok"]
+        if draws and ok:
+            secs = sorted(r["seconds"] for r in ok)
+            worst = {q: max(r["error"][q] for r in ok) for q in ACCURACY_QUANTITIES}
+            label = f"Scene.run(), all {len(runs)} draws"
+            print(f"{'':<11} {label:<28} converged {sum(bool(r['converged']) for r in ok)}/{len(runs)}, median "
+                  f"{statistics.median(secs):.1f} s ({secs[0]:.1f}-{secs[-1]:.1f}), verdict "
+                  f"{sum(r['verdict_ok'] for r in ok)}/{len(runs)}, largest error {_pct(worst['squeeze_depth'])} / "
+                  f"{_pct(worst['finger_force'])}, stated error covers it {sum(bool(r['covers']) for r in ok)}"
+                  f"/{len(runs)}")
+
+
+def _print_accuracy_row(label: str, r: dict[str, Any]) -> None:
+    """One run's row of :func:`print_accuracy` (and its levels' answers)."""
+    if r["status"] == "cap":
+        print(f"{'':<11} {label:<28} not run (cap: beyond {r['cap_s']:g} s)")
+        return
+    if r["status"] != "ok":
+        print(f"{'':<11} {label:<28} failed: {r.get('error', r['status'])}")
+        return
+    v = ("picked up" if r["success"] else "NOT picked up") + (", ok" if r["verdict_ok"] else ", WRONG")
+    st = r["stated"]
+    stated = "unknown" if not st else f"{_pct(st['squeeze_depth'])}/{_pct(st['finger_force'])}"
+    covers = {None: "–", True: "yes", False: "NO"}[r["covers"]]
+    if r["covers"] is False and r.get("covers_with_reference"):
+        covers = "NO, ref"
+    e = r["error"]
+    later = r.get("later_seconds")
+    secs = f"{r['seconds']:.1f}" + ("" if later is None else f"/{later:.1f}")
+    if r.get("later_same") is False:
+        v += ", later call differs"
+    print(f"{'':<11} {label:<28} {secs:>11} {r['vertices']:8d} {v:<22} {1e3 * r['rho']:8.3f} "
+          f"{_pct(e['squeeze_depth']):>15} {r['force']:8.3f} {_pct(e['finger_force']):>15} {stated:>15} "
+          f"{covers:>7}" + (f"  {r['levels']} levels, {'converged' if r['converged'] else 'not converged'}"
+                            if (r.get("levels") or 0) > 1 else "")
+          + (f"  (study's: {_pct(r['error_study']['squeeze_depth'])} / "
+             f"{_pct(r['error_study']['finger_force'])})" if r.get("error_study") else ""))
+    if (r.get("levels") or 0) > 1 and r.get("level_answers"):
+        print(f"{'':<11} {'':<28} levels: " + "; ".join(
+            f"{v:,} v {1e3 * rho:.3f} mm {f:.3f} N" + ("" if ok else " (not picked up)")
+            for v, rho, f, ok in r["level_answers"]))
 
 
 # -------------------------------------------------------------------- main
@@ -1054,6 +1095,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                          "(default 600)")
     ap.add_argument("--accuracy-objects", nargs="+", choices=ACCURACY_OBJECTS, default=list(ACCURACY_OBJECTS),
                     help="section accuracy: the shipped scenes to run (default: all five)")
+    ap.add_argument("--accuracy-draws", type=int, default=ACCURACY_DRAWS,
+                    help="section accuracy: run the default again on this many other draws of its meshes (gmsh's "
+                         f"inputs rounded to other grids; default {ACCURACY_DRAWS}, 0: none)")
     ap.add_argument("--accuracy-compute", action="store_true",
                     help="section accuracy: compute the convergence study's missing references first (hours; "
                          "minutes with --converge-quick); by default an object without one is skipped")
@@ -1070,7 +1114,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         floor_worker(args.worker_floor, args.reps)
         return {}
     if args.worker_accuracy:
-        accuracy_worker(*args.worker_accuracy.split(":", 1))
+        name, run, draw = args.worker_accuracy.split(":")
+        accuracy_worker(name, run, int(draw))
         return {}
     sections = args.only or list(SECTIONS)
     data: dict[str, Any] = {}
@@ -1108,7 +1153,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                                               routes=ROUTES)
         elif name == "accuracy":
             data["accuracy"] = section_accuracy(args.accuracy_cap, args.converge_quick, args.accuracy_compute,
-                                                tuple(args.accuracy_objects))
+                                                tuple(args.accuracy_objects), args.accuracy_draws)
         elif name == "divisions":
             from bench.divisions import measure
 

@@ -338,16 +338,20 @@ def test_the_accuracy_section_measures_each_run_against_the_study_reference(monk
            "default": _fake_answer(rho=0.0104, force=6.6, stated={"squeeze_depth": 0.05, "finger_force": 0.05}),
            "adaptive": {"status": "cap", "cap_s": 7.0}}
     ran = []
+    # another draw of the default's meshes: 8 % / 3 % off, stating 10 % / 10 %
+    drawn = _fake_answer(rho=0.0108, force=6.18, stated={"squeeze_depth": 0.1, "finger_force": 0.1})
 
-    def fake_worker(name, run, cap):
-        ran.append((name, run, cap))
-        return raw[run]
+    def fake_worker(name, run, cap, draw=0):
+        ran.append((name, run, cap, draw))
+        return drawn if draw else raw[run]
 
     monkeypatch.setattr(bench, "run_accuracy_worker", fake_worker)
     monkeypatch.setattr(bench, "default_accuracy", lambda name: None)  # a default of one run: three runs
-    sec = bench.section_accuracy(cap=7.0, objects=("orange", "tomato"))
+    sec = bench.section_accuracy(cap=7.0, objects=("orange", "tomato"), draws=2)
     assert asked == [(False, False, ("orange", "tomato"))]  # read only: the study is not started
-    assert ran == [("orange", run, 7.0) for run, _ in bench.ACCURACY_RUNS]  # tomato: no reference, not run
+    # tomato: no reference, not run; the default again on two other draws of its meshes
+    assert ran == [("orange", run, 7.0, 0) for run, _ in bench.ACCURACY_RUNS] + [("orange", "default", 7.0, k)
+                                                                                  for k in (1, 2)]
     assert sec["objects"]["tomato"] == {"reference": None}
     rows = sec["objects"]["orange"]["rows"]
     one, default = rows["one_level"], rows["default"]
@@ -382,12 +386,18 @@ def test_the_accuracy_section_measures_each_run_against_the_study_reference(monk
     assert not any("wrong verdict" in line for line in text.splitlines() if "picked up" in line)
     assert "10 %" in text and "yes" in text and "NO" in text
     assert "2.0/1.5" in text  # the first call of the process and a later one
+    draws = rows["draws"]
+    assert len(draws) == 2 and draws[0]["covers"] is True
+    assert draws[0]["error"]["squeeze_depth"] == pytest.approx(0.08)
+    # the default and its two draws: the largest error of each quantity, covered by two of the three
+    (summary,) = [line for line in text.splitlines() if "all 3 draws" in line]
+    assert "largest error 8 % / 10 %" in summary and "covers it 2/3" in summary and "verdict 3/3" in summary
 
     # where the scene's default is the adaptive loop at the target, that run is not made twice: its row repeats
     monkeypatch.setattr(bench, "default_accuracy", lambda name: bench.ACCURACY_TARGET)
     ran.clear()
-    again = bench.section_accuracy(cap=7.0, objects=("orange",))["objects"]["orange"]["rows"]
-    assert ran == [("orange", "one_level", 7.0), ("orange", "default", 7.0)]
+    again = bench.section_accuracy(cap=7.0, objects=("orange",), draws=0)["objects"]["orange"]["rows"]
+    assert ran == [("orange", "one_level", 7.0, 0), ("orange", "default", 7.0, 0)] and again["draws"] == []
     assert again["adaptive"]["same_as"] == "default" and again["adaptive"]["error"] == again["default"]["error"]
     bench.print_accuracy({"study": "full", "cap_s": 7.0, "target": 0.05,
                           "objects": {"orange": {"reference": reference, "rows": again}}})
@@ -409,7 +419,7 @@ def test_the_accuracy_section_measures_against_the_pinned_reference_where_an_obj
                                          "date": "2026-12-04", "machine": "test"}}
     monkeypatch.setattr(bench, "study_references", lambda quick, compute, objects: {
         "orange": dict(study, pinned=pinned), "tomato": {"pinned": pinned}})
-    monkeypatch.setattr(bench, "run_accuracy_worker", lambda name, run, cap: _fake_answer(
+    monkeypatch.setattr(bench, "run_accuracy_worker", lambda name, run, cap, draw=0: _fake_answer(
         rho=0.0102, force=5.88, stated={"squeeze_depth": 0.03, "finger_force": 0.06}))
     sec = bench.section_accuracy(cap=7.0, objects=("orange", "tomato"))
     orange, tomato = sec["objects"]["orange"], sec["objects"]["tomato"]
