@@ -38,12 +38,13 @@ answer is the last level's.  The estimated error (:func:`estimated_error`) is
 converging at least linearly in the spacing with ratio 2, the last level's
 error against the converged value is at most the difference, and two levels
 may agree by chance (Roache's grid convergence index of a two-grid study) —
-or, from the third level on, the larger of the difference and the
+or, from the third level on, the larger of that and the
 uncertainty of the last three levels (:func:`~fem_grasp.grasp.level_error.three_level_errors`, after Eça and
 Hoekstra, :mod:`fem_grasp.grasp.estimates`: 1.25 × the extrapolated error
 where they converge monotonically, at least 1.25 × their spread where faster
-than order 2, three times their spread where they swing, but no less than
-the two-level estimate where they do not converge), plus the resolution
+than order 2, three times their spread where they swing; remeshed levels
+are not in an asymptotic range, so three levels never state less than two
+would), plus the resolution
 of ρ* (one increment); for ρ* the part before the resolution is at least one
 resolution too (two levels that find the same ρ* agree only to within it).  Where three levels are
 monotone with an observed order, the Richardson estimate is reported too
