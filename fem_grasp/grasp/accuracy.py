@@ -493,8 +493,8 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         elif max(report.estimated_error.values()) <= accuracy:
             report.converged = True
             report.note = (f"levels {level - 1} and {level} agree within {100 * accuracy:g} %: the estimated error is "
-                           + ("the larger of their difference and the uncertainty of the last three levels"
-                              if three else "three times their difference") + " plus the resolution of rho* "
+                           + ("the larger of three times their difference and the uncertainty of the last three "
+                              "levels" if three else "three times their difference") + " plus the resolution of rho* "
                            "(for rho*, at least twice the resolution)")
             break
         f2, t2 = patch_points(result)

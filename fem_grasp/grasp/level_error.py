@@ -55,8 +55,9 @@ def estimated_error(change: dict[str, float], ans: GraspAnswer,
                     three_levels: dict[str, dict[str, Any]] | None = None) -> dict[str, float]:
     """Relative error of a level's answer: :data:`TWO_LEVEL_SAFETY` × its change from the level before — or,
     where the last three levels lifted the object, the larger of that and their uncertainty (``three_levels``,
-    :func:`three_level_errors`) — plus, for a level that found ρ*, its resolution (ρ* is found up to one increment, or sub-increment, late,
-    and the finger force grows with ρ*, about in proportion near the lift-off).  For ρ* the change itself is
+    :func:`three_level_errors`) — plus, for a level that found ρ*, its resolution (ρ* is found up to one
+    increment, or sub-increment, late, and the finger force grows with ρ*, about in proportion near the
+    lift-off).  For ρ* the change itself is
     known only to a resolution (two levels on one grid of depths find the same ρ* wherever theirs lie within one
     step of it), so its part is at least one resolution: ρ*'s estimate is at least two.
 
