@@ -802,7 +802,7 @@ def accuracy_worker(name: str, run: str, draw: int = 0) -> None:
 
     if run not in dict(ACCURACY_RUNS):
         raise SystemExit(f"unknown run {run!r}; expected one of {', '.join(k for k, _ in ACCURACY_RUNS)}")
-    gmsh_session.POINT_QUANTUM *= 2.0 ** int(draw)
+    gmsh_session.POINT_QUANTUM *= 2.0 ** draw
 
     def scene() -> Scene:
         shipped = Scene.load(name)
@@ -817,7 +817,7 @@ def accuracy_worker(name: str, run: str, draw: int = 0) -> None:
     seconds, result = timed(lambda: first.run(cache_dir=None))
     answer = answer_of(result, seconds).to_dict()
     later_seconds = later_same = None
-    if not int(draw):
+    if not draw:
         again = scene()
         later_seconds, later = timed(lambda: again.run(cache_dir=None))
         later_answer = answer_of(later, later_seconds).to_dict()

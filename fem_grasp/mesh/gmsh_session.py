@@ -2,9 +2,9 @@
 of :mod:`~fem_grasp.mesh.scan` share it.
 
 Every gmsh call runs in its own quiet, single-threaded, deterministic session (:func:`gmsh_model`): the
-same arguments give bit-identical arrays.  The points it is given (refinement centres, points to embed) are
-rounded to :data:`POINT_QUANTUM` of the mesh size first (:func:`snapped`), so that arguments that differ by
-round-off give the same mesh too.  The tetrahedra are read back with boundary slivers removed and
+same arguments give bit-identical arrays.  The points it is given (refinement centres, points to embed) and the
+lengths of its size fields are rounded to about :data:`POINT_QUANTUM` of the mesh size first (:func:`snapped`,
+:func:`rounded_length`), so that arguments that differ by round-off give the same mesh too.  The tetrahedra are read back with boundary slivers removed and
 vertices renumbered (:func:`extract_tets`); :func:`mesh_with_vertex_count` finds the mesh size that gives a
 wanted number of vertices; :class:`Refinement` grades the mesh around given points (where the fingertips
 touch).  gmsh is an optional dependency (the ``mesh`` extra, or Debian's ``python3-gmsh``), imported only
@@ -77,9 +77,9 @@ class Refinement:
 #: Points handed to gmsh are rounded to about this share of the mesh size (:func:`snapped`), and the lengths of
 #: its size fields to about this share of themselves (:func:`rounded_length`).  gmsh's mesh follows the last bits
 #: of what it is given: the orange's level-1 mesh of the accuracy loop had 2,454, 2,456, 2,511 or 2,537 vertices
-#: as its grasp and patch points were moved by 1e-15 of themselves, which is what another CPU's round-off (numpy's
-#: AVX-512 kernels, OpenBLAS's) does to them.  Rounded, the mesh, and the answer computed on it, are the same on
-#: every machine; a point moves by at most 1e-8 of a spacing.
+#: as its grasp and patch points were moved by 1e-15 of themselves, the size of the round-off another CPU's
+#: arithmetic leaves in them (the loop built other meshes on two AMD EPYC machines).  Rounded, the mesh, and the
+#: answer computed on it, are the same on every machine; a point moves by at most 1e-8 of a spacing.
 POINT_QUANTUM = 1e-8
 
 
