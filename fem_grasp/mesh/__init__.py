@@ -7,6 +7,8 @@
   of Table I at a given vertex count, graded where the fingertips touch (:class:`Refinement`);
 * :mod:`~fem_grasp.mesh.scan` — a closed triangle surface (STL, OBJ, PLY) checked and filled with tetrahedra;
 * :mod:`~fem_grasp.mesh.gmsh_session` — the one deterministic gmsh session both use;
+* :mod:`~fem_grasp.mesh.remesh` — geometries meshed afresh at any spacing, graded at contact patches;
+  :mod:`~fem_grasp.mesh.bisection` — a mesh refined in place by longest-edge bisection (nested levels);
 * :mod:`~fem_grasp.mesh.units` — the length unit of a mesh file (scans in mm), and warnings naming the likely
   unit when an object's size or density is implausible.
 

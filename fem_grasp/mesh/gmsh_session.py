@@ -67,6 +67,16 @@ class Refinement:
         if c.ndim != 2 or c.shape[1] != 3 or len(c) == 0 or not np.isfinite(c).all():
             raise ValueError(f"refinement centres must be finite 3-vectors, got {self.centers!r}")
 
+    def size_at(self, points: np.ndarray, outer: float) -> np.ndarray:
+        """(k,) the edge length this refinement asks at ``points`` (k, 3) in a mesh of size ``outer``: gmsh's Ball
+        field, ``size`` within ``radius`` of the nearest centre, growing linearly to ``outer`` over ``thickness``."""
+        from scipy.spatial import cKDTree
+
+        d, _ = cKDTree(np.asarray(self.centers, float)).query(np.asarray(points, float).reshape(-1, 3))
+        inner = min(self.size, outer)
+        share = np.clip((d - self.radius) / self.thickness, 0.0, 1.0)
+        return inner + share * (outer - inner)
+
     @classmethod
     def around(cls, centers: np.ndarray, finger_radius: float) -> "Refinement":
         """The default grading for fingertips of radius R: size R/2 within 2R, growing over R."""

@@ -165,6 +165,11 @@ class Geometry:
     def describe(self) -> str:
         return type(self).__name__
 
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """(k, 3) ``points`` near the solid's surface moved onto it, for a curved surface that a refined mesh should
+        follow (:func:`fem_grasp.mesh.bisection.refine_to_size`); a flat or faceted one returns them unchanged."""
+        return np.asarray(points, float)
+
     def surface_points(self, spacing: float) -> np.ndarray:
         """(n, 3) points on the solid's surface about ``spacing`` apart or closer: where a rule that picks surface
         nodes (the fingers' placement) finds the point a fine enough mesh would have as a node."""
@@ -202,6 +207,21 @@ class PaperGeometry(Geometry):
 
     def describe(self) -> str:
         return f"paper shape {self.name}"
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """Along the ray from the spheroid's centre (the dome's flat base, z = 0, stays where it is)."""
+        shape = PAPER_SHAPES[self.name]
+        p = np.array(points, float).reshape(-1, 3)
+        if shape.kind == "ellipsoid":
+            axes, centre = np.asarray(shape.dimensions, float), np.zeros(3)
+            curved = np.ones(len(p), dtype=bool)
+        else:
+            r, h, e = shape.dimensions
+            axes, centre = np.array([r, r, h], float), np.array([0.0, 0.0, e])
+            curved = p[:, 2] > 1e-9 * h
+        q = p[curved] - centre
+        p[curved] = centre + q / np.linalg.norm(q / axes, axis=1)[:, None]
+        return p
 
     def surface_points(self, spacing: float) -> np.ndarray:
         shape = PAPER_SHAPES[self.name]
@@ -318,6 +338,12 @@ class SurfaceGeometry(Geometry):
 
     def describe(self) -> str:
         return f"surface {self.surface.source} ({len(self.surface.faces)} triangles)"
+
+    def project(self, points: np.ndarray) -> np.ndarray:
+        """The nearest points of the triangle surface (:func:`fem_grasp.mesh.scan.closest_points`)."""
+        from .scan import closest_points
+
+        return closest_points(self.surface, points)
 
     def surface_points(self, spacing: float) -> np.ndarray:
         """The surface's vertices: a faceted surface has its extremes there."""

@@ -34,7 +34,7 @@ from ..errors import SurfaceError
 from .units import length_scale
 
 __all__ = ["SURFACE_SUFFIXES", "SurfaceError", "Surface", "read_surface", "check_surface", "self_intersections",
-           "mesh_surface", "surface_report"]
+           "mesh_surface", "surface_report", "closest_points"]
 
 log = logging.getLogger(__name__)
 
@@ -329,6 +329,50 @@ def self_intersections(points: np.ndarray, faces: np.ndarray, max_report: int | 
 
 
 # ------------------------------------------------------------------ meshing
+def _closest_on_triangles(p: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray) -> np.ndarray:
+    """(k, 3) the point of each triangle (a, b, c) closest to p (Ericson, Real-Time Collision Detection, 5.1.5):
+    its barycentric coordinates projected onto the triangle, region by region."""
+    ab, ac, ap = b - a, c - a, p - a
+    d1, d2 = (ab * ap).sum(-1), (ac * ap).sum(-1)
+    bp, cp = p - b, p - c
+    d3, d4 = (ab * bp).sum(-1), (ac * bp).sum(-1)
+    d5, d6 = (ab * cp).sum(-1), (ac * cp).sum(-1)
+    va, vb, vc = d3 * d6 - d5 * d4, d5 * d2 - d1 * d6, d1 * d4 - d3 * d2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        denom = va + vb + vc
+        v, w = vb / denom, vc / denom
+        out = a + ab * v[..., None] + ac * w[..., None]  # inside the face
+        t_ab, t_ac = d1 / (d1 - d3), d2 / (d2 - d6)
+        t_bc = (d4 - d3) / ((d4 - d3) + (d5 - d6))
+    regions = [  # Ericson's tests in reverse: a region applied later takes precedence
+        ((va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0), b + (c - b) * t_bc[..., None]),
+        ((vb <= 0) & (d2 >= 0) & (d6 <= 0), a + ac * t_ac[..., None]),
+        ((d6 >= 0) & (d5 <= d6), c),
+        ((vc <= 0) & (d1 >= 0) & (d3 <= 0), a + ab * t_ab[..., None]),
+        ((d3 >= 0) & (d4 <= d3), b),
+        ((d1 <= 0) & (d2 <= 0), a),
+    ]
+    for mask, q in regions:
+        out = np.where(mask[..., None], q, out)
+    return out
+
+
+def closest_points(surface: Surface, points: np.ndarray, candidates: int = 8) -> np.ndarray:
+    """(k, 3) the point of ``surface`` nearest to each of ``points`` (k, 3), among the ``candidates``
+    triangles whose centroids are nearest to it (the points lie near the surface, within a triangle or two)."""
+    from scipy.spatial import cKDTree
+
+    p = np.asarray(points, float).reshape(-1, 3)
+    tri = np.asarray(surface.points, float)[np.asarray(surface.faces)]
+    m = min(int(candidates), len(tri))
+    _, idx = cKDTree(tri.mean(axis=1)).query(p, k=m)
+    idx = np.asarray(idx).reshape(len(p), m)
+    t = tri[idx]  # (k, m, 3, 3)
+    q = _closest_on_triangles(p[:, None, :], t[..., 0, :], t[..., 1, :], t[..., 2, :])
+    best = np.argmin(((q - p[:, None, :]) ** 2).sum(-1), axis=1)
+    return q[np.arange(len(p)), best]
+
+
 def _gmsh_fill(surface: Surface, mesh_size: float | None) -> tuple[np.ndarray, np.ndarray]:
     """Tetrahedralise the volume bounded by ``surface``; remesh the surface first when ``mesh_size`` is given."""
     from .gmsh_session import SURFACE_ALGORITHMS, extract_tets, generate, gmsh_model
