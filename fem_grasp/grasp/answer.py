@@ -19,6 +19,7 @@ Definitions (:class:`GraspAnswer`)
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -46,6 +47,7 @@ class GraspAnswer:
     step, lift_test_step : squeeze increment (m) and lift-test step h (N) used
     seconds : wall time of the pickup (rest included)
     step_divisions : sub-increments of the passing increment (``PickupOptions.step_divisions``)
+    max_squeeze : the deepest squeeze the pickup would make, metres (inf: not known)
     """
 
     success: bool
@@ -62,6 +64,7 @@ class GraspAnswer:
     lift_test_step: float
     seconds: float
     step_divisions: int = 1
+    max_squeeze: float = math.inf
 
     @property
     def resolution(self) -> float:
@@ -74,7 +77,7 @@ class GraspAnswer:
                 "table_nodes": self.table_nodes, "max_liftable": self.max_liftable, "weight": self.weight,
                 "liftable": [list(x) for x in self.liftable], "n_vertices": self.n_vertices, "step": self.step,
                 "lift_test_step": self.lift_test_step, "seconds": self.seconds,
-                "step_divisions": self.step_divisions}
+                "step_divisions": self.step_divisions, "max_squeeze": self.max_squeeze}
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> "GraspAnswer":
@@ -82,7 +85,7 @@ class GraspAnswer:
                    tuple(dict(f) for f in d["fingers"]), int(d["table_nodes"]), float(d["max_liftable"]),
                    float(d["weight"]), tuple(tuple(x) for x in d["liftable"]), int(d["n_vertices"]),
                    float(d["step"]), float(d["lift_test_step"]), float(d["seconds"]),
-                   int(d.get("step_divisions", 1)))
+                   int(d.get("step_divisions", 1)), float(d.get("max_squeeze", math.inf)))
 
 
 def answer_of(result: Any, seconds: float | None = None) -> GraspAnswer:
@@ -111,7 +114,8 @@ def answer_of(result: Any, seconds: float | None = None) -> GraspAnswer:
                        tuple((float(r), float(w)) for r, w in result.liftable), int(result.body.n_nodes),
                        float(result.step), lt,
                        float(result.timings.get("total", 0.0) if seconds is None else seconds),
-                       int(getattr(result, "step_divisions", 1)))
+                       int(getattr(result, "step_divisions", 1)),
+                       float(getattr(result, "max_squeeze", 0.0) or math.inf))
 
 
 def patch_points(result: Any) -> tuple[np.ndarray, np.ndarray]:

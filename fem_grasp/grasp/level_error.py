@@ -7,8 +7,8 @@ Hoekstra in :mod:`fem_grasp.grasp.estimates`), plus the resolution of ρ* (:func
 arithmetic on plain numbers is :mod:`~fem_grasp.grasp.estimates`; this module reads it off the levels' answers.
 
 The verdict has no error of its own but can be unsettled (:func:`unsettled_verdict`): when the last two levels
-disagree on it, or when both fail and the largest weight the fingers held lies within its estimated error of
-the object's weight.  On fine meshes the fingertips hold more (a P1 patch is too stiff, and too few nodes touch):
+disagree on it, when both fail and the largest weight the fingers held lies within its estimated error of
+the object's weight, or when both lift it at a ρ* within its estimated error of the deepest squeeze.  On fine meshes the fingertips hold more (a P1 patch is too stiff, and too few nodes touch):
 of the coverage study's random objects at 5 %, two whose last two levels failed with the largest weight held
 one or two steps h below mg were lifted by the finer reference, and the bare difference of that weight between
 the levels (one step, 5 % of mg) would have called one of those failures converged at 10 %.
@@ -91,11 +91,18 @@ def unsettled_verdict(ans: GraspAnswer, before: GraspAnswer, error: dict[str, fl
     for it) is not settled at its resolution; empty when it is (module notes).
 
     A failure is unsettled when the largest weight held, w_max, is within its estimated error of the weight:
-    w_max + error["max_liftable"] · mg ≥ mg.
+    w_max + error["max_liftable"] · mg ≥ mg.  A success is unsettled when ρ* is within its estimated error of
+    the deepest squeeze the pickup makes: a finer mesh whose ρ* lies beyond it does not lift the object.
     """
     if passed(ans) != passed(before):
         return "the last two levels give different verdicts"
-    if passed(ans) or "max_liftable" not in error:
+    if passed(ans):
+        rho, e = ans.squeeze_depth, error.get("squeeze_depth", 0.0)
+        if rho * (1.0 + e) < ans.max_squeeze:
+            return ""
+        return (f"rho* = {1e3 * rho:.4g} mm lies within its estimated error ({100 * e:.2g} %) of the deepest squeeze, "
+                f"{1e3 * ans.max_squeeze:.4g} mm: a finer mesh may not lift it")
+    if "max_liftable" not in error:
         return ""
     w, mg, e = ans.max_liftable, ans.weight, error["max_liftable"]
     if w + e * mg < mg * (1.0 - 1e-12):

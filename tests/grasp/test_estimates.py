@@ -257,6 +257,21 @@ def test_a_failure_within_its_error_of_the_weight_is_not_a_settled_verdict():
     assert unsettled_verdict(lifted, lifted, lifts) == ""
 
 
+def test_a_lift_within_its_error_of_the_deepest_squeeze_is_not_a_settled_verdict():
+    """A soft random capsule of the coverage study (seed 2): two levels lifted it at ρ* = 20.51 and 20.77 mm of a
+    squeeze that goes no deeper than 21.50 mm, stating 4.9 %; the next level did not lift it.  ρ* plus its
+    estimated error lies beyond the deepest squeeze: not settled.  The same lift with the squeeze going deeper than
+    that is settled."""
+    import dataclasses
+
+    before, after = _answer(20.514, 5.4057, 0.1), _answer(20.77, 5.2811, 0.1)
+    error = {"squeeze_depth": 0.049, "finger_force": 0.083}
+    near = unsettled_verdict(dataclasses.replace(after, max_squeeze=0.021496), before, error)
+    assert "deepest squeeze" in near and "20.77 mm" in near and "21.5 mm" in near
+    assert unsettled_verdict(dataclasses.replace(after, max_squeeze=0.0219), before, error) == ""
+    assert unsettled_verdict(after, before, error) == ""  # no deepest squeeze known (inf)
+
+
 # ---------------------------------------------------------------- what the next level's resolution costs
 def _answer(rho_mm: float, force: float, resolution_mm: float):
     from fem_grasp.grasp.answer import GraspAnswer
