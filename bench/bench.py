@@ -80,7 +80,9 @@ Sections (``--only NAME``, repeatable; default all):
     as shipped (``Scene.run()``: the adaptive loop at the scene's accuracy,
     5 % unless it says otherwise), and of the adaptive loop at 5 %
     (``pickup(..., accuracy=0.05)``, needs gmsh; not run again where it is
-    the scene's default, whose row it repeats); with the error each run
+    the scene's default, whose row it repeats), and of that loop with nested
+    levels (``refinement="nested"``: each level bisects the one before at
+    the patches, :mod:`fem_grasp.mesh.bisection`); with the error each run
     states (the scene's ``expected_error``, the loop's estimate, or
     "unknown") and whether it covers the actual one.  One subprocess per run
     (``--accuracy-cap`` seconds, beyond which the row says "not run").
@@ -737,7 +739,8 @@ ACCURACY_TARGET = 0.05
 #: The runs of each object: the paper's method once on the shipped mesh (the loop off), the scene as shipped
 #: (``Scene.run()``: whatever its default is), and the adaptive loop at :data:`ACCURACY_TARGET`.
 ACCURACY_RUNS = (("one_level", "one level (accuracy off)"), ("default", "Scene.run() as shipped"),
-                 ("adaptive", f"adaptive, accuracy = {100 * ACCURACY_TARGET:g} %"))
+                 ("adaptive", f"adaptive, accuracy = {100 * ACCURACY_TARGET:g} %"),
+                 ("nested", f"nested levels, {100 * ACCURACY_TARGET:g} %"))
 #: The quantities compared, as named in the answer and in the loop's estimate.
 ACCURACY_QUANTITIES = ("squeeze_depth", "finger_force")
 #: Other draws of the default's meshes (``--accuracy-draws``): draw k rounds gmsh's inputs to a grid 2**k times
@@ -808,6 +811,8 @@ def accuracy_worker(name: str, run: str, draw: int = 0) -> None:
         shipped = Scene.load(name)
         if run == "one_level":
             return shipped.with_(accuracy=None)
+        if run == "nested":
+            return shipped.with_(accuracy=ACCURACY_TARGET, refinement="nested")
         return shipped.with_(accuracy=ACCURACY_TARGET) if run == "adaptive" else shipped
 
     from fem_grasp.contact.warm_up import prepare_kernels

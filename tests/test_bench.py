@@ -336,7 +336,8 @@ def test_the_accuracy_section_measures_each_run_against_the_study_reference(monk
     raw = {"one_level": _fake_answer(rho=0.011, force=6.6, stated={"squeeze_depth": 0.3, "finger_force": 0.3}),
            # states 5 %: covers ρ* (4 %) but not the force (10 %)
            "default": _fake_answer(rho=0.0104, force=6.6, stated={"squeeze_depth": 0.05, "finger_force": 0.05}),
-           "adaptive": {"status": "cap", "cap_s": 7.0}}
+           "adaptive": {"status": "cap", "cap_s": 7.0},
+           "nested": _fake_answer(rho=0.0101, force=6.06, stated={"squeeze_depth": 0.02, "finger_force": 0.02})}
     ran = []
     # another draw of the default's meshes: 8 % / 3 % off, stating 10 % / 10 %
     drawn = _fake_answer(rho=0.0108, force=6.18, stated={"squeeze_depth": 0.1, "finger_force": 0.1})
@@ -359,6 +360,7 @@ def test_the_accuracy_section_measures_each_run_against_the_study_reference(monk
     assert one["error"]["finger_force"] == pytest.approx(0.1) and one["covers"] is True
     assert default["error"]["squeeze_depth"] == pytest.approx(0.04) and default["covers"] is False
     assert rows["adaptive"]["status"] == "cap"
+    assert rows["nested"]["error"]["squeeze_depth"] == pytest.approx(0.01) and rows["nested"]["covers"] is True
 
     # stated 5 % against 6 % off a reference uncertain by 2 %: not covered, but within the two errors
     close = bench.accuracy_errors(_fake_answer(rho=0.0106, force=6.0, stated={"squeeze_depth": 0.05,
@@ -397,7 +399,8 @@ def test_the_accuracy_section_measures_each_run_against_the_study_reference(monk
     monkeypatch.setattr(bench, "default_accuracy", lambda name: bench.ACCURACY_TARGET)
     ran.clear()
     again = bench.section_accuracy(cap=7.0, objects=("orange",), draws=0)["objects"]["orange"]["rows"]
-    assert ran == [("orange", "one_level", 7.0, 0), ("orange", "default", 7.0, 0)] and again["draws"] == []
+    assert ran == [("orange", "one_level", 7.0, 0), ("orange", "default", 7.0, 0), ("orange", "nested", 7.0, 0)]
+    assert again["draws"] == []
     assert again["adaptive"]["same_as"] == "default" and again["adaptive"]["error"] == again["default"]["error"]
     bench.print_accuracy({"study": "full", "cap_s": 7.0, "target": 0.05,
                           "objects": {"orange": {"reference": reference, "rows": again}}})

@@ -85,6 +85,9 @@ def scene_of(args: argparse.Namespace) -> Any:
         if divisions < 1:
             raise BadInput(f"--step-divisions must be a whole number ≥ 1, got {divisions}")
         scene = with_overrides(scene, step_divisions=divisions)
+    refinement = getattr(args, "refinement", None)
+    if refinement is not None:
+        scene = with_overrides(scene, refinement=refinement)
     max_seconds = getattr(args, "max_seconds", None)
     if max_seconds is not None:
         if not (np.isfinite(max_seconds) and max_seconds > 0):

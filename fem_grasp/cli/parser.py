@@ -73,6 +73,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="when refining: do not run a level predicted to put more than N contacts on one fingertip "
                         "(default 300; each level has about four times the contacts of the one before, and costs "
                         "several times as much)")
+    p.add_argument("--refinement", choices=("nested", "remesh"),
+                   help="when refining: 'remesh' (default) meshes the object afresh at each level; 'nested' bisects "
+                        "the level before at the contact patches, so that the levels differ only in resolution")
     p.add_argument("--max-seconds", metavar="S", type=float,
                    help="when refining: a time budget; no level is started that would carry the loop past S "
                         "seconds (predicted from the levels so far), and the answer is the last level's with its "

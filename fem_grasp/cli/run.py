@@ -114,7 +114,8 @@ def _accuracy_lines(acc: dict[str, Any], quick: bool) -> list[str]:
 
     if acc["converged"]:
         head = (f"accuracy   target {100 * acc['target']:g} %: estimated error rho* {pct(e['squeeze_depth'])}, "
-                f"finger force {pct(e['finger_force'])} ({len(acc['levels'])} levels, {acc.get('seconds', 0):.0f} s)")
+                f"finger force {pct(e['finger_force'])} ({len(acc['levels'])} "
+                f"{'nested levels' if acc.get('refinement') == 'nested' else 'levels'}, {acc.get('seconds', 0):.0f} s)")
     elif len(acc["levels"]) == 1:
         stated = acc.get("expected_error_stated")
         bound = e["squeeze_depth"]

@@ -40,7 +40,7 @@ from ..errors import DirectionError, SceneError
 from ..validation import check_finger_friction, check_friction, check_names, check_positive, check_real
 from .placement import DEFAULT_PLACEMENT_RULE, PAPER_SQUEEZE_DIRECTIONS, PLACEMENT_RULES, check_directions
 
-__all__ = ["DEFAULT_FRICTION", "DEFAULT_OPTIONS", "MAX_FINGER_CONTACTS", "PickupOptions"]
+__all__ = ["DEFAULT_FRICTION", "DEFAULT_OPTIONS", "MAX_FINGER_CONTACTS", "PickupOptions", "REFINEMENTS"]
 
 #: Friction coefficient used when none is given (μ_ℱ; μ_𝒫 follows it unless given).
 DEFAULT_FRICTION = 0.5
@@ -49,6 +49,9 @@ DEFAULT_FRICTION = 0.5
 #: measured by the convergence study on the orange: 36 contacts per finger (grading R/4) took 10 s, 141 (R/8)
 #: 112 s, and R/16 (about 560) did not finish in 40 min.
 MAX_FINGER_CONTACTS = 300
+
+#: How the accuracy loop makes a level's mesh finer (:attr:`PickupOptions.refinement`).
+REFINEMENTS = ("remesh", "nested")
 
 #: The paper's squeeze directions (§IV) as plain tuples, the default of :attr:`PickupOptions.directions`.
 _PAPER_DIRECTIONS = tuple(tuple(float(x) for x in d) for d in PAPER_SQUEEZE_DIRECTIONS)
@@ -138,6 +141,10 @@ class PickupOptions:
         fourfold), would carry the loop past it; the answer is then the last level's, with its estimated error.
         None (default): no budget.  The budget is wall-clock time, so how many levels it allows depends on the
         machine: an answer under a budget is reproducible only with its levels (``result.accuracy``).
+    refinement : str
+        With ``accuracy``: how each level's mesh is made finer, one of :data:`REFINEMENTS`.  "remesh" (default):
+        the geometry meshed afresh by gmsh, graded at the patches; "nested": the level before bisected at the
+        patches (:mod:`fem_grasp.mesh.bisection`), so that successive levels differ only in resolution.
     geometry : Geometry or None
         What the ``accuracy`` loop remeshes (:class:`fem_grasp.mesh.remesh.Geometry`).  None: the body's boundary
         surface (:func:`fem_grasp.mesh.remesh.geometry_of_mesh`).  Not compared: two records that differ only
@@ -163,6 +170,7 @@ class PickupOptions:
     accuracy: float | None = None
     max_finger_contacts: int = MAX_FINGER_CONTACTS
     max_seconds: float | None = None
+    refinement: str = "remesh"
     geometry: Any = field(default=None, compare=False)
 
     def __post_init__(self) -> None:
@@ -198,6 +206,8 @@ class PickupOptions:
             put(self, name, int(n))
         if self.placement_rule not in PLACEMENT_RULES:
             raise SceneError(f"unknown placement rule {self.placement_rule!r}; choose one of {PLACEMENT_RULES}")
+        if self.refinement not in REFINEMENTS:
+            raise ValueError(f"unknown refinement {self.refinement!r}; choose one of {REFINEMENTS}")
         if self.backend not in BACKENDS:
             raise ValueError(f"unknown backend {self.backend!r}; choose one of {BACKENDS}")
         if self.accuracy is not None:

@@ -45,6 +45,8 @@ optional)::
                               # "off" for one run on the scene's mesh, the paper's Algorithm 1 as printed
     max_finger_contacts = 300 # with accuracy: a level predicted to put more contacts on a fingertip is not run
     max_seconds = 120         # with accuracy: a time budget; a level predicted to overrun it is not run
+    refinement = "remesh"     # with accuracy: mesh the object afresh at each level ("remesh", the default) or
+                              # bisect the level before at the patches ("nested")
     expected_error = 0.3      # how far a single run of this scene (no accuracy loop, e.g. its [quick] variant) is
                               # from the converged answer, as measured by `make converge`: printed with its answer
 
@@ -69,7 +71,7 @@ from typing import TYPE_CHECKING, Any
 from ..elastic.fem import STANDARD_GRAVITY
 from ..errors import SceneError
 from ..grasp.accuracy import DEFAULT_ACCURACY
-from ..grasp.options import PickupOptions
+from ..grasp.options import REFINEMENTS, PickupOptions
 from ..grasp.placement import DEFAULT_PLACEMENT_RULE
 from .quantities import check_quantity, parse_quantity
 from .quantities import parse_accuracy as parse_accuracy
@@ -174,6 +176,7 @@ class Scene:
     max_finger_contacts: int | None = None
     step_divisions: int | None = None
     max_seconds: float | None = None
+    refinement: str | None = None
 
     # ------------------------------------------------------------ building
     def load_mesh(self, cache_dir: Path | None = None) -> "TetMesh":
@@ -213,7 +216,8 @@ class Scene:
                              backend=self.backend,
                              **({} if self.max_finger_contacts is None else
                                 {"max_finger_contacts": self.max_finger_contacts}),
-                             step_divisions=self.step_divisions or 1, max_seconds=self.max_seconds)
+                             step_divisions=self.step_divisions or 1, max_seconds=self.max_seconds,
+                             **({} if self.refinement is None else {"refinement": self.refinement}))
 
     def pickup_kwargs(self) -> dict[str, Any]:
         """:meth:`pickup_options` as keyword arguments of :func:`fem_grasp.grasp.pickup.pickup`, by name: the fields
@@ -245,7 +249,8 @@ class Scene:
         ``step``, ``lift_test_step``, ``max_lift``, ``lift``; ``vertices`` (remesh); ``accuracy`` (0.05 or "5%":
         refine until the answer's estimated error is within it, :mod:`fem_grasp.grasp.accuracy`, 5 % unless the
         scene says otherwise; None or "off": one run on the scene's mesh) and
-        ``max_finger_contacts`` (the refinement's bound on one fingertip's contacts); for a mesh
+        ``max_finger_contacts`` (the refinement's bound on one fingertip's contacts), ``max_seconds`` (its time
+        budget) and ``refinement`` ("nested" or "remesh", :attr:`~fem_grasp.grasp.options.PickupOptions.refinement`); for a mesh
         file ``units`` ("m", "cm", "mm") and ``allow_implausible_units`` (True: compute even when the object's
         size or density says its unit is wrong, with a warning, instead of refusing it).  Example:
         ``Scene.load("tomato").with_(young="15 kPa", mu=0.4)``.
@@ -425,6 +430,10 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
     max_seconds = s.get("max_seconds")
     if max_seconds is not None and not (math.isfinite(max_seconds) and max_seconds > 0):
         raise SceneError(f"{s.where('max_seconds')} is a time budget in seconds > 0; got {max_seconds!r}")
+    refinement = s.get("refinement")
+    if refinement is not None and refinement not in REFINEMENTS:
+        raise SceneError(f"{s.where('refinement')} must be one of {', '.join(repr(r) for r in REFINEMENTS)}; "
+                         f"got {refinement!r}")
     expected_error = s.get("expected_error")
     if expected_error is not None and not expected_error > 0:
         raise SceneError(f"{s.where('expected_error')} is a relative error > 0 (inf: the verdict itself may be wrong); "
@@ -446,7 +455,7 @@ def parse_scene(data: dict[str, Any], src: str = "<scene>", base_dir: Path | Non
                  accuracy=accuracy,
                  expected_error=None if expected_error is None else float(expected_error),
                  max_finger_contacts=max_contacts, step_divisions=divisions,
-                 max_seconds=None if max_seconds is None else float(max_seconds))
+                 max_seconds=None if max_seconds is None else float(max_seconds), refinement=refinement)
 
 
 def load_scene(path: str | Path, quick: bool = False) -> Scene:

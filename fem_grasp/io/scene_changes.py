@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..errors import SceneError
+from ..grasp.options import REFINEMENTS
 from ..grasp.placement import PLACEMENT_RULES
 from .quantities import SI_UNITS, UNITS, check_quantity, parse_accuracy, parse_quantity
 from .scene_file import close_keys
@@ -28,7 +29,8 @@ log = logging.getLogger(__name__)
 #: accuracy target and the lift's extent do not change ρ* or the forces at lift-off): a change of any other field
 #: makes the scene's stated error (``[solver] expected_error``, measured by the convergence study at the scene's
 #: own settings) no longer the run's.
-_ERROR_NEUTRAL = frozenset({"backend", "accuracy", "lift", "max_lift", "max_finger_contacts", "max_seconds"})
+_ERROR_NEUTRAL = frozenset({"backend", "accuracy", "lift", "max_lift", "max_finger_contacts", "max_seconds",
+                            "refinement"})
 
 
 def _without_borrowed_error(scene: Scene, new: Scene, fields: Any) -> Scene:
@@ -60,7 +62,7 @@ CHANGES: dict[str, tuple[str, str]] = {
     "step": ("step", "length"), "lift_test_step": ("lift_test_step", "force"), "max_lift": ("max_lift", "length"),
     "lift": ("lift", "bool"), "vertices": ("vertices", "int"), "accuracy": ("accuracy", "accuracy"),
     "max_finger_contacts": ("max_finger_contacts", "count"), "step_divisions": ("step_divisions", "count"),
-    "max_seconds": ("max_seconds", "seconds"),
+    "max_seconds": ("max_seconds", "seconds"), "refinement": ("refinement", "refinement"),
     "units": ("units", "units"), "allow_implausible_units": ("allow_implausible_units", "allow_units"),
 }
 
@@ -127,6 +129,10 @@ def with_changes(scene: Scene, changes: dict[str, Any]) -> Scene:
             if value not in ("sparse", "spectral"):
                 raise SceneError(f"{w}: \"sparse\" or \"spectral\", got {value!r}")
             new["backend"] = value
+        elif kind == "refinement":
+            if value not in REFINEMENTS:
+                raise SceneError(f"{w}: one of {', '.join(repr(r) for r in REFINEMENTS)}, got {value!r}")
+            new["refinement"] = value
         elif kind == "bool":
             if not isinstance(value, bool):
                 raise SceneError(f"{w}: expected True or False, got {value!r}")

@@ -56,7 +56,7 @@ SCHEMA: dict[str, dict[str, str]] = {
     "solver": {"backend": "str", "max_squeeze": "length", "step": "length", "lift_test_step": "force",
                "max_lift": "length", "lift": "bool", "accuracy": "accuracy",
                "expected_error": "float", "max_finger_contacts": "int", "step_divisions": "int",
-               "max_seconds": "float"},
+               "max_seconds": "float", "refinement": "str"},
 }
 
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from fem_grasp import Body, box_mesh
+from fem_grasp import Body, TetMesh, box_mesh
 from fem_grasp.grasp.accuracy import DEFAULT_ACCURACY, STEP_SHARE, converged_pickup
 from fem_grasp.grasp.answer import answer_of
 from fem_grasp.grasp.estimates import relative_change
@@ -157,6 +157,37 @@ def test_result_json_carries_the_accuracy_block(lifted, levels, tmp_path):
     assert doc["summary"]["estimated_error"] == acc["estimated_error"]
     assert "accuracy" not in doc["result"]  # once, at the top
     assert json.loads(write_result_json(tmp_path, lifted).read_text())["accuracy"] is None
+
+
+@pytest.fixture(scope="module")
+def nested():
+    """The loop of ``levels`` with nested levels: each bisects the level before."""
+    body = Body(BOX.grid((6, 6, 6)), 2e4, 0.3, weight=0.3)
+    return body, converged_pickup(body, solve=pickup, accuracy=TARGET, geometry=BOX, max_levels=2,
+                                  contacts=_centre_nodes(body.mesh), mu_finger=0.5, finger_radius=0.01, lift=False,
+                                  refinement="nested")
+
+
+def test_nested_levels_refine_the_level_before_at_the_patches(nested, levels):
+    """Each nested level keeps the level before's vertices (the coarse mesh's nodes and numbering are the first of
+    the fine mesh's), is finer at the fingertips and holds more contacts there; its
+    answer agrees with the remeshed levels' within their stated errors, and the report says how it refined."""
+    body, res = nested
+    acc = res.accuracy
+    assert acc["refinement"] == "nested" and levels.accuracy["refinement"] == "remesh"
+    lv = acc["levels"]
+    assert [x["vertices"] for x in lv][0] == body.n_nodes and lv[1]["vertices"] < lv[2]["vertices"]
+    posed = res.body.mesh  # undo the rest's rigid motion to compare with the given grid
+    fine = TetMesh((posed.points - res.rest.pose.translation) @ res.rest.pose.rotation, posed.tets)
+    np.testing.assert_allclose(fine.points[:body.n_nodes], body.mesh.points, atol=1e-12)
+    nodes = list(_centre_nodes(body.mesh))
+    assert remesh.spacing(fine, nodes) < 0.6 * remesh.spacing(body.mesh, nodes)
+    assert fine.volume == pytest.approx(BOX.volume, rel=1e-9)
+    for a, b in zip(lv, lv[1:]):
+        assert sum(a["finger_nodes"]) < sum(b["finger_nodes"])
+    for q in ("squeeze_depth", "finger_force"):
+        e = max(acc["estimated_error"][q], levels.accuracy["estimated_error"][q])
+        assert relative_change(lv[-1][q], levels.accuracy["levels"][-1][q]) <= e
 
 
 def test_a_level_that_would_crowd_a_fingertip_with_contacts_is_not_run():
@@ -379,6 +410,13 @@ def test_scene_key_and_cli_flag():
         with pytest.raises(SceneError, match="solver.accuracy"):
             parse_scene(dict(base, solver={"accuracy": bad}))
     assert isinstance(parse_scene(base).geometry(), remesh.BoxGeometry)
+    assert parse_scene(base).pickup_options().refinement == "remesh"
+    assert parse_scene(dict(base, solver={"refinement": "nested"})).pickup_options().refinement == "nested"
+    assert parse_scene(base).with_(refinement="nested").pickup_options().refinement == "nested"
+    with pytest.raises(SceneError, match="solver.refinement"):
+        parse_scene(dict(base, solver={"refinement": "bisect"}))
+    with pytest.raises(SceneError, match="refinement"):
+        parse_scene(base).with_(refinement="bisect")
     assert parse_scene(dict(base, solver={"expected_error": float("inf")})).expected_error == float("inf")
     with pytest.raises(SceneError, match="solver.expected_error"):
         parse_scene(dict(base, solver={"expected_error": -1.0}))
