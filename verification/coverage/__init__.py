@@ -10,8 +10,9 @@ ellipsoid, two fused spheres or a capsule, 2–4.5 cm in size, of E 5–100 kPa 
 density 300–1500 kg/m³, μ 0.3–1.0 at the fingers and the table, a fingertip 0.3–0.6 times its smallest radius,
 squeezed 0–30° below the horizontal with ratio s 0–1; its first mesh has about 500 vertices.
 
-* the **answer**: ``converged_pickup`` at accuracy A (5 %; 10 % with ``--quick``) with a time budget; its whole
-  ``result.accuracy`` (levels, estimated error, convergence, note) is kept;
+* the **answer**: ``converged_pickup`` at accuracy A (5 %; 10 % with ``--quick``) with a time budget, its levels
+  remeshed (``--refinement nested``: bisected, ``PickupOptions.refinement``); its whole ``result.accuracy``
+  (levels, estimated error, convergence, note) is kept;
 * the **reference**: one pickup a level beyond the answer's last — the patch spacing halved at the answer's
   contact patches (the table patch four times coarser, as the loop grades it), the loop's next outer spacing,
   a quarter of the last squeeze increment and half its lift-test step h

@@ -1,4 +1,5 @@
-"""``python -m verification coverage [--quick] [--objects N] [--seed S] [--accuracy A] [--workers W] [--json PATH]``
+"""``python -m verification coverage [--quick] [--objects N] [--seed S] [--accuracy A] [--refinement R] [--workers W]
+[--json PATH]``
 (or ``--reanalyse PATH``): does the accuracy loop's stated error cover its actual error on random objects?"""
 
 from __future__ import annotations
@@ -28,6 +29,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--objects", type=int, help="objects to draw (default: 10; 3 with --quick)")
     ap.add_argument("--seed", type=int, default=0, help="object i is drawn from numpy's default_rng(seed + i)")
     ap.add_argument("--accuracy", type=float, help="the target accuracy A (default: 0.05; 0.10 with --quick)")
+    ap.add_argument("--refinement", choices=("remesh", "nested"), default="remesh",
+                    help="how the answer's levels are made finer (PickupOptions.refinement; default remesh); the "
+                         "reference is a remeshed level either way")
     ap.add_argument("--workers", type=int, default=2, help="objects run at a time, one process each")
     ap.add_argument("--json", type=Path, help="write the configuration, the summary and every row here")
     ap.add_argument("--reanalyse", type=Path, metavar="JSON",
@@ -53,9 +57,11 @@ def main(argv: list[str] | None = None) -> int:
             if not (0.0 < args.accuracy < 1.0 and math.isfinite(args.accuracy)):
                 ap.error(f"--accuracy must be a relative error in (0, 1), e.g. 0.05; got {args.accuracy}")
             cfg["accuracy"] = args.accuracy
+        cfg["refinement"] = args.refinement
         if args.workers < 1:
             ap.error(f"--workers must be at least 1, got {args.workers}")
-        print(f"{cfg['objects']} objects from seed {args.seed}, accuracy {cfg['accuracy']:g}, answer budget "
+        print(f"{cfg['objects']} objects from seed {args.seed}, accuracy {cfg['accuracy']:g}, "
+              f"{cfg['refinement']} levels, answer budget "
               f"{cfg['answer_seconds']:g} s, reference cap {cfg['reference_seconds']:g} s, {args.workers} at a time",
               flush=True)
         print(HEADER, flush=True)

@@ -80,7 +80,8 @@ def run_object(seed: int, config: dict[str, Any], send: Callable[[tuple[str, Any
         on_level = None if send is None else (lambda report: send(("level", report.to_dict())))
         res = converged_pickup(body, solve=pickup, accuracy=config["accuracy"], geometry=geometry,
                                max_seconds=config["answer_seconds"], on_level=on_level,
-                               max_finger_contacts=config["answer_max_contacts"], **kw)
+                               max_finger_contacts=config["answer_max_contacts"],
+                               refinement=config.get("refinement", "remesh"), **kw)
         row["answer"] = _answer_row(res, time.perf_counter() - t0)
         row["answer"]["accuracy"] = res.accuracy
     except Exception as exc:  # noqa: BLE001 - recorded: the object has no answer, the study goes on
