@@ -284,13 +284,18 @@ def predicted_level_seconds(levels: Sequence[AccuracyLevel]) -> float:
     return t[-1] * growth
 
 
-def _level_meshes(geometry: Any, fingers: np.ndarray, table: np.ndarray, inner: float, radius: float,
-                  outer: float, embed: np.ndarray | None) -> Any:
+def _level_refinements(fingers: np.ndarray, table: np.ndarray, inner: float, radius: float, outer: float) -> list:
+    """A level's size field: ``inner`` at the fingertip patches, :data:`TABLE_LAG` × that at the table's."""
     from ..mesh.remesh import patch_refinement
 
     refs = [patch_refinement(fingers, inner, radius, outer),
             patch_refinement(table, min(TABLE_LAG * inner, outer), max(radius, TABLE_LAG * inner), outer)]
-    return geometry.build(outer, [r for r in refs if r is not None], embed=embed)
+    return [r for r in refs if r is not None]
+
+
+def _level_meshes(geometry: Any, fingers: np.ndarray, table: np.ndarray, inner: float, radius: float,
+                  outer: float, embed: np.ndarray | None) -> Any:
+    return geometry.build(outer, _level_refinements(fingers, table, inner, radius, outer), embed=embed)
 
 
 #: A nested level (``PickupOptions.refinement = "nested"``) bisects every tetrahedron whose longest edge is more than
@@ -304,11 +309,8 @@ def _nested_level_mesh(geometry: Any, coarse: Any, fingers: np.ndarray, table: n
                        radius: float, outer: float) -> Any:
     """The level before (``coarse``) bisected until it is as fine as :func:`_level_meshes` asks of gmsh."""
     from ..mesh.bisection import refine_to_size
-    from ..mesh.remesh import patch_refinement
 
-    refs = [r for r in (patch_refinement(fingers, inner, radius, outer),
-                        patch_refinement(table, min(TABLE_LAG * inner, outer), max(radius, TABLE_LAG * inner), outer))
-            if r is not None]
+    refs = _level_refinements(fingers, table, inner, radius, outer)
 
     def size(points: np.ndarray) -> np.ndarray:
         s = np.full(len(points), outer)

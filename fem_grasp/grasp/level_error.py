@@ -8,7 +8,8 @@ arithmetic on plain numbers is :mod:`~fem_grasp.grasp.estimates`; this module re
 
 The verdict has no error of its own but can be unsettled (:func:`unsettled_verdict`): when the last two levels
 disagree on it, when both fail and the largest weight the fingers held lies within its estimated error of
-the object's weight, or when both lift it at a ρ* within its estimated error of the deepest squeeze.  On fine meshes the fingertips hold more (a P1 patch is too stiff, and too few nodes touch):
+the object's weight, or when both lift it at a ρ* within its estimated error of the deepest squeeze.  On fine
+meshes the fingertips hold more (a P1 patch is too stiff, and too few nodes touch):
 of the coverage study's random objects at 5 %, two whose last two levels failed with the largest weight held
 one or two steps h below mg were lifted by the finer reference, and the bare difference of that weight between
 the levels (one step, 5 % of mg) would have called one of those failures converged at 10 %.

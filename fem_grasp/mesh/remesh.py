@@ -208,28 +208,25 @@ class PaperGeometry(Geometry):
     def describe(self) -> str:
         return f"paper shape {self.name}"
 
+    def _spheroid(self) -> tuple[np.ndarray, np.ndarray, float]:
+        """The curved surface's semi-axes and centre, and the lowest cos(polar angle) on it (the dome's base cut)."""
+        shape = PAPER_SHAPES[self.name]
+        if shape.kind == "ellipsoid":
+            return np.asarray(shape.dimensions, float), np.zeros(3), -1.0
+        r, h, e = shape.dimensions  # the spheroid (r, r, h) about (0, 0, e), above its flat base z = 0
+        return np.array([r, r, h], float), np.array([0.0, 0.0, e]), -e / h
+
     def project(self, points: np.ndarray) -> np.ndarray:
         """Along the ray from the spheroid's centre (the dome's flat base, z = 0, stays where it is)."""
-        shape = PAPER_SHAPES[self.name]
+        axes, centre, lowest = self._spheroid()
         p = np.array(points, float).reshape(-1, 3)
-        if shape.kind == "ellipsoid":
-            axes, centre = np.asarray(shape.dimensions, float), np.zeros(3)
-            curved = np.ones(len(p), dtype=bool)
-        else:
-            r, h, e = shape.dimensions
-            axes, centre = np.array([r, r, h], float), np.array([0.0, 0.0, e])
-            curved = p[:, 2] > 1e-9 * h
+        curved = p[:, 2] > 1e-9 * axes[2] if lowest > -1.0 else np.ones(len(p), dtype=bool)
         q = p[curved] - centre
         p[curved] = centre + q / np.linalg.norm(q / axes, axis=1)[:, None]
         return p
 
     def surface_points(self, spacing: float) -> np.ndarray:
-        shape = PAPER_SHAPES[self.name]
-        if shape.kind == "ellipsoid":
-            axes, centre, lowest = np.asarray(shape.dimensions, float), np.zeros(3), -1.0
-        else:  # the dome: the spheroid (r, r, h) about (0, 0, e), above its flat base z = 0
-            r, h, e = shape.dimensions
-            axes, centre, lowest = np.array([r, r, h], float), np.array([0.0, 0.0, e]), -e / h
+        axes, centre, lowest = self._spheroid()
         n = max(16, int(math.ceil(math.pi * float(axes.max()) / spacing)))
         polar = np.linspace(0.0, math.pi, n + 1)
         polar = polar[np.cos(polar) >= lowest]
