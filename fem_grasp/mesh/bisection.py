@@ -129,6 +129,8 @@ def bisect_longest_edges(points: np.ndarray, tets: np.ndarray, marked: np.ndarra
         second[rows, b] = m
         current = np.vstack([first, second])
         parent = np.concatenate([cp, cp])
+    else:  # not reached: each split leaves the children fewer cut edges than the parent had
+        raise RuntimeError("bisection left a tetrahedron with cut edges")
     return all_points, np.vstack(done_t), np.concatenate(done_p), chords
 
 
