@@ -114,3 +114,18 @@ def test_closest_points_of_a_triangle_surface_against_sampling():
     d_sampled = np.linalg.norm(samples[None] - q[:, None], axis=2).min(axis=1)
     d = np.linalg.norm(c - q, axis=1)
     assert (d <= d_sampled + 1e-12).all() and (d >= d_sampled - 0.02).all()
+
+
+def test_a_projection_that_would_fold_the_mesh_leaves_the_vertices_on_their_chords():
+    coarse = box_mesh((0.0, 0.0, 0.0), (1.0, 1.0, 1.0), (2, 2, 2))
+
+    def size(x):
+        return np.full(len(x), 0.4)
+
+    def into_the_centre(p):  # a "surface" through the middle of the box: every move folds a tetrahedron
+        return np.full_like(p, 0.5)
+
+    plain = refine_to_size(coarse, size)
+    folded = refine_to_size(coarse, size, into_the_centre)
+    assert (signed_volumes(folded.points, folded.tets) > 0).all() and folded.volume == pytest.approx(1.0, rel=1e-12)
+    np.testing.assert_allclose(folded.points, plain.points, atol=1e-15)
