@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 
 from .._version import version as fem_grasp_version
+from ..grasp.options import REFINEMENTS
 from .info import cmd_info, cmd_scenes
 from .mesh import cmd_mesh
 from .run import cmd_report, cmd_rest, cmd_run
@@ -73,7 +74,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="when refining: do not run a level predicted to put more than N contacts on one fingertip "
                         "(default 300; each level has about four times the contacts of the one before, and costs "
                         "several times as much)")
-    p.add_argument("--refinement", choices=("nested", "remesh"),
+    p.add_argument("--refinement", choices=REFINEMENTS,
                    help="when refining: 'remesh' (default) meshes the object afresh at each level; 'nested' bisects "
                         "the level before at the contact patches, so that the levels differ only in resolution")
     p.add_argument("--max-seconds", metavar="S", type=float,

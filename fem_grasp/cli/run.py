@@ -105,6 +105,8 @@ def _errors_known(acc: dict[str, Any]) -> bool:
 
 def _accuracy_lines(acc: dict[str, Any], quick: bool) -> list[str]:
     """The estimated error of the answer, and one line per level (:func:`fem_grasp.grasp.accuracy.converged_pickup`)."""
+    from ..grasp.accuracy import levels_label
+
     e = acc["estimated_error"]
 
     def pct(x: Any) -> str:
@@ -114,8 +116,8 @@ def _accuracy_lines(acc: dict[str, Any], quick: bool) -> list[str]:
 
     if acc["converged"]:
         head = (f"accuracy   target {100 * acc['target']:g} %: estimated error rho* {pct(e['squeeze_depth'])}, "
-                f"finger force {pct(e['finger_force'])} ({len(acc['levels'])} "
-                f"{'nested levels' if acc.get('refinement') == 'nested' else 'levels'}, {acc.get('seconds', 0):.0f} s)")
+                f"finger force {pct(e['finger_force'])} ({levels_label(len(acc['levels']), acc.get('refinement'))}, "
+                f"{acc.get('seconds', 0):.0f} s)")
     elif len(acc["levels"]) == 1:
         stated = acc.get("expected_error_stated")
         bound = e["squeeze_depth"]

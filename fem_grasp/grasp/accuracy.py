@@ -83,7 +83,7 @@ from .options import PickupOptions
 __all__ = ["AccuracyLevel", "AccuracyReport", "single_run_report", "next_step", "predicted_mesh_error",
            "predicted_level_seconds", "first_lift_test", "placement_target", "converged_pickup", "GRASP_TOLERANCE",
            "LEVEL_COST_GROWTH", "LEVEL_RATIO", "STEP_SHARE", "FINE_STEP_SHARE", "STEP_DIVISIONS", "DEFAULT_ACCURACY",
-           "MAX_LEVELS", "MAX_FINGER_CONTACTS", "SPECTRAL_MAX_VERTICES", "NESTED_EDGE_RATIO"]
+           "MAX_LEVELS", "MAX_FINGER_CONTACTS", "SPECTRAL_MAX_VERTICES", "NESTED_EDGE_RATIO", "levels_label"]
 
 log = logging.getLogger(__name__)
 
@@ -188,9 +188,13 @@ class AccuracyReport:
     def summary_line(self) -> str:
         e = self.estimated_error
         return (f"target {100 * self.target:g} %: estimated error rho* {_pct(e.get('squeeze_depth'))}, finger force "
-                f"{_pct(e.get('finger_force'))} ({len(self.levels)} "
-                f"{'nested levels' if self.refinement == 'nested' else 'levels'}, "
+                f"{_pct(e.get('finger_force'))} ({levels_label(len(self.levels), self.refinement)}, "
                 f"{'converged' if self.converged else 'error estimate above the target'})")
+
+
+def levels_label(count: int, refinement: str | None) -> str:
+    """"3 levels", or "3 nested levels" where each bisected the one before."""
+    return f"{count} {'nested levels' if refinement == 'nested' else 'levels'}"
 
 
 def _pct(x: float | None) -> str:
@@ -403,6 +407,7 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
     offset = (float(np.linalg.norm(points0[[int(k) for k in result.finger_nodes]] - contact_points, axis=1).max())
               if contact_points is not None and placed else 0.0)
     mesh_s0 = 0.0
+    level_mesh = body.mesh  # the last level's, in the given frame (what a nested level bisects)
     if geo.embeds_points and offset > GRASP_TOLERANCE * inner:
         # Level 0 grasps at its mesh's nodes, `offset` from the points every finer level grasps at: another grasp,
         # whose answer may differ from theirs by more than any mesh error.  Level 0 is the body remeshed at its own
@@ -422,7 +427,7 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
             log.info("accuracy level 0 with the grasp points as nodes found no resting state (%s): level 0 is the "
                      "body as given", exc)
         else:
-            ans, mesh_s0 = answer_of(result, time.perf_counter() - t0), t_mesh
+            ans, mesh_s0, level_mesh = answer_of(result, time.perf_counter() - t0), t_mesh, mesh0
             report.given_mesh = {"grasp_offset": offset, "vertices": given.n_vertices, "success": given.success,
                                  "squeeze_depth": given.squeeze_depth, "finger_force": given.finger_force,
                                  "seconds": given.seconds}
@@ -430,7 +435,6 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
                      "from them): %d vertices, %s, rho* = %.4g mm, finger force %.4g N (%.1f s)", 1e3 * offset,
                      ans.n_vertices, "picked up" if ans.success else "not picked up", 1e3 * ans.squeeze_depth,
                      ans.finger_force, ans.seconds + t_mesh)
-    level_mesh = mesh0 if report.given_mesh is not None else body.mesh  # the last level's, in the given frame
     report.levels.append(AccuracyLevel(0, inner, outer, ans, mesh_s0))
     if on_level is not None:
         on_level(report)

@@ -248,11 +248,12 @@ class Scene:
         or two node indices) or ``placement_rule``; ``directions``, ``ratio``; ``backend``, ``max_squeeze``,
         ``step``, ``lift_test_step``, ``max_lift``, ``lift``; ``vertices`` (remesh); ``accuracy`` (0.05 or "5%":
         refine until the answer's estimated error is within it, :mod:`fem_grasp.grasp.accuracy`, 5 % unless the
-        scene says otherwise; None or "off": one run on the scene's mesh) and
+        scene says otherwise; None or "off": one run on the scene's mesh),
         ``max_finger_contacts`` (the refinement's bound on one fingertip's contacts), ``max_seconds`` (its time
-        budget) and ``refinement`` ("nested" or "remesh", :attr:`~fem_grasp.grasp.options.PickupOptions.refinement`); for a mesh
-        file ``units`` ("m", "cm", "mm") and ``allow_implausible_units`` (True: compute even when the object's
-        size or density says its unit is wrong, with a warning, instead of refusing it).  Example:
+        budget) and ``refinement`` ("nested" or "remesh",
+        :attr:`~fem_grasp.grasp.options.PickupOptions.refinement`); for a mesh file ``units`` ("m", "cm", "mm")
+        and ``allow_implausible_units`` (True: compute even when the object's size or density says its unit is
+        wrong, with a warning, instead of refusing it).  Example:
         ``Scene.load("tomato").with_(young="15 kPa", mu=0.4)``.
 
         Raises

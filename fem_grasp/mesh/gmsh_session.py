@@ -4,11 +4,11 @@ of :mod:`~fem_grasp.mesh.scan` share it.
 Every gmsh call runs in its own quiet, single-threaded, deterministic session (:func:`gmsh_model`): the
 same arguments give bit-identical arrays.  The points it is given (refinement centres, points to embed) and the
 lengths of its size fields are rounded to about :data:`POINT_QUANTUM` of the mesh size first (:func:`snapped`,
-:func:`rounded_length`), so that arguments that differ by round-off give the same mesh too.  The tetrahedra are read back with boundary slivers removed and
-vertices renumbered (:func:`extract_tets`); :func:`mesh_with_vertex_count` finds the mesh size that gives a
-wanted number of vertices; :class:`Refinement` grades the mesh around given points (where the fingertips
-touch).  gmsh is an optional dependency (the ``mesh`` extra, or Debian's ``python3-gmsh``), imported only
-when a mesh is made (:func:`import_gmsh`).
+:func:`rounded_length`), so that arguments that differ by round-off give the same mesh too.  The tetrahedra are
+read back with boundary slivers removed and vertices renumbered (:func:`extract_tets`);
+:func:`mesh_with_vertex_count` finds the mesh size that gives a wanted number of vertices; :class:`Refinement`
+grades the mesh around given points (where the fingertips touch).  gmsh is an optional dependency (the ``mesh``
+extra, or Debian's ``python3-gmsh``), imported only when a mesh is made (:func:`import_gmsh`).
 
 gmsh keeps one global state per process, and sets the handler of SIGINT when it is imported and initialised,
 which Python allows only on the main thread.  Sessions are therefore serialised within a process (a lock), and

@@ -10,6 +10,8 @@ import math
 import sys
 from pathlib import Path
 
+from fem_grasp.grasp.options import REFINEMENTS
+
 from . import CONFIGS, sweep
 from .summary import HEADER, passed, summarise, summary_lines, table_line
 
@@ -29,7 +31,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--objects", type=int, help="objects to draw (default: 10; 3 with --quick)")
     ap.add_argument("--seed", type=int, default=0, help="object i is drawn from numpy's default_rng(seed + i)")
     ap.add_argument("--accuracy", type=float, help="the target accuracy A (default: 0.05; 0.10 with --quick)")
-    ap.add_argument("--refinement", choices=("remesh", "nested"), default="remesh",
+    ap.add_argument("--refinement", choices=REFINEMENTS, default="remesh",
                     help="how the answer's levels are made finer (PickupOptions.refinement; default remesh); the "
                          "reference is a remeshed level either way")
     ap.add_argument("--workers", type=int, default=2, help="objects run at a time, one process each")
