@@ -15,12 +15,14 @@ from verification.coverage import (
     SHAPES,
     CoverageObject,
     capsule_volume,
+    combine_draws,
     evaluate,
     passed,
     reference_plan,
     summarise,
 )
 from verification.coverage.__main__ import main
+from verification.coverage.runner import DRAW_STEP, draw_factor, reusable
 from verification.coverage.summary import summary_lines
 
 
@@ -124,6 +126,42 @@ def test_the_reference_is_one_level_beyond_the_answers_last():
     assert reference_plan(_accuracy(levels_nodes=(40, 160)), 600)["too_large"]  # 640 contacts predicted
 
 
+def _draw(success=True, rho=0.0100, force=2.0, status="ok"):
+    return {"status": status, "success": success, "reason": "", "squeeze_depth": rho, "finger_force": force,
+            "max_liftable": 1.0, "weight": 1.0, "vertices": 9000, "seconds": 100.0}
+
+
+def test_the_reference_is_the_mean_of_its_draws_with_their_spread_as_its_uncertainty():
+    ref = combine_draws([_draw(rho=0.0100, force=2.0), _draw(rho=0.0106, force=2.2), _draw(rho=0.0097, force=2.0)])
+    assert ref["status"] == "ok" and ref["success"] and ref["draws_ok"] == 3 and ref["seconds"] == 300.0
+    assert ref["squeeze_depth"] == pytest.approx(0.0101) and ref["finger_force"] == pytest.approx(6.2 / 3)
+    # the largest deviation from the mean, relative to it
+    assert ref["spread"]["squeeze_depth"] == pytest.approx(0.0005 / 0.0101)
+    assert ref["spread"]["finger_force"] == pytest.approx((2.2 - 6.2 / 3) / (6.2 / 3))
+    one = combine_draws([_draw(), _draw(status="failed")])  # a draw that raised is left out
+    assert one["status"] == "ok" and one["draws_ok"] == 1 and one["spread"] == {"squeeze_depth": 0.0,
+                                                                                  "finger_force": 0.0}
+    split = combine_draws([_draw(), _draw(success=False)])  # a finer mesh decides either way: no reference
+    assert split["status"] == "draws disagree" and "squeeze_depth" not in split
+    assert combine_draws([dict(_draw(status="failed"), error="RuntimeError: x")])["status"] == "failed"
+
+
+def test_a_saved_reference_is_used_again_only_for_its_object_and_a_coarser_answer():
+    acc = _accuracy()
+    obj = CoverageObject.of_seed(0).to_dict()
+    saved = dict(combine_draws([_draw()]), plan=reference_plan(acc, 600), object=obj)
+    assert reusable(saved, obj, acc)
+    assert not reusable(saved, CoverageObject.of_seed(1).to_dict(), acc)  # another object
+    assert not reusable(saved, obj, _accuracy(levels_nodes=(10, 20, 30)))  # the answer went as fine
+    assert not reusable(dict(saved, status="timed out"), obj, acc) and not reusable(None, obj, acc)
+
+
+def test_the_draws_of_the_reference_scale_its_spacings_about_the_plans():
+    factors = [draw_factor(k) for k in range(5)]
+    assert factors == pytest.approx([1.0, 1 - DRAW_STEP, 1 + DRAW_STEP, 1 - 2 * DRAW_STEP, 1 + 2 * DRAW_STEP])
+    assert np.mean(factors[:3]) == pytest.approx(1.0) and np.mean(factors) == pytest.approx(1.0)
+
+
 # ---------------------------------------------------------------- the arithmetic
 def _row(seed=0, ans=(True, 0.0100, 2.00), ref=(True, 0.0102, 2.05), est=(0.05, 0.05), ref_status="ok"):
     o = CoverageObject.of_seed(seed).to_dict()
@@ -188,6 +226,14 @@ def test_the_summary_counts_only_objects_with_a_reference():
     warned = summarise([_row(k) for k in range(9)] + [overturned])
     assert warned["verdicts_differ"] == 1 and warned["verdicts_differ_settled"] == 0 and passed(warned) == (True, True)
     assert any("1 said the verdict is not settled" in line for line in summary_lines(warned))
+    # the reference's own spread: a shortfall within it is counted apart, the gate stays the strict count
+    spread = _row(1, ref=(True, 0.0120, 2.05))
+    spread["reference"].update(spread={"squeeze_depth": 0.15, "finger_force": 0.0}, draws_ok=3)
+    with_spread = summarise([_row(0), spread])
+    assert with_spread["covered"]["both"] == 1 and with_spread["covered_with_reference"] == 2
+    assert with_spread["reference_draws"] == [1, 3]
+    assert with_spread["reference_spread"]["squeeze_depth"]["max"] == pytest.approx(0.15)
+    assert any("both covered on 2/2" in line for line in summary_lines(with_spread))
     empty = summarise([_row(0, ref_status="too large")])
     assert math.isnan(empty["coverage"]["both"]) and passed(empty) == (False, False)
 

@@ -16,11 +16,15 @@ squeezed 0–30° below the horizontal with ratio s 0–1; its first mesh has ab
 * the **reference**: one pickup a level beyond the answer's last — the patch spacing halved at the answer's
   contact patches (the table patch four times coarser, as the loop grades it), the loop's next outer spacing,
   a quarter of the last squeeze increment and half its lift-test step h
-  (:func:`~.runner.reference_plan`) — skipped as too large when it would put more than 600 contacts on a
-  fingertip, and abandoned after its time cap;
+  (:func:`~.runner.reference_plan`) — on three draws of its mesh (``--reference-draws``; its spacings scaled
+  by 1, 0.98 and 1.02), their mean, with their spread as its own uncertainty; skipped as too large when it would put
+  more than 400 contacts on a fingertip, and abandoned after its time cap per draw (keeping the draws done);
+  ``--references FILE`` takes a saved study's references where they are finer than the answer's last level,
+  so that two loops are judged against the same ones;
 * per object, the actual errors |answer − reference| / |reference| of ρ* and of the finger force; a quantity is
   **covered** when its estimated error is at least the actual one and the two verdicts (lifted or not) agree,
-  or when its estimate is infinite (the answer states that it does not know).
+  or when its estimate is infinite (the answer states that it does not know); the summary also counts it with
+  the reference's spread added to the estimate.
 
 Headline checks (:mod:`.report`): both quantities covered on at least 90 % of the objects with a reference,
 and every verdict agreeing with its reference.  Each object runs in a spawned process, ``--workers`` at a time.
@@ -34,17 +38,18 @@ from pathlib import Path
 from typing import Any, Callable
 
 from .report import checks, section
-from .runner import QUANTITIES, reference_plan, run_object, supervised
+from .runner import QUANTITIES, combine_draws, reference_plan, run_object, supervised
 from .scene import RANGES, SHAPES, TARGET_VERTICES, CoverageObject, capsule, capsule_volume
 from .summary import REQUIRED_COVERAGE, evaluate, passed, summarise
 
 #: The full study and ``--quick``: objects, target accuracy, the answer's time budget (``max_seconds`` of the
-#: loop) and hard cap, the reference's time cap, and the largest reference run (contacts per fingertip).
+#: loop) and hard cap, the reference's time cap (per draw), the largest reference run (contacts per fingertip),
+#: and the draws of the reference's mesh (:mod:`~verification.coverage.runner`).
 CONFIGS: dict[str, dict[str, Any]] = {
     "full": {"objects": 10, "accuracy": 0.05, "answer_seconds": 600.0, "answer_cap": 1800.0, "answer_max_contacts": 80,
-             "reference_seconds": 900.0, "max_reference_contacts": 400},
+             "reference_seconds": 900.0, "max_reference_contacts": 400, "reference_draws": 3},
     "quick": {"objects": 3, "accuracy": 0.10, "answer_seconds": 150.0, "answer_cap": 450.0, "answer_max_contacts": 80,
-              "reference_seconds": 300.0, "max_reference_contacts": 400},
+              "reference_seconds": 300.0, "max_reference_contacts": 400, "reference_draws": 1},
 }
 #: Stages of :func:`run`.
 STAGES = 1
@@ -66,14 +71,15 @@ def sweep(config: dict[str, Any], seed: int = 0, workers: int = 2,
             if progress is not None:
                 progress(row)
     rows.sort(key=lambda r: r["seed"])
-    return {"config": dict(config), "seed": seed, "summary": summarise(rows), "rows": rows}
+    kept = {k: v for k, v in config.items() if k != "references"}  # the saved references stay in their file
+    return {"config": kept, "seed": seed, "summary": summarise(rows), "rows": rows}
 
 
 def compact(row: dict[str, Any]) -> dict[str, Any]:
     """A row for the report's summary: the object, the verdicts, the errors and the times (no levels)."""
     ans, ref = row.get("answer") or {}, row.get("reference") or {}
     acc = ans.get("accuracy") or {}
-    keep = ("status", "success", "squeeze_depth", "finger_force", "vertices", "seconds")
+    keep = ("status", "success", "squeeze_depth", "finger_force", "vertices", "seconds", "draws_ok", "spread")
     return {"seed": row["seed"], "object": row["object"],
             "answer": {k: ans.get(k) for k in keep} | {"levels": len(acc.get("levels", [])),
                                                        "converged": acc.get("converged"), "note": acc.get("note"),
@@ -98,5 +104,5 @@ def run(quick: bool, out_dir: Path, stages: Any) -> tuple[dict[str, Any], dict[s
 
 
 __all__ = ["CONFIGS", "QUANTITIES", "RANGES", "REQUIRED_COVERAGE", "SHAPES", "STAGES", "TARGET_VERTICES",
-           "CoverageObject", "capsule", "capsule_volume", "checks", "compact", "evaluate", "passed",
+           "CoverageObject", "capsule", "capsule_volume", "checks", "combine_draws", "compact", "evaluate", "passed",
            "reference_plan", "run", "run_object", "section", "summarise", "supervised", "sweep"]

@@ -1,5 +1,5 @@
-"""``python -m verification coverage [--quick] [--objects N] [--seed S] [--accuracy A] [--refinement R] [--workers W]
-[--json PATH]``
+"""``python -m verification coverage [--quick] [--objects N] [--seed S] [--accuracy A] [--refinement R]
+[--reference-draws K] [--references JSON] [--workers W] [--json PATH]``
 (or ``--reanalyse PATH``): does the accuracy loop's stated error cover its actual error on random objects?"""
 
 from __future__ import annotations
@@ -34,6 +34,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--refinement", choices=REFINEMENTS, default="remesh",
                     help="how the answer's levels are made finer (PickupOptions.refinement; default remesh); the "
                          "reference is a remeshed level either way")
+    ap.add_argument("--reference-draws", type=int,
+                    help="draws of the reference's mesh whose mean is the reference (default: 3; 1 with --quick)")
+    ap.add_argument("--references", type=Path, metavar="JSON",
+                    help="take each object's reference from a saved --json file where it is finer than the "
+                         "answer's last level (the same references for two runs); compute the others")
     ap.add_argument("--workers", type=int, default=2, help="objects run at a time, one process each")
     ap.add_argument("--json", type=Path, help="write the configuration, the summary and every row here")
     ap.add_argument("--reanalyse", type=Path, metavar="JSON",
@@ -60,11 +65,24 @@ def main(argv: list[str] | None = None) -> int:
                 ap.error(f"--accuracy must be a relative error in (0, 1), e.g. 0.05; got {args.accuracy}")
             cfg["accuracy"] = args.accuracy
         cfg["refinement"] = args.refinement
+        if args.reference_draws is not None:
+            if args.reference_draws < 1:
+                ap.error(f"--reference-draws must be at least 1, got {args.reference_draws}")
+            cfg["reference_draws"] = args.reference_draws
+        if args.references is not None:
+            try:
+                saved = json.loads(args.references.read_text(encoding="utf-8"))
+                cfg["references"] = {int(r["seed"]): dict(r.get("reference") or {}, object=r["object"])
+                                     for r in saved["rows"]}
+                cfg["references_file"] = str(args.references)
+            except (OSError, ValueError, KeyError, TypeError) as exc:
+                ap.error(f"cannot read the references of {args.references}: {exc}")
         if args.workers < 1:
             ap.error(f"--workers must be at least 1, got {args.workers}")
         print(f"{cfg['objects']} objects from seed {args.seed}, accuracy {cfg['accuracy']:g}, "
               f"{cfg['refinement']} levels, answer budget "
-              f"{cfg['answer_seconds']:g} s, reference cap {cfg['reference_seconds']:g} s, {args.workers} at a time",
+              f"{cfg['answer_seconds']:g} s, reference cap {cfg['reference_seconds']:g} s per draw, "
+              f"{cfg.get('reference_draws', 1)} draw(s), {args.workers} at a time",
               flush=True)
         print(HEADER, flush=True)
         result = sweep(cfg, args.seed, args.workers, lambda row: print(table_line(row), flush=True))

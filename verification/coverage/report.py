@@ -39,6 +39,12 @@ def _pct(x: Any) -> str:
     return "–" if math.isnan(x) else "inf" if math.isinf(x) else f"{100 * x:.1f} %"
 
 
+def _draws_text(summary: dict[str, Any]) -> str:
+    counts = summary.get("reference_draws") or [1]
+    most = max(counts)
+    return f"{most} draws of its mesh" if most > 1 else "one draw of its mesh"
+
+
 def section(part: dict[str, Any], images: dict[str, str]) -> str:
     """The report's section: the summary and one row per object."""
     cov = part.get("coverage")
@@ -53,12 +59,14 @@ def section(part: dict[str, Any], images: dict[str, str]) -> str:
              f"<p>{s['objects']} random objects (gmsh ellipsoids, fused spheres and capsules of 2–4.5 cm; "
              f"E 5–100 kPa, ν 0.2–0.45, density 300–1500 kg/m³, μ 0.3–1.0, fingertip 0.3–0.6 × the smallest "
              f"radius, tilt 0–30°, ratio 0–1), each picked up with <code>accuracy={fmt(cfg.get('accuracy'))}"
-             f"</code> and once more a level finer as the reference. {s['answered']} answered "
+             f"</code> and once more a level finer as the reference (the mean over {_draws_text(s)}). "
+             f"{s['answered']} answered "
              f"({s['converged']} converged), {n} with a reference; the verdicts agree on {s['verdicts_agree']} of "
              f"{n}{differ}. The estimated error is at least the actual one for ρ* on "
              f"{s['covered']['squeeze_depth']}, for "
              f"the finger force on {s['covered']['finger_force']}, for both on {s['covered']['both']} of {n} "
-             f"({_pct(s['coverage']['both'])}). Answers: median {fmt(s['answer_seconds']['median'])} s, longest "
+             f"({_pct(s['coverage']['both'])}); with the reference's own spread added, on "
+             f"{s.get('covered_with_reference', s['covered']['both'])} of {n}. Answers: median {fmt(s['answer_seconds']['median'])} s, longest "
              f"{fmt(s['answer_seconds']['max'])} s; references: median {fmt(s['reference_seconds']['median'])} s, "
              f"longest {fmt(s['reference_seconds']['max'])} s.</p>"]
     if s.get("errors"):
@@ -82,5 +90,5 @@ def section(part: dict[str, Any], images: dict[str, str]) -> str:
                  "and the verdicts agree, or the estimate is infinite. " + html.escape(
                      "A reference is skipped when it would put more than "
                      f"{cfg.get('max_reference_contacts', 600)} contacts on a fingertip, and abandoned after "
-                     f"{fmt(cfg.get('reference_seconds'))} s.") + "</p>")
+                     f"{fmt(cfg.get('reference_seconds'))} s per draw.") + "</p>")
     return "\n".join(parts)

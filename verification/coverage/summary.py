@@ -35,6 +35,8 @@ def evaluate(row: dict[str, Any]) -> dict[str, Any]:
         is at least its actual error and the verdicts agree, or when its estimate is infinite (the answer says it
         does not know).  ``verdict_unsettled``: the answer said its verdict is not settled (the accuracy block's
         ``verdict``, or, in rows saved before it, infinite estimates of both quantities).
+        ``covered_with_reference``: the same with the reference's own uncertainty (the spread of its draws,
+        :func:`~verification.coverage.runner.combine_draws`) added to the estimate, and ``reference_spread``.
     """
     ans, ref = row.get("answer") or {}, row.get("reference") or {}
     if ans.get("status") != "ok":
@@ -45,17 +47,22 @@ def evaluate(row: dict[str, Any]) -> dict[str, Any]:
     est = ans["accuracy"]["estimated_error"]
     unsettled = bool(ans["accuracy"].get("verdict")) or all(math.isinf(_estimate(est.get(q))) for q in QUANTITIES)
     out: dict[str, Any] = {"status": "compared", "verdicts_agree": agree, "verdict_unsettled": unsettled,
-                           "estimated": {}, "actual": {}, "covered": {}}
+                           "estimated": {}, "actual": {}, "covered": {}, "covered_with_reference": {},
+                           "reference_spread": {}}
+    spread = ref.get("spread") or {}
     for q in QUANTITIES:
         e = _estimate(est.get(q))
         a = relative_error(float(ans[q]), float(ref[q]))
         out["estimated"][q], out["actual"][q] = e, a
+        out["reference_spread"][q] = float(spread.get(q, 0.0))
         out["covered"][q] = bool(math.isinf(e) or (agree and e >= a))
+        out["covered_with_reference"][q] = bool(math.isinf(e) or (agree and e + out["reference_spread"][q] >= a))
     out["covered_both"] = all(out["covered"].values())
+    out["covered_both_with_reference"] = all(out["covered_with_reference"].values())
     return out
 
 
-def _times(values: list[float]) -> dict[str, float]:
+def _median_max(values: list[float]) -> dict[str, float]:
     v = [float(x) for x in values if x is not None]
     return {"median": float(np.median(v)) if v else math.nan, "max": max(v) if v else math.nan}
 
@@ -97,10 +104,14 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "verdicts_differ_settled": sum(not e["verdicts_agree"] and not e.get("verdict_unsettled") for e in compared),
         "covered": {q: sum(e["covered"][q] for e in compared) for q in QUANTITIES}
         | {"both": sum(e["covered_both"] for e in compared)},
+        "covered_with_reference": sum(e["covered_both_with_reference"] for e in compared),
+        "reference_draws": [int((r.get("reference") or {}).get("draws_ok") or 1) for r in rows
+                            if (r.get("reference") or {}).get("status") == "ok"],
+        "reference_spread": {q: _median_max([e["reference_spread"][q] for e in compared]) for q in QUANTITIES},
         "coverage": coverage,
         "converged": sum(bool(r["answer"]["accuracy"]["converged"]) for r in answered),
-        "answer_seconds": _times([r["answer"]["seconds"] for r in answered]),
-        "reference_seconds": _times([r["reference"]["seconds"] for r in rows
+        "answer_seconds": _median_max([r["answer"]["seconds"] for r in answered]),
+        "reference_seconds": _median_max([r["reference"]["seconds"] for r in rows
                                      if (r.get("reference") or {}).get("status") == "ok"]),
     }
 
@@ -161,6 +172,19 @@ def table_line(row: dict[str, Any]) -> str:
             f"{act[1]:>8} {cov:<9} {ans_s:>6} {ref_s:>6}")
 
 
+def _draws(counts: list[int]) -> str:
+    """"3 draws each", or the counts where they differ (a reference that ran out of time keeps the draws done)."""
+    if not counts:
+        return "none"
+    if len(set(counts)) == 1:
+        return f"{counts[0]} draw{'s' if counts[0] != 1 else ''} of the mesh each"
+    return "draws of the mesh: " + ", ".join(str(c) for c in counts)
+
+
+def _spread(summary: dict[str, Any], q: str, stat: str) -> float | None:
+    return ((summary.get("reference_spread") or {}).get(q) or {}).get(stat)
+
+
 def summary_lines(summary: dict[str, Any]) -> list[str]:
     """The summary in a few lines of text."""
     s = summary
@@ -178,6 +202,10 @@ def summary_lines(summary: dict[str, Any]) -> list[str]:
            "verdict is not settled" if s["verdicts_differ"] else ""),
         f"estimated error >= actual: rho* {cnt['squeeze_depth']}/{n} ({_pct(cov['squeeze_depth'])}), finger force "
         f"{cnt['finger_force']}/{n} ({_pct(cov['finger_force'])}), both {cnt['both']}/{n} ({_pct(cov['both'])})",
+        f"references: {_draws(s.get('reference_draws', []))}; their spread over the draws: rho* median "
+        f"{_pct(_spread(s, 'squeeze_depth', 'median'))}, max {_pct(_spread(s, 'squeeze_depth', 'max'))}, finger "
+        f"force median {_pct(_spread(s, 'finger_force', 'median'))}, max {_pct(_spread(s, 'finger_force', 'max'))}; "
+        f"with it added to the estimate, both covered on {s.get('covered_with_reference', cnt['both'])}/{n}",
         f"answer seconds: median {_s(s['answer_seconds']['median'])}, max {_s(s['answer_seconds']['max'])}; "
         f"reference seconds: median {_s(s['reference_seconds']['median'])}, max {_s(s['reference_seconds']['max'])}",
         f"{'PASS' if ok_cov else 'FAIL'}  coverage of both quantities >= {100 * REQUIRED_COVERAGE:.0f} %",
