@@ -234,6 +234,10 @@ def test_the_summary_counts_only_objects_with_a_reference():
     assert with_spread["reference_draws"] == [1, 3]
     assert with_spread["reference_spread"]["squeeze_depth"]["max"] == pytest.approx(0.15)
     assert any("both covered on 2/2" in line for line in summary_lines(with_spread))
+    # draws of the reference that split on the verdict: no reference, and counted where the answer was sure
+    split = summarise([_row(0), _row(1, ref_status="draws disagree")])
+    assert split["with_reference"] == 1 and split["draws_disagree_settled"] == 1
+    assert any("1 answer(s) called theirs settled" in line for line in summary_lines(split))
     empty = summarise([_row(0, ref_status="too large")])
     assert math.isnan(empty["coverage"]["both"]) and passed(empty) == (False, False)
 

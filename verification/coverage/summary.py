@@ -23,6 +23,12 @@ def _estimate(value: Any) -> float:
     return math.inf if value is None else float(value)
 
 
+def _unsettled(answer: dict[str, Any]) -> bool:
+    """Whether the answer said its verdict is not settled (module notes of :func:`evaluate`)."""
+    est = answer["accuracy"]["estimated_error"]
+    return bool(answer["accuracy"].get("verdict")) or all(math.isinf(_estimate(est.get(q))) for q in QUANTITIES)
+
+
 def evaluate(row: dict[str, Any]) -> dict[str, Any]:
     """One object's comparison.
 
@@ -41,11 +47,11 @@ def evaluate(row: dict[str, Any]) -> dict[str, Any]:
     ans, ref = row.get("answer") or {}, row.get("reference") or {}
     if ans.get("status") != "ok":
         return {"status": "no answer", "why": ans.get("status", "missing")}
+    unsettled = _unsettled(ans)
     if ref.get("status") != "ok":
-        return {"status": "no reference", "why": ref.get("status", "missing")}
+        return {"status": "no reference", "why": ref.get("status", "missing"), "verdict_unsettled": unsettled}
     agree = bool(ans["success"]) == bool(ref["success"])
     est = ans["accuracy"]["estimated_error"]
-    unsettled = bool(ans["accuracy"].get("verdict")) or all(math.isinf(_estimate(est.get(q))) for q in QUANTITIES)
     out: dict[str, Any] = {"status": "compared", "verdicts_agree": agree, "verdict_unsettled": unsettled,
                            "estimated": {}, "actual": {}, "covered": {}, "covered_with_reference": {},
                            "reference_spread": {}}
@@ -102,6 +108,8 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "verdicts_agree": sum(e["verdicts_agree"] for e in compared),
         "verdicts_differ": sum(not e["verdicts_agree"] for e in compared),
         "verdicts_differ_settled": sum(not e["verdicts_agree"] and not e.get("verdict_unsettled") for e in compared),
+        # the reference's draws split on the verdict although the answer called its verdict settled
+        "draws_disagree_settled": sum(e.get("why") == "draws disagree" and not e["verdict_unsettled"] for e in ev),
         "covered": {q: sum(e["covered"][q] for e in compared) for q in QUANTITIES}
         | {"both": sum(e["covered_both"] for e in compared)},
         "covered_with_reference": sum(e["covered_both_with_reference"] for e in compared),
@@ -193,7 +201,9 @@ def summary_lines(summary: dict[str, Any]) -> list[str]:
     ok_cov, ok_verdict = passed(s)
     return [
         f"{s['objects']} objects: {s['answered']} answered ({s['converged']} converged), {n} with a reference "
-        f"(references: {', '.join(f'{k} {v}' for k, v in sorted(s['reference_status'].items())) or 'none'})",
+        f"(references: {', '.join(f'{k} {v}' for k, v in sorted(s['reference_status'].items())) or 'none'})"
+        + (f"; where the reference's draws disagree on the verdict, {s['draws_disagree_settled']} answer(s) called "
+           "theirs settled" if s["reference_status"].get("draws disagree") else ""),
         f"answers: {', '.join(f'{k} {v}' for k, v in sorted(s['answer_status'].items()))}"
         + (f"; errors: {', '.join(f'{k} {v}' for k, v in sorted(s.get('errors', {}).items()))}"
            if s.get("errors") else ""),
