@@ -128,7 +128,7 @@ def test_the_reference_is_one_level_beyond_the_answers_last():
 
 def _draw(success=True, rho=0.0100, force=2.0, status="ok"):
     return {"status": status, "success": success, "reason": "", "squeeze_depth": rho, "finger_force": force,
-            "max_liftable": 1.0, "weight": 1.0, "vertices": 9000, "seconds": 100.0}
+            "max_liftable": 1.0, "weight": 1.0, "vertices": 9000, "seconds": 100.0, "step": 1e-4}
 
 
 def test_the_reference_is_the_mean_of_its_draws_with_their_spread_as_its_uncertainty():
@@ -144,6 +144,11 @@ def test_the_reference_is_the_mean_of_its_draws_with_their_spread_as_its_uncerta
     split = combine_draws([_draw(), _draw(success=False)])  # a finer mesh decides either way: no reference
     assert split["status"] == "draws disagree" and "squeeze_depth" not in split
     assert combine_draws([dict(_draw(status="failed"), error="RuntimeError: x")])["status"] == "failed"
+    # a draw that stopped before the squeeze (not force closure) says nothing of the lift: left out
+    stopped = dict(_draw(success=False, rho=0.0, force=0.0), step=0.0)
+    two = combine_draws([_draw(), _draw(rho=0.0102), stopped])
+    assert two["status"] == "ok" and two["draws_ok"] == 2 and two["squeeze_depth"] == pytest.approx(0.0101)
+    assert combine_draws([stopped])["status"] == "no squeeze"
 
 
 def test_a_saved_reference_is_used_again_only_for_its_object_and_a_coarser_answer():

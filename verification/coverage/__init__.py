@@ -40,7 +40,7 @@ from typing import Any, Callable
 from .report import checks, section
 from .runner import QUANTITIES, combine_draws, reference_plan, run_object, supervised
 from .scene import RANGES, SHAPES, TARGET_VERTICES, CoverageObject, capsule, capsule_volume
-from .summary import REQUIRED_COVERAGE, evaluate, passed, summarise
+from .summary import REQUIRED_COVERAGE, evaluate, passed, reference_of, summarise
 
 #: The full study and ``--quick``: objects, target accuracy, the answer's time budget (``max_seconds`` of the
 #: loop) and hard cap, the reference's time cap (per draw), the largest reference run (contacts per fingertip),
@@ -77,7 +77,7 @@ def sweep(config: dict[str, Any], seed: int = 0, workers: int = 2,
 
 def compact(row: dict[str, Any]) -> dict[str, Any]:
     """A row for the report's summary: the object, the verdicts, the errors and the times (no levels)."""
-    ans, ref = row.get("answer") or {}, row.get("reference") or {}
+    ans, ref = row.get("answer") or {}, reference_of(row)
     acc = ans.get("accuracy") or {}
     keep = ("status", "success", "squeeze_depth", "finger_force", "vertices", "seconds", "draws_ok", "spread")
     return {"seed": row["seed"], "object": row["object"],

@@ -78,11 +78,15 @@ def combine_draws(draws: list[dict[str, Any]]) -> dict[str, Any]:
     """The reference from its draws (rows as the answer's): where every draw that ran gives one verdict, the mean
     of ρ*, Σ f·n̂ and the largest weight held, with ``spread`` per quantity (the largest |draw − mean| / |mean|,
     the reference's own uncertainty; 0 for one draw); ``status`` "draws disagree" where the verdicts differ (no
-    reference: a finer mesh decides either way), "failed" where none ran."""
-    ok = [d for d in draws if d.get("status") == "ok"]
+    reference: a finer mesh decides either way), "failed" where none ran.  A draw that stopped before the squeeze
+    (its mesh's nodes at the grasp points not in force closure: a random capsule's third draw) answers no
+    question about the lift and is left out, as one that raised."""
+    ok = [d for d in draws if d.get("status") == "ok" and (d.get("success") or float(d.get("step") or 0.0) > 0)]
     seconds = sum(float(d.get("seconds") or 0.0) for d in draws)
     if not ok:
         first = draws[0] if draws else {}
+        if first.get("status") == "ok":
+            return {"status": "no squeeze", "seconds": seconds}
         return {"status": "failed", "error": first.get("error", "no draw ran"), "seconds": seconds}
     if len({bool(d["success"]) for d in ok}) > 1:
         return {"status": "draws disagree", "seconds": seconds, "draws_ok": len(ok)}

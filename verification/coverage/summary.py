@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from .runner import QUANTITIES, relative_error
+from .runner import QUANTITIES, combine_draws, relative_error
 
 #: Share of the objects with a reference whose estimated error must cover the actual one (both quantities).
 REQUIRED_COVERAGE = 0.9
@@ -21,6 +21,13 @@ REQUIRED_COVERAGE = 0.9
 def _estimate(value: Any) -> float:
     """An estimated error as a float: a missing or null one is unknown, so infinite (JSON writes inf as null)."""
     return math.inf if value is None else float(value)
+
+
+def reference_of(row: dict[str, Any]) -> dict[str, Any]:
+    """A row's reference, its draws combined again (:func:`~verification.coverage.runner.combine_draws`), so that
+    a saved run is analysed by today's rules."""
+    ref = row.get("reference") or {}
+    return dict(ref, **combine_draws(ref["draws"])) if ref.get("draws") else ref
 
 
 def _unsettled(answer: dict[str, Any]) -> bool:
@@ -44,7 +51,7 @@ def evaluate(row: dict[str, Any]) -> dict[str, Any]:
         ``covered_with_reference``: the same with the reference's own uncertainty (the spread of its draws,
         :func:`~verification.coverage.runner.combine_draws`) added to the estimate, and ``reference_spread``.
     """
-    ans, ref = row.get("answer") or {}, row.get("reference") or {}
+    ans, ref = row.get("answer") or {}, reference_of(row)
     if ans.get("status") != "ok":
         return {"status": "no answer", "why": ans.get("status", "missing")}
     unsettled = _unsettled(ans)
@@ -82,7 +89,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     reference_status: dict[str, int] = {}
     for r in rows:
         if (r.get("answer") or {}).get("status") == "ok":
-            s = (r.get("reference") or {}).get("status", "missing")
+            s = reference_of(r).get("status", "missing")
             reference_status[s] = reference_status.get(s, 0) + 1
     answer_status: dict[str, int] = {}
     for r in rows:
@@ -113,14 +120,14 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "covered": {q: sum(e["covered"][q] for e in compared) for q in QUANTITIES}
         | {"both": sum(e["covered_both"] for e in compared)},
         "covered_with_reference": sum(e["covered_both_with_reference"] for e in compared),
-        "reference_draws": [int((r.get("reference") or {}).get("draws_ok") or 1) for r in rows
-                            if (r.get("reference") or {}).get("status") == "ok"],
+        "reference_draws": [int(reference_of(r).get("draws_ok") or 1) for r in rows
+                            if reference_of(r).get("status") == "ok"],
         "reference_spread": {q: _median_max([e["reference_spread"][q] for e in compared]) for q in QUANTITIES},
         "coverage": coverage,
         "converged": sum(bool(r["answer"]["accuracy"]["converged"]) for r in answered),
         "answer_seconds": _median_max([r["answer"]["seconds"] for r in answered]),
         "reference_seconds": _median_max([r["reference"]["seconds"] for r in rows
-                                     if (r.get("reference") or {}).get("status") == "ok"]),
+                                     if reference_of(r).get("status") == "ok"]),
     }
 
 
@@ -161,7 +168,7 @@ def _verdict(part: dict[str, Any]) -> str:
 def table_line(row: dict[str, Any]) -> str:
     """One object as a line of the progress table (:data:`HEADER`)."""
     o = row["object"]
-    ans, ref = row.get("answer") or {}, row.get("reference") or {}
+    ans, ref = row.get("answer") or {}, reference_of(row)
     e = evaluate(row)
     est = (ans.get("accuracy") or {}).get("estimated_error", {})
     levels = len((ans.get("accuracy") or ans.get("levels_so_far") or {}).get("levels", [])) or "-"
