@@ -13,7 +13,7 @@ from pathlib import Path
 from fem_grasp.grasp.options import REFINEMENTS
 
 from . import CONFIGS, sweep
-from .summary import HEADER, passed, summarise, summary_lines, table_line
+from .summary import HEADER, passed, reference_of, summarise, summary_lines, table_line
 
 
 def _json(value: object) -> object:
@@ -72,8 +72,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.references is not None:
             try:
                 saved = json.loads(args.references.read_text(encoding="utf-8"))
-                cfg["references"] = {int(r["seed"]): dict(r.get("reference") or {}, object=r["object"])
-                                     for r in saved["rows"]}
+                cfg["references"] = {int(r["seed"]): dict(reference_of(r), object=r["object"]) for r in saved["rows"]}
                 cfg["references_file"] = str(args.references)
             except (OSError, ValueError, KeyError, TypeError) as exc:
                 ap.error(f"cannot read the references of {args.references}: {exc}")
