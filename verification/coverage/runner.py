@@ -5,9 +5,9 @@ The reference is one level beyond the answer's last (:func:`reference_plan`) mes
 gives other tetrahedra of about the same spacing — and is their mean, with their largest deviation from it as its
 own uncertainty (:func:`combine_draws`): meshes of one spacing differ by a few per cent, as much as two levels do,
 so a single draw cannot confirm a statement of a few per cent.  (Rounding gmsh's inputs to another grid, as the
-benchmark draws the paper shapes' levels, left these objects' reference meshes unchanged.)  A saved study's references (``config["references"]``, by
-seed) are used again where they are finer than the answer's last level (:func:`reusable`), so that two loops
-are judged against the same reference.
+benchmark draws the paper shapes' levels, left these objects' reference meshes unchanged.)  A saved study's
+references (``config["references"]``, by seed) are used again where they are finer than the answer's last level
+(:func:`reusable`), so that two loops are judged against the same reference.
 
 :func:`run_object` is a pure function of the seed and the configuration (same arguments, same row);
 :func:`supervised` runs it in a fresh interpreter (spawned, not forked: the full report's process has loaded
@@ -203,7 +203,8 @@ def supervised(seed: int, config: dict[str, Any], poll: float = 2.0) -> dict[str
     """:func:`run_object` in a spawned process: the answer may take ``config["answer_cap"]`` seconds, the
     reference ``config["reference_seconds"]`` per draw after it; a phase that overruns is recorded as ``timed
     out`` and its process terminated (a timed-out answer keeps the loop's levels so far as ``levels_so_far``; a
-    timed-out reference is the mean of the draws that finished, if any, with ``timed_out`` set)."""
+    reference that timed out or whose process died is the mean of the draws that finished, if any, with
+    ``ended_early`` saying how it ended)."""
     ctx = multiprocessing.get_context("spawn")
     receive, send = ctx.Pipe(duplex=False)
     proc = ctx.Process(target=_child, args=(seed, config, send), daemon=True)
@@ -255,8 +256,9 @@ def supervised(seed: int, config: dict[str, Any], poll: float = 2.0) -> dict[str
         last = row["answer"]["accuracy"]["levels"][-1]
         row["reference"]["predicted_contacts"] = max(last["finger_nodes"]) * LEVEL_RATIO**2
         draws = row["reference"].get("draws") or []
-        if any(d.get("status") == "ok" for d in draws):  # the draws that finished
-            row["reference"].update(combine_draws(draws), timed_out=True, seconds=row["reference"]["seconds"])
+        if any(d.get("status") == "ok" for d in draws):  # the draws that finished before it ended
+            ended = row["reference"]["status"]
+            row["reference"].update(combine_draws(draws), ended_early=ended, seconds=row["reference"]["seconds"])
     return row
 
 
