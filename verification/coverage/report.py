@@ -66,7 +66,8 @@ def section(part: dict[str, Any], images: dict[str, str]) -> str:
              f"{s['covered']['squeeze_depth']}, for "
              f"the finger force on {s['covered']['finger_force']}, for both on {s['covered']['both']} of {n} "
              f"({_pct(s['coverage']['both'])}); with the reference's own spread added, on "
-             f"{s.get('covered_with_reference', s['covered']['both'])} of {n}. Answers: median {fmt(s['answer_seconds']['median'])} s, longest "
+             f"{s.get('covered_with_reference', s['covered']['both'])} of {n}. Answers: median "
+             f"{fmt(s['answer_seconds']['median'])} s, longest "
              f"{fmt(s['answer_seconds']['max'])} s; references: median {fmt(s['reference_seconds']['median'])} s, "
              f"longest {fmt(s['reference_seconds']['max'])} s.</p>"]
     if s.get("errors"):
