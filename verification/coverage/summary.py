@@ -25,9 +25,13 @@ def _estimate(value: Any) -> float:
 
 def reference_of(row: dict[str, Any]) -> dict[str, Any]:
     """A row's reference, its draws combined again (:func:`~verification.coverage.runner.combine_draws`), so that
-    a saved run is analysed by today's rules."""
+    a saved run is analysed by today's rules; its ``seconds`` stay the time it took (a reference that ended early
+    spent time on a draw that did not finish)."""
     ref = row.get("reference") or {}
-    return dict(ref, **combine_draws(ref["draws"])) if ref.get("draws") else ref
+    if not ref.get("draws"):
+        return ref
+    combined = combine_draws(ref["draws"])
+    return dict(ref, **combined, seconds=ref.get("seconds", combined["seconds"]))
 
 
 def _unsettled(answer: dict[str, Any]) -> bool:
@@ -86,10 +90,12 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     ev = [evaluate(r) for r in rows]
     compared = [e for e in ev if e["status"] == "compared"]
     n = len(compared)
+    refs = [reference_of(r) for r in rows]  # the draws combined once
+    ran = [ref for ref in refs if ref.get("status") == "ok"]
     reference_status: dict[str, int] = {}
-    for r in rows:
+    for r, ref in zip(rows, refs):
         if (r.get("answer") or {}).get("status") == "ok":
-            s = reference_of(r).get("status", "missing")
+            s = ref.get("status", "missing")
             reference_status[s] = reference_status.get(s, 0) + 1
     answer_status: dict[str, int] = {}
     for r in rows:
@@ -120,14 +126,12 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "covered": {q: sum(e["covered"][q] for e in compared) for q in QUANTITIES}
         | {"both": sum(e["covered_both"] for e in compared)},
         "covered_with_reference": sum(e["covered_both_with_reference"] for e in compared),
-        "reference_draws": [int(reference_of(r).get("draws_ok") or 1) for r in rows
-                            if reference_of(r).get("status") == "ok"],
+        "reference_draws": [int(ref.get("draws_ok") or 1) for ref in ran],
         "reference_spread": {q: _median_max([e["reference_spread"][q] for e in compared]) for q in QUANTITIES},
         "coverage": coverage,
         "converged": sum(bool(r["answer"]["accuracy"]["converged"]) for r in answered),
         "answer_seconds": _median_max([r["answer"]["seconds"] for r in answered]),
-        "reference_seconds": _median_max([r["reference"]["seconds"] for r in rows
-                                     if reference_of(r).get("status") == "ok"]),
+        "reference_seconds": _median_max([ref["seconds"] for ref in ran]),
     }
 
 
