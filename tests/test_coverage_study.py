@@ -239,6 +239,10 @@ def test_the_summary_counts_only_objects_with_a_reference():
     assert with_spread["reference_draws"] == [1, 3]
     assert with_spread["reference_spread"]["squeeze_depth"]["max"] == pytest.approx(0.15)
     assert any("both covered on 2/2" in line for line in summary_lines(with_spread))
+    # a saved row's draws are combined again; the reference keeps the time it took (an unfinished draw's too)
+    drawn = _row(2)
+    drawn["reference"].update(draws=[_draw(rho=0.0102, force=2.05)], seconds=450.0)
+    assert summarise([drawn])["reference_seconds"]["max"] == 450.0 and evaluate(drawn)["covered_both"]
     # draws of the reference that split on the verdict: no reference, and counted where the answer was sure
     split = summarise([_row(0), _row(1, ref_status="draws disagree")])
     assert split["with_reference"] == 1 and split["draws_disagree_settled"] == 1

@@ -31,7 +31,8 @@ def reference_of(row: dict[str, Any]) -> dict[str, Any]:
     if not ref.get("draws"):
         return ref
     combined = combine_draws(ref["draws"])
-    return dict(ref, **combined, seconds=ref.get("seconds", combined["seconds"]))
+    combined["seconds"] = ref.get("seconds", combined["seconds"])
+    return dict(ref, **combined)
 
 
 def _unsettled(answer: dict[str, Any]) -> bool:
