@@ -596,12 +596,15 @@ def next_step(step: float, before: GraspAnswer, accuracy: float, predicted: floa
     converge costs few lift tests; else ``FINE_STEP_SHARE`` (also with no prediction yet, as for level 1), never
     larger than the last, so that a level expected to converge follows one resolved as finely (two levels at
     different resolutions differ by the coarser one's quantisation); halved when the level before found no ρ*
-    (its verdict: not lifted)."""
+    (its verdict: not lifted).  The share is of the force's target as well: an error of ρ* carries into the force
+    read at it times the force's exponent over ρ (:func:`~fem_grasp.grasp.answer.force_exponent`), by which the
+    resolution is divided where it exceeds 1."""
     if not passed(before) or not before.squeeze_depth > 0:
         return step / LEVEL_RATIO
+    target = accuracy * before.squeeze_depth / max(1.0, before.force_exponent)
     if predicted is None or predicted <= (1.0 - FINE_STEP_SHARE) * accuracy:
-        return min(step, FINE_STEP_SHARE * accuracy * before.squeeze_depth)
-    return STEP_SHARE * accuracy * before.squeeze_depth
+        return min(step, FINE_STEP_SHARE * target)
+    return STEP_SHARE * target
 
 
 def single_run_report(result: Any, target: float | None, expected_error: float | None, note: str, *,

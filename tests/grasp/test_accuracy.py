@@ -186,7 +186,8 @@ def test_nested_levels_refine_the_level_before_at_the_patches(nested, levels):
     for a, b in zip(lv, lv[1:]):
         assert sum(a["finger_nodes"]) < sum(b["finger_nodes"])
     for q in ("squeeze_depth", "finger_force"):
-        e = max(acc["estimated_error"][q], levels.accuracy["estimated_error"][q])
+        # each within its stated error of the converged answer: the two within the sum of both
+        e = acc["estimated_error"][q] + levels.accuracy["estimated_error"][q]
         assert relative_change(lv[-1][q], levels.accuracy["levels"][-1][q]) <= e
 
 

@@ -1,6 +1,7 @@
 """The error of a refinement sequence (fem_grasp.grasp.estimates): Richardson extrapolation and the three-level
 uncertainty of the accuracy loop, on sequences whose limit is known."""
 
+import dataclasses
 import math
 
 import numpy as np
@@ -111,8 +112,9 @@ def _level(rho_mm: float, force: float, inner: float, success: bool = True) -> d
 
 
 class _Answer:  # what estimated_error reads of a GraspAnswer
-    def __init__(self, rho: float) -> None:
+    def __init__(self, rho: float, force_exponent: float = 1.0) -> None:
         self.success, self.reason, self.squeeze_depth, self.resolution = True, "", rho, 1e-5
+        self.force_exponent = force_exponent
 
 
 def test_a_swinging_third_level_raises_the_loops_estimate_above_the_last_difference():
@@ -212,24 +214,73 @@ def test_levels_that_find_the_same_rho_state_at_least_twice_its_resolution():
     assert big["squeeze_depth"] == pytest.approx(0.15 + res)
 
 
-def test_a_force_read_at_a_drifting_rho_states_at_least_rhos_error():
+def test_a_force_read_at_a_drifting_rho_states_rhos_error_times_its_exponent():
     """The coverage study's seed 4 at 5 % with nested levels: ρ* 15.613, 15.809, 16.004 mm (resolutions 0.691,
-    0.195, 0.195 mm) drift by a resolution per level towards the reference's 16.541 mm; the forces 30.63, 28.645,
-    28.81 N oscillate and contract, and their own estimate (3.9 %) fell short of the reference's 30.18 N (4.5 %).
-    The force is read at ρ*, and it grows with ρ*: it states at least ρ*'s error, which covers both."""
+    0.195, 0.195 mm) drift by a resolution per level towards the reference's 16.64 mm; the forces 30.63, 28.645,
+    28.81 N oscillate and contract, and their own estimate (3.9 %) fell short of the reference's 30.43 N (5.3 %).
+    The force is read at ρ*, and it grows as a power of ρ*: it states ρ*'s error times that power, at least 1."""
     levels = [dict(_level(15.613, 30.63, 7.7e-3), resolution=0.691e-3),
               dict(_level(15.809, 28.645, 3.85e-3), resolution=0.195e-3),
               dict(_level(16.004, 28.81, 1.93e-3), resolution=0.195e-3)]
     three = three_level_errors(levels)
     change = {"squeeze_depth": relative_change(15.809, 16.004), "finger_force": relative_change(28.645, 28.81)}
-    ans = _Answer(16.004e-3)
-    ans.resolution = 0.195e-3
-    est = estimated_error(change, ans, three)
     own = max(TWO_LEVEL_SAFETY * change["finger_force"], three["finger_force"]["relative"]) + 0.195 / 16.004
-    assert own < relative_change(28.81, 30.18)  # the force's own levels understate it
-    assert est["squeeze_depth"] >= relative_change(16.004, 16.541)
-    assert est["finger_force"] == pytest.approx(est["squeeze_depth"]) and est["finger_force"] >= relative_change(
-        28.81, 30.18)
+    assert own < relative_change(28.81, 30.43)  # the force's own levels understate it
+    for exponent in (0.7, 1.0, 1.5, 2.2):
+        ans = _Answer(16.004e-3, force_exponent=exponent)
+        ans.resolution = 0.195e-3
+        est = estimated_error(change, ans, three)
+        assert est["squeeze_depth"] >= relative_change(16.004, 16.64)
+        assert est["finger_force"] == pytest.approx(max(1.0, exponent) * est["squeeze_depth"])
+    hertz = estimated_error(change, _Answer(16.004e-3, force_exponent=1.5), three)
+    assert hertz["finger_force"] >= relative_change(28.81, 30.43)
+    # a failure's force is not read at a ρ*: no exponent applies
+    failed = _Answer(16.004e-3, force_exponent=3.0)
+    failed.success, failed.reason = False, "the lift test did not pass by the maximum squeeze depth"
+    assert estimated_error(change, failed)["finger_force"] == pytest.approx(TWO_LEVEL_SAFETY * change["finger_force"])
+
+
+class _Snap:
+    def __init__(self, label: str, phase: str, rho: float, force: float) -> None:
+        self.label, self.phase, self.squeeze_depth, self._force = label, phase, rho, force
+
+    def finger_normal_force(self, table) -> float:
+        return self._force
+
+
+def _squeezed(rhos, force_of, rho_star, lift_events=3):
+    """A pickup's snapshots along the squeeze (forces force_of(ρ)), its lift start at ρ* and events of the lift."""
+    from types import SimpleNamespace
+
+    snaps = [_Snap("initial", "squeeze", 0.0, 0.0)] + [_Snap("event", "squeeze", r, force_of(r)) for r in rhos]
+    snaps += [_Snap("lift start", "squeeze", rho_star, force_of(rho_star))]
+    snaps += [_Snap("event", "lift", rho_star, 1.1 * force_of(rho_star)) for _ in range(lift_events)]
+    return SimpleNamespace(squeeze_depth=rho_star, snapshots=snaps, rest=SimpleNamespace(table=None))
+
+
+@pytest.mark.parametrize("power, offset", [(1.5, 0.0), (1.0, 0.0), (1.5, 2e-3), (2.0, 0.0)])
+def test_the_force_exponent_is_the_slope_of_log_force_over_log_rho_along_the_squeeze(power, offset):
+    from fem_grasp.grasp.answer import EXPONENT_WINDOW, force_exponent
+
+    rho_star, step = 9e-3, 0.25e-3
+
+    def force(r):
+        return 3.0 * max(r - offset, 0.0) ** power
+
+    res = _squeezed(np.arange(step, rho_star - step / 2, step), force, rho_star)
+    r1 = rho_star - step * round((1 - EXPONENT_WINDOW) * rho_star / step)
+    secant = math.log(force(rho_star) / force(r1)) / math.log(rho_star / r1)
+    assert force_exponent(res) == pytest.approx(secant, rel=1e-12)
+    # the local slope power·ρ/(ρ - offset) lies within the secant's range over the window
+    local = [power * r / (r - offset) for r in (r1, rho_star)]
+    assert min(local) - 1e-9 <= force_exponent(res) <= max(local) + 1e-9
+
+
+def test_a_squeeze_without_earlier_pressing_states_hertz_exponent():
+    from fem_grasp.grasp.answer import HERTZ_EXPONENT, force_exponent
+
+    assert force_exponent(_squeezed([], lambda r: r, 1e-3)) == HERTZ_EXPONENT  # lifted at the first increment
+    assert force_exponent(_squeezed([5e-4], lambda r: 0.0 * r, 1e-3)) == HERTZ_EXPONENT  # no force to compare
 
 
 # ---------------------------------------------------------------- failures and the verdict
@@ -295,12 +346,12 @@ def test_a_lift_within_its_error_of_the_deepest_squeeze_is_not_a_settled_verdict
 
 
 # ---------------------------------------------------------------- what the next level's resolution costs
-def _answer(rho_mm: float, force: float, resolution_mm: float):
+def _answer(rho_mm: float, force: float, resolution_mm: float, force_exponent: float = 1.0):
     from fem_grasp.grasp.answer import GraspAnswer
 
     f = {"resultant": force / 2, "along_squeeze": force / 2, "vertical": 0.1, "nodes": 10}
     return GraspAnswer(True, "", 1e-3 * rho_mm, force, (f, f), 20, 1.0, 1.0, (), 1000, 4e-3 * resolution_mm, 0.05,
-                       1.0, 4)
+                       1.0, 4, force_exponent=force_exponent)
 
 
 def _levels(first, second):
@@ -332,3 +383,10 @@ def test_a_level_predicted_to_converge_resolves_rho_finer_and_others_do_not():
     assert predicted_mesh_error(moving[:1]) is None  # level 1: no prediction, the fine share
     assert next_step(1.0, moving[0].answer, target, None) == pytest.approx(
         FINE_STEP_SHARE * target * moving[0].answer.squeeze_depth)
+    # a force growing as ρ^1.6 takes 1.6 times ρ*'s error: ρ* is resolved 1.6 times finer; one growing more slowly
+    # than ρ* not more coarsely
+    for exponent, divided in ((1.6, 1.6), (0.8, 1.0)):
+        steep = dataclasses.replace(quiet[-1].answer, force_exponent=exponent)
+        assert next_step(1.0, steep, target, 0.0) == pytest.approx(FINE_STEP_SHARE * target * steep.squeeze_depth
+                                                                   / divided)
+        assert next_step(1.0, steep, target, 1.0) == pytest.approx(STEP_SHARE * target * steep.squeeze_depth / divided)
