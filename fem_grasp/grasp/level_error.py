@@ -60,7 +60,7 @@ def estimated_error(change: dict[str, float], ans: GraspAnswer,
     increment, or sub-increment, late, and the finger force grows with ρ*, about in proportion near the
     lift-off) — and, as it is read at ρ*, at least ρ*'s error times the force's exponent over ρ
     (:func:`~fem_grasp.grasp.answer.force_exponent`, at least 1).  The coverage study's seed 4 at 5 % with nested
-    levels: ρ* 15.61, 15.81, 16.00 mm stated 4.9 %, 3.4 % short of the reference; its forces 30.63, 28.65,
+    levels: ρ* 15.61, 15.81, 16.00 mm stated 4.9 %, 3.8 % short of the reference; its forces 30.63, 28.65,
     28.81 N stated 3.9 %, 5.3 % short: the force errs by more than ρ* does (by 1.0 to 1.7 times on the study's
     lifted objects), as a force growing as ρ^1.5 does.  For ρ* the change itself is
     known only to a resolution (two levels on one grid of depths find the same ρ* wherever theirs lie within one
