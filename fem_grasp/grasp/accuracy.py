@@ -135,7 +135,7 @@ class AccuracyLevel:
                 "success": a.success, "squeeze_depth": a.squeeze_depth, "finger_force": a.finger_force,
                 "finger_nodes": [f["nodes"] for f in a.fingers], "table_nodes": a.table_nodes,
                 "max_liftable": a.max_liftable, "max_squeeze": a.max_squeeze, "liftable": [list(p) for p in a.liftable],
-                "seconds": a.seconds,
+                "force_exponent": a.force_exponent, "seconds": a.seconds,
                 "mesh_seconds": self.mesh_seconds, "change": self.change, "reason": a.reason}
 
 

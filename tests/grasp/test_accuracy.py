@@ -127,8 +127,10 @@ def test_three_levels_state_an_error_by_how_they_converge(levels):
     assert acc["estimated_error"]["squeeze_depth"] == pytest.approx(
         max(3 * lv[2]["change"]["squeeze_depth"], three["squeeze_depth"]["relative"], q) + q)
     assert three["finger_force"]["method"] == "scatter"
+    # the force's own estimate, or ρ*'s times the force's exponent over ρ, which the level's record carries
     assert acc["estimated_error"]["finger_force"] == pytest.approx(
-        max(3 * lv[2]["change"]["finger_force"], three["finger_force"]["relative"]) + q)
+        max(max(3 * lv[2]["change"]["finger_force"], three["finger_force"]["relative"]) + q,
+            max(1.0, lv[2]["force_exponent"]) * acc["estimated_error"]["squeeze_depth"]))
     assert acc["converged"] == (max(acc["estimated_error"].values()) <= TARGET)
     assert not acc["converged"] and "not converged" in acc["note"]
     assert levels.squeeze_depth == lv[2]["squeeze_depth"]  # the answer is the last level's
