@@ -170,17 +170,25 @@ def test_the_reference_is_on_the_mesh_its_increments_were_refined_on():
 def test_the_adaptive_answer_at_a_coarser_target_follows_the_loop_s_own_rule():
     """A level "meets" a target as the loop decides: three times its change from the level before (two levels may
     agree by chance) plus one squeeze increment (relative to ρ*), not the change alone — and for ρ* that part at
-    least one increment: two levels that find ρ* at the same increment are only known to agree within it."""
+    least one increment: two levels that find ρ* at the same increment are only known to agree within it.  The
+    force states at least ρ*'s error times its exponent over ρ, which the level records (Hertz's 3/2 where an older
+    record does not)."""
     from verification.converge.analysis import adaptive_at
 
     levels = [{"success": True, "squeeze_depth": 0.002, "finger_force": 0.60, "step": 2e-4, "seconds": 1.0},
               {"success": True, "squeeze_depth": 0.002, "finger_force": 0.605, "step": 4e-5, "seconds": 2.0,
-               "change": {"squeeze_depth": 0.0, "finger_force": 0.008}}]
+               "change": {"squeeze_depth": 0.0, "finger_force": 0.008}, "force_exponent": 1.0}]
     at = adaptive_at({"levels": levels}, 0.05)
     assert at is not None and at["seconds"] == pytest.approx(3.0)
     assert at["estimated_error"]["squeeze_depth"] == pytest.approx(0.04)  # twice the increment, 4e-5 / 2e-3
     assert at["estimated_error"]["finger_force"] == pytest.approx(3 * 0.008 + 0.02)
     assert adaptive_at({"levels": levels}, 0.03) is None  # the change plus the increment (2.8 %) would have met 3 %
+    # a force growing as ρ^1.4 states 1.4 × ρ*'s 4 %, above 5 %; a record without the exponent takes Hertz's
+    levels[1]["force_exponent"] = 1.4
+    assert adaptive_at({"levels": levels}, 0.05) is None
+    assert adaptive_at({"levels": levels}, 0.07)["estimated_error"]["finger_force"] == pytest.approx(1.4 * 0.04)
+    del levels[1]["force_exponent"]
+    assert adaptive_at({"levels": levels}, 0.07)["estimated_error"]["finger_force"] == pytest.approx(1.5 * 0.04)
 
 
 def test_the_references_written_from_the_study_are_read_back_by_the_benchmarks_where_the_cache_has_none(

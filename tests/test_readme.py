@@ -60,14 +60,17 @@ def test_the_python_snippet_runs(index, tmp_path, monkeypatch):
             return
         # the default answer is refined, with an error of its own (whether it reaches 5 % depends on the draw of
         # its finest meshes, as `python -m bench.bench --only accuracy` shows: not asserted), and the figures the
-        # README prints are this answer's (rho* within one squeeze increment, the force within 1 % of mg, beside
-        # the printed rounding)
+        # README prints are this answer's: rho* within one squeeze increment, the force within the two answers'
+        # stated errors (each is within its own of the converged answer), beside the printed rounding.  A resting
+        # state read from the cache differs from a solved one by round-off, and that moves this force by 1 %
+        # (0.502 N solved, 0.507 N cached, both stating more): a knife edge, not a promise of 1 % of mg.
         assert len(result.accuracy["levels"]) >= 2 and result.accuracy["target"] == 0.05
         assert all(0 < e < 0.5 for e in result.estimated_error.values())
-        shown = re.search(r"# True rho\* = ([\d.]+) mm .*finger force ([\d.]+) N", PYTHON[0])
-        assert shown, "the first snippet's comment shows its answer"
+        shown = re.search(r"# True rho\* = ([\d.]+) mm ± ([\d.]+) %, finger force ([\d.]+) N ± ([\d.]+) %", PYTHON[0])
+        assert shown, "the first snippet's comment shows its answer and its stated errors"
         assert abs(result.squeeze_depth - 1e-3 * float(shown[1])) <= result.step + 5e-6
-        assert abs(result.finger_normal_force - float(shown[2])) <= 0.01 * result.body.weight + 5e-4
+        both = result.estimated_error["finger_force"] + 1e-2 * float(shown[4])
+        assert abs(result.finger_normal_force - float(shown[3])) <= both * result.finger_normal_force + 5e-4
 
 
 @pytest.mark.parametrize("argv", COMMANDS, ids=[" ".join(a) for a in COMMANDS])

@@ -102,10 +102,12 @@ def adaptive_at(acc: dict[str, Any], target: float) -> dict[str, Any] | None:
     ≥ 1 with the verdict of the one before whose estimated error meets ``target`` by the loop's own rule
     (:func:`fem_grasp.grasp.level_error.estimated_error`: the change from the level before, or the uncertainty of
     the last three levels where larger, plus the resolution of ρ*, one squeeze increment or sub-increment,
-    relative; for ρ* at least twice the resolution), and its cumulative time.  The finer target's run took finer
-    increments, so the time is an upper bound on that of a run at ``target``."""
+    relative; for ρ* at least twice the resolution; for the force at least ρ*'s times the force's exponent over ρ,
+    Hertz's 3/2 in records made before the levels carried it), and its cumulative time.  The finer target's run
+    took finer increments, so the time is an upper bound on that of a run at ``target``."""
     from types import SimpleNamespace
 
+    from fem_grasp.grasp.answer import HERTZ_EXPONENT
     from fem_grasp.grasp.level_error import estimated_error, three_level_errors
 
     levels = acc.get("levels", [])
@@ -119,7 +121,8 @@ def adaptive_at(acc: dict[str, Any], target: float) -> dict[str, Any] | None:
         step = lv.get("step") or 0.0
         answer = SimpleNamespace(success=lv["success"], reason=lv.get("reason", ""),
                                  squeeze_depth=lv.get("squeeze_depth") or 0.0, step=step,
-                                 resolution=lv.get("resolution") or step / (lv.get("step_divisions") or 1))
+                                 resolution=lv.get("resolution") or step / (lv.get("step_divisions") or 1),
+                                 force_exponent=lv.get("force_exponent", HERTZ_EXPONENT))
         est = estimated_error(ch, answer, three_level_errors(levels[:i + 1]))
         if max(est.values()) <= target:
             return {"level": lv, "seconds": seconds,
