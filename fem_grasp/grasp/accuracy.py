@@ -76,7 +76,7 @@ import numpy as np
 
 from .answer import GraspAnswer, answer_of, failure_kind, finger_nodes, passed, patch_points
 from .estimates import estimate, relative_change
-from .level_error import estimated_error, three_level_errors, unsettled_verdict
+from .level_error import estimated_error, force_factor, three_level_errors, unsettled_verdict
 from .options import MAX_FINGER_CONTACTS as _MAX_FINGER_CONTACTS
 from .options import PickupOptions
 
@@ -597,11 +597,10 @@ def next_step(step: float, before: GraspAnswer, accuracy: float, predicted: floa
     larger than the last, so that a level expected to converge follows one resolved as finely (two levels at
     different resolutions differ by the coarser one's quantisation); halved when the level before found no ρ*
     (its verdict: not lifted).  The share is of the force's target as well: an error of ρ* carries into the force
-    read at it times the force's exponent over ρ (:func:`~fem_grasp.grasp.answer.force_exponent`), by which the
-    resolution is divided where it exceeds 1."""
+    read at it :func:`~fem_grasp.grasp.level_error.force_factor` times over, by which the resolution is divided."""
     if not passed(before) or not before.squeeze_depth > 0:
         return step / LEVEL_RATIO
-    target = accuracy * before.squeeze_depth / max(1.0, before.force_exponent)
+    target = accuracy * before.squeeze_depth / force_factor(before)
     if predicted is None or predicted <= (1.0 - FINE_STEP_SHARE) * accuracy:
         return min(step, FINE_STEP_SHARE * target)
     return STEP_SHARE * target

@@ -129,8 +129,7 @@ def answer_of(result: Any, seconds: float | None = None) -> GraspAnswer:
                        float(result.timings.get("total", 0.0) if seconds is None else seconds),
                        int(getattr(result, "step_divisions", 1)),
                        float(getattr(result, "max_squeeze", 0.0) or math.inf),
-                       force_exponent(result) if result.success or "lift was not run" in result.reason
-                       else HERTZ_EXPONENT)
+                       force_exponent(result) if passed(result) else HERTZ_EXPONENT)
 
 
 def force_exponent(result: Any) -> float:
@@ -150,12 +149,11 @@ def force_exponent(result: Any) -> float:
     if start is None or not rho > 0:
         return HERTZ_EXPONENT
     f_star = start.finger_normal_force(table)
-    earlier = [(s.squeeze_depth, s) for s in result.snapshots
-               if s.phase == "squeeze" and 0.0 < s.squeeze_depth < rho * (1.0 - 1e-9)]
+    earlier = [s for s in result.snapshots if s.phase == "squeeze" and 0.0 < s.squeeze_depth < rho * (1.0 - 1e-9)]
     if not earlier or not f_star > 0:
         return HERTZ_EXPONENT
-    r1, s1 = min(earlier, key=lambda x: abs(x[0] - EXPONENT_WINDOW * rho))
-    f1 = s1.finger_normal_force(table)
+    s1 = min(earlier, key=lambda s: abs(s.squeeze_depth - EXPONENT_WINDOW * rho))
+    r1, f1 = s1.squeeze_depth, s1.finger_normal_force(table)
     if not f1 > 0:
         return HERTZ_EXPONENT
     return math.log(f_star / f1) / math.log(rho / r1)
@@ -183,8 +181,9 @@ def patch_points(result: Any) -> tuple[np.ndarray, np.ndarray]:
     return ref[sorted(fingers)], ref[sorted(table)]
 
 
-def passed(ans: GraspAnswer) -> bool:
-    """Picked up, or (``lift=False``) stopped because the lift test passed: the verdict the levels compare."""
+def passed(ans: Any) -> bool:
+    """Picked up, or (``lift=False``) stopped because the lift test passed: the verdict the levels compare (of a
+    :class:`GraspAnswer` or a :class:`~fem_grasp.grasp.pickup.PickupResult`: their ``success`` and ``reason``)."""
     return ans.success or "lift was not run" in ans.reason
 
 

@@ -22,7 +22,7 @@ from typing import Any, Sequence
 from .answer import GraspAnswer, passed
 from .estimates import sequence_uncertainty
 
-__all__ = ["TWO_LEVEL_SAFETY", "estimated_error", "three_level_errors", "unsettled_verdict"]
+__all__ = ["TWO_LEVEL_SAFETY", "estimated_error", "force_factor", "three_level_errors", "unsettled_verdict"]
 
 
 def three_level_errors(levels: Sequence[dict[str, Any]]) -> dict[str, dict[str, Any]]:
@@ -50,6 +50,13 @@ def three_level_errors(levels: Sequence[dict[str, Any]]) -> dict[str, dict[str, 
 #: objects, and their difference alone missed the actual error on two (5.2 % stated against 5.3 %, 14 % against
 #: 17 %).
 TWO_LEVEL_SAFETY = 3.0
+
+
+def force_factor(ans: GraspAnswer) -> float:
+    """How many times ρ*'s relative error carries into the force read at ρ*: the force's exponent over ρ
+    (:func:`~fem_grasp.grasp.answer.force_exponent`), never less than 1 (a force that grows more slowly near the
+    lift-off is not relied on to damp the error)."""
+    return max(1.0, ans.force_exponent)
 
 
 def estimated_error(change: dict[str, float], ans: GraspAnswer,
@@ -87,9 +94,8 @@ def estimated_error(change: dict[str, float], ans: GraspAnswer,
         # depths they do): the mesh's part of ρ*'s error is stated as at least one resolution.
         out[k] = (max(mesh, q) if k == "squeeze_depth" else mesh) + q
     if passed(ans):
-        # The force is read at ρ*: where ρ* is off, so is the force, by its exponent over ρ (never less than
-        # in proportion: a force that grows more slowly near the lift-off is not relied on to damp the error).
-        out["finger_force"] = max(out["finger_force"], max(1.0, ans.force_exponent) * out["squeeze_depth"])
+        # The force is read at ρ*: where ρ* is off, so is the force, by its exponent over ρ.
+        out["finger_force"] = max(out["finger_force"], force_factor(ans) * out["squeeze_depth"])
     if "max_liftable" in change:  # two failures: the largest weight held (relative to mg), as the others
         out["max_liftable"] = TWO_LEVEL_SAFETY * change["max_liftable"]
     return out
