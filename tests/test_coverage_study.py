@@ -108,7 +108,8 @@ def test_the_first_mesh_of_each_shape_has_about_500_vertices():
 def _accuracy(levels_nodes=(10, 20), step=1e-3, h=0.05, converged=True, est=(0.03, 0.04)):
     levels = [{"level": k, "inner_size": 0.004 / 2**k, "outer_size": 0.006 / 2 ** (0.5 * k), "step": step / 2**k,
                "step_divisions": 4 if k else 1, "resolution": step / 2**k / (4 if k else 1),
-               "lift_test_step": h / 2**k, "finger_nodes": [n, n - 2]} for k, n in enumerate(levels_nodes)]
+               "lift_test_step": h / 2**k, "finger_nodes": [n, n - 2], "max_squeeze": 0.02}
+              for k, n in enumerate(levels_nodes)]
     return {"target": 0.05, "converged": converged, "levels": levels,
             "estimated_error": {"squeeze_depth": est[0], "finger_force": est[1]}}
 
@@ -122,6 +123,7 @@ def test_the_reference_is_one_level_beyond_the_answers_last():
     # ρ* resolved to a quarter of the last level's resolution: its resolution, divided in four
     assert plan["step"] / plan["step_divisions"] == pytest.approx(last["resolution"] / 4)
     assert plan["lift_test_step"] == pytest.approx(last["lift_test_step"] / 2)
+    assert plan["max_squeeze"] == 0.02  # as deep as every level of the answer squeezed
     assert plan["predicted_contacts"] == pytest.approx(80) and not plan["too_large"]
     assert reference_plan(_accuracy(levels_nodes=(40, 160)), 600)["too_large"]  # 640 contacts predicted
 
@@ -159,6 +161,15 @@ def test_a_saved_reference_is_used_again_only_for_its_object_and_a_coarser_answe
     assert not reusable(saved, CoverageObject.of_seed(1).to_dict(), acc)  # another object
     assert not reusable(saved, obj, _accuracy(levels_nodes=(10, 20, 30)))  # the answer went as fine
     assert not reusable(dict(saved, status="timed out"), obj, acc) and not reusable(None, obj, acc)
+    # squeezed to another deepest squeeze: a failure there stopped elsewhere
+    deeper = dict(saved, plan=dict(saved["plan"], max_squeeze=0.021))
+    assert not reusable(deeper, obj, acc)
+    # saved before plans recorded it (the reference's own 40 %): used where it lifted the object short of the
+    # answer's deepest squeeze, which the reference's squeeze then never reached
+    old = dict(saved, plan={k: v for k, v in saved["plan"].items() if k != "max_squeeze"})
+    assert reusable(old, obj, acc)
+    assert not reusable(dict(combine_draws([_draw(success=False, rho=0.0199)]), plan=old["plan"], object=obj), obj, acc)
+    assert not reusable(dict(old, squeeze_depth=0.0201), obj, acc)
 
 
 def test_the_draws_of_the_reference_scale_its_spacings_about_the_plans():

@@ -52,6 +52,14 @@ resolution too (two levels that find the same ρ* agree only to within it).  Whe
 monotone with an observed order, the Richardson estimate is reported too
 (:func:`estimate`).
 
+Every level squeezes at most as deep as the body as given does: where the grasp sets no deepest squeeze
+(``PickupOptions.max_squeeze`` None, Algorithm 1 step 6: 40 % of the object's width along ĥ), the loop takes the
+one level 0 found on the body as given for every level.  It is a setting of the grasp, not a quantity to
+converge, and a failure's answer — ρ where the squeeze stopped — is then that setting on every level.  Each
+level's own 40 % differs with its mesh (a remesh of the surface's facets cuts inside their extreme vertices, and
+the resting tilt moves with the hull): a random capsule's levels and finer meshes gave 22.57–22.61 mm, which
+nested levels (the same extreme vertices) did not show, so that their failure stated 0.036 % for 0.07 % off.
+
 Every level tests the weights with level 0's lift-test step h (mg/20 unless
 set).  The lift test passes when the ramp h, 2h, … reaches mg, so h does not
 quantise ρ* as the squeeze increment does; it only sets how finely the load
@@ -352,8 +360,8 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
         ``contacts`` are finger contact nodes of ``body`` (on finer levels the surface nodes at their positions,
         embedded as nodes where the geometry allows, :meth:`~fem_grasp.mesh.remesh.Geometry.build`) and ``step``,
         ``lift_test_step`` level 0's squeeze increment (m) and lift-test step h (N), default pickup's (each next
-        level takes :func:`next_step` and the same h); its ``accuracy`` and ``geometry`` are not read (the
-        arguments above are)
+        level takes :func:`next_step` and the same h) and ``max_squeeze``, where None, level 0's on every level
+        (module notes); its ``accuracy`` and ``geometry`` are not read (the arguments above are)
     rest_state : a resting state of ``body`` (level 0 only)
     settings : the engine's :class:`~fem_grasp.settings.EngineSettings`, the same at every level
     on_level : called with the :class:`AccuracyReport` after every level (progress, partial records)
@@ -393,6 +401,9 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
     log.info("accuracy level 0: %d vertices, %s, rho* = %.4g mm, finger force %.4g N (%.1f s)", ans.n_vertices,
              "picked up" if ans.success else "not picked up", 1e3 * ans.squeeze_depth, ans.finger_force, ans.seconds)
     placed = len(result.finger_nodes) == 2 and min(result.finger_nodes) >= 0
+    if opts.max_squeeze is None and math.isfinite(ans.max_squeeze) and ans.max_squeeze > 0:
+        # The deepest squeeze is a setting of the grasp, not a quantity to converge (module notes).
+        opts = opts.replace(max_squeeze=ans.max_squeeze)
     if contact_points is None and placed:
         # One grasp on every level: not a choice made again on each finer mesh, where a tie along a flat or
         # cylindrical side, or the next facet, moves the fingers by up to centimetres (a capsule's ρ* followed

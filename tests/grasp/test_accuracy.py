@@ -80,8 +80,16 @@ def levels():
     levels 0 and 1 differ by 8 % in ρ* (within level 0's resolution), levels 1 and 2 by 1.2 % in ρ* and 2.5 %
     in the force."""
     body = Body(BOX.grid((6, 6, 6)), 2e4, 0.3, weight=0.3)
-    return converged_pickup(body, solve=pickup, accuracy=TARGET, geometry=BOX, max_levels=2, contacts=_centre_nodes(body.mesh),
-                            mu_finger=0.5, finger_radius=0.01, lift=False)
+    asked = []  # the deepest squeeze each level was asked to stop at
+
+    def solve(body, options, **kw):
+        asked.append(options.max_squeeze)
+        return pickup(body, options, **kw)
+
+    res = converged_pickup(body, solve=solve, accuracy=TARGET, geometry=BOX, max_levels=2,
+                           contacts=_centre_nodes(body.mesh), mu_finger=0.5, finger_radius=0.01, lift=False)
+    res.asked_max_squeeze = asked
+    return res
 
 
 def test_each_level_halves_the_patch_spacing_and_resolves_rho_to_its_share_of_the_target(levels):
@@ -94,6 +102,16 @@ def test_each_level_halves_the_patch_spacing_and_resolves_rho_to_its_share_of_th
         assert b["resolution"] <= STEP_SHARE * TARGET * a["squeeze_depth"] * (1 + 1e-12)
         assert b["resolution"] == pytest.approx(b["step"] / b["step_divisions"])
         assert b["lift_test_step"] == pytest.approx(lv[0]["lift_test_step"])  # every level ramps in level 0's h
+
+
+def test_every_level_squeezes_at_most_as_deep_as_the_body_as_given(levels):
+    """The deepest squeeze, when the grasp sets none (40 % of the width along ĥ), is a setting of the grasp: level 0
+    finds it on the body as given and every finer level is asked to stop there, not at its own mesh's 40 %."""
+    lv = levels.accuracy["levels"]
+    deepest = lv[0]["max_squeeze"]
+    assert deepest == pytest.approx(0.4 * 0.04, rel=0.01)  # the box is 40 mm wide along ĥ (ŷ), sagging a little
+    assert levels.asked_max_squeeze == [None] + [deepest] * (len(lv) - 1)
+    assert [x["max_squeeze"] for x in lv] == [deepest] * len(lv)
 
 
 def test_each_level_records_its_lift_tests_and_the_report_plots_them(levels, tmp_path):

@@ -7,7 +7,7 @@ own uncertainty (:func:`combine_draws`): meshes of one spacing differ by a few p
 so a single draw cannot confirm a statement of a few per cent.  (Rounding gmsh's inputs to another grid, as the
 benchmark draws the paper shapes' levels, left these objects' reference meshes unchanged.)  A saved study's
 references (``config["references"]``, by seed) are used again where they are finer than the answer's last level
-(:func:`reusable`), so that two loops are judged against the same reference.
+and squeezed as deep (:func:`reusable`), so that two loops are judged against the same reference.
 
 :func:`run_object` is a pure function of the seed and the configuration (same arguments, same row);
 :func:`supervised` runs it in a fresh interpreter (spawned, not forked: the full report's process has loaded
@@ -48,7 +48,8 @@ def reference_plan(accuracy: dict[str, Any], max_contacts: float) -> dict[str, A
     """The reference's resolution from the answer's levels (``result.accuracy``): one level beyond the last, as
     the loop would make it — the patch spacing halved, the outer spacing the loop's next one, ρ* resolved to a
     quarter of the last level's resolution (its increment divided in four where the lift test passes, as the
-    loop's levels do) and the lift-test step h half the last level's — and whether it is too large to run
+    loop's levels do), the lift-test step h half the last level's and the deepest squeeze the answer's (the loop
+    keeps level 0's on every level) — and whether it is too large to run
     (its predicted contacts per fingertip, the last level's times four, above ``max_contacts``)."""
     from fem_grasp.grasp.accuracy import LEVEL_RATIO, PATCH_RADIUS
 
@@ -60,7 +61,15 @@ def reference_plan(accuracy: dict[str, Any], max_contacts: float) -> dict[str, A
             "outer_size": max(levels[0]["outer_size"] / LEVEL_RATIO ** (0.5 * (last["level"] + 1)), inner),
             "step": last.get("resolution", last["step"]), "step_divisions": 4,
             "lift_test_step": last["lift_test_step"] / 2.0 if last["lift_test_step"] else None,
+            "max_squeeze": _deepest_squeeze(accuracy),
             "predicted_contacts": predicted, "too_large": predicted > max_contacts}
+
+
+def _deepest_squeeze(accuracy: dict[str, Any]) -> float | None:
+    """The deepest squeeze every level of the answer stopped at (level 0's: the loop keeps it), metres; None where
+    level 0 did not squeeze."""
+    value = accuracy["levels"][0].get("max_squeeze")
+    return float(value) if value is not None and math.isfinite(float(value)) and float(value) > 0 else None
 
 
 #: The change of the spacings from one draw of the reference's mesh to the next (:func:`draw_factor`): enough to
@@ -104,12 +113,19 @@ def combine_draws(draws: list[dict[str, Any]]) -> dict[str, Any]:
 
 def reusable(reference: dict[str, Any] | None, obj: dict[str, Any], accuracy: dict[str, Any]) -> bool:
     """Whether a saved reference (a row's ``reference``) checks this answer: the same object, a reference that
-    ran, and finer at the patches than the answer's last level."""
+    ran, finer at the patches than the answer's last level, and squeezed at most as deep as the answer (one saved
+    before its plan recorded that depth: where it lifted the object short of the answer's deepest squeeze)."""
     if not reference or reference.get("status") != "ok" or "plan" not in reference:
         return False
     if reference.get("object") not in (None, obj):
         return False
-    return float(reference["plan"]["inner_size"]) < float(accuracy["levels"][-1]["inner_size"]) * (1 - 1e-9)
+    deepest, have = _deepest_squeeze(accuracy), reference["plan"].get("max_squeeze")
+    if have is None:  # saved before references squeezed as deep as the answer: its own 40 %, which only a
+        # reference lifted short of the answer's deepest squeeze did not reach
+        same = bool(reference.get("success")) and deepest is not None and reference["squeeze_depth"] < deepest
+    else:
+        same = deepest is not None and abs(float(have) - deepest) <= 1e-9 * deepest
+    return same and float(reference["plan"]["inner_size"]) < float(accuracy["levels"][-1]["inner_size"]) * (1 - 1e-9)
 
 
 def run_object(seed: int, config: dict[str, Any], send: Callable[[tuple[str, Any]], None] | None = None
@@ -173,6 +189,8 @@ def run_object(seed: int, config: dict[str, Any], send: Callable[[tuple[str, Any
                                      f * plan["outer_size"], embed)
             ref_body = Body(ref_mesh, body.young, body.poisson, weight=body.weight, gravity=body.gravity)
             ref_kw = dict(kw, step=plan["step"], step_divisions=plan["step_divisions"])
+            if plan.get("max_squeeze"):  # as deep as the answer's levels squeezed
+                ref_kw["max_squeeze"] = plan["max_squeeze"]
             if embed is not None:  # the finger contacts mapped as the loop maps them
                 ref_kw["contacts"] = tuple(int(i) for i in nearest_surface_nodes(ref_mesh, embed))
             if plan["lift_test_step"]:
