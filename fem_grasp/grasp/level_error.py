@@ -19,10 +19,22 @@ from __future__ import annotations
 
 from typing import Any, Sequence
 
-from .answer import GraspAnswer, passed
+from .answer import GraspAnswer, failure_kind, passed
 from .estimates import sequence_uncertainty
 
-__all__ = ["TWO_LEVEL_SAFETY", "estimated_error", "force_factor", "three_level_errors", "unsettled_verdict"]
+__all__ = ["LIFT_ATTEMPT_FAILURES", "TWO_LEVEL_SAFETY", "estimated_error", "force_factor", "found_by_lift_test",
+           "three_level_errors", "unsettled_verdict"]
+
+#: Failures (:func:`~fem_grasp.grasp.answer.failure_kind`) whose ρ is the depth of the last lift attempt: the lift
+#: test passed there and the simulated lift did not hold (Algorithm 1 steps 5-6).
+LIFT_ATTEMPT_FAILURES = ("lift failed", "slides on the finger", "still on the table")
+
+
+def found_by_lift_test(ans: Any) -> bool:
+    """Whether the answer's ρ is a depth at which the lift test passed — ρ*, or the last lift attempt of a pickup
+    whose lift failed — and so found up to one resolution late; not where a squeeze stopped at the deepest
+    squeeze (a setting) or at an event."""
+    return ans.squeeze_depth > 0 and (passed(ans) or failure_kind(ans.reason) in LIFT_ATTEMPT_FAILURES)
 
 
 def three_level_errors(levels: Sequence[dict[str, Any]]) -> dict[str, dict[str, Any]]:
@@ -63,8 +75,8 @@ def estimated_error(change: dict[str, float], ans: GraspAnswer,
                     three_levels: dict[str, dict[str, Any]] | None = None) -> dict[str, float]:
     """Relative error of a level's answer: :data:`TWO_LEVEL_SAFETY` × its change from the level before — or,
     where the last three levels lifted the object, the larger of that and their uncertainty (``three_levels``,
-    :func:`three_level_errors`) — plus, for a level that found ρ*, its resolution (ρ* is found up to one
-    increment, or sub-increment, late, and the finger force grows with ρ*, about in proportion near the
+    :func:`three_level_errors`) — plus, for a level whose ρ the lift test found (:func:`found_by_lift_test`: ρ*, or
+    a failed lift's last attempt), its resolution (it is found up to one increment, or sub-increment, late, and the finger force grows with ρ*, about in proportion near the
     lift-off) — and, as it is read at ρ*, at least ρ*'s error times the force's exponent over ρ
     (:func:`~fem_grasp.grasp.answer.force_exponent`, at least 1).  The coverage study's seed 4 at 5 % with nested
     levels: ρ* 15.61, 15.81, 16.00 mm stated 4.9 %, 3.8 % short of the reference; its forces 30.63, 28.65,
@@ -84,7 +96,7 @@ def estimated_error(change: dict[str, float], ans: GraspAnswer,
     within it (the tomato's levels at 5 %: 9.42, 9.33, 9.22 mm, each a resolution apart, 2.9 % from the
     reference) that spread is nil although the levels drift.
     """
-    q = ans.resolution / ans.squeeze_depth if passed(ans) and ans.squeeze_depth > 0 else 0.0
+    q = ans.resolution / ans.squeeze_depth if found_by_lift_test(ans) else 0.0
     three = three_levels or {}
     out = {}
     for k in ("squeeze_depth", "finger_force"):

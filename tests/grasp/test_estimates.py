@@ -309,6 +309,20 @@ def test_two_failing_levels_state_three_times_the_change_of_the_weight_they_held
     assert est["max_liftable"] == pytest.approx(TWO_LEVEL_SAFETY * 0.05)
 
 
+def test_a_failed_lifts_depth_states_its_resolution_and_the_deepest_squeeze_none():
+    """A pickup whose lift test passed and whose lift did not hold answers the depth of its last lift attempt, found
+    as ρ* is, up to one resolution late; one that squeezed to the deepest squeeze without passing answers that
+    setting, the same on every level (the loop keeps level 0's), which has no resolution."""
+    slid = _Answer(20e-3)
+    slid.success, slid.reason = False, ("every contact of finger 1 slides at lift height 12.3 mm: the object slides "
+                                        "on the finger (after 3 lift attempts from ρ = 19.2 mm)")
+    est = estimated_error({"squeeze_depth": 0.0, "finger_force": 0.0}, slid)
+    q = slid.resolution / slid.squeeze_depth
+    assert est["squeeze_depth"] == pytest.approx(2 * q) and est["finger_force"] == pytest.approx(q)
+    deepest = _failure(18)
+    assert estimated_error(_failure_change(deepest, deepest), deepest)["squeeze_depth"] == 0.0
+
+
 def test_a_failure_within_its_error_of_the_weight_is_not_a_settled_verdict():
     """A random ellipsoid of the coverage study (seed 5): its last two levels failed, holding 18 and 19 steps h of
     the 20 of its weight, and a finer mesh lifted it; at 10 % the loop had called that failure converged.  The
