@@ -202,6 +202,17 @@ def test_an_estimate_below_the_actual_error_does_not_cover_it():
     assert not e["covered"]["squeeze_depth"] and e["covered"]["finger_force"] and not e["covered_both"]
 
 
+def test_an_answer_equal_to_its_reference_but_for_round_off_is_covered_by_a_stated_zero():
+    """A failure at the deepest squeeze states no error for ρ, the setting the reference shares; the mean of the
+    reference's draws at that depth may differ from it in the last bit."""
+    rho = 0.022608287768529568
+    ref = (rho + rho + rho) / 3 * (1 + 2e-16)
+    e = evaluate(_row(ans=(False, rho, 8.26), ref=(False, ref, 8.30), est=(0.0, 0.05)))
+    assert e["actual"]["squeeze_depth"] > 0.0 and e["covered"]["squeeze_depth"]
+    assert not evaluate(_row(ans=(False, rho, 8.26), ref=(False, rho * (1 + 1e-9), 8.30), est=(0.0, 0.05)))[
+        "covered"]["squeeze_depth"]  # a billionth is not round-off
+
+
 def test_a_verdict_that_differs_is_not_covered_unless_the_estimate_is_infinite():
     e = evaluate(_row(ref=(False, 0.0100, 2.00)))  # same numbers, the reference drops the object
     assert not e["verdicts_agree"] and not any(e["covered"].values())

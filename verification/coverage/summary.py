@@ -16,6 +16,10 @@ from .runner import QUANTITIES, combine_draws, relative_error
 
 #: Share of the objects with a reference whose estimated error must cover the actual one (both quantities).
 REQUIRED_COVERAGE = 0.9
+#: An actual error this small (relative) is round-off, covered by any estimate: a failure that squeezed to the
+#: deepest squeeze states no error for ρ (the setting every level and the reference share), and the mean of the
+#: reference's draws, each at that depth, differs from it in the last bit.
+ROUNDOFF = 1e-12
 
 
 def _estimate(value: Any) -> float:
@@ -50,7 +54,7 @@ def evaluate(row: dict[str, Any]) -> dict[str, Any]:
         ``status``: "compared", "no answer" (the answer failed or ran out of time) or "no reference" (too large,
         timed out, failed); when compared, ``verdicts_agree``, per quantity ``estimated``, ``actual`` (|answer −
         reference| / |reference|) and ``covered``, and ``covered_both``.  A quantity is covered when its estimate
-        is at least its actual error and the verdicts agree, or when its estimate is infinite (the answer says it
+        is at least its actual error (less :data:`ROUNDOFF`) and the verdicts agree, or when its estimate is infinite (the answer says it
         does not know).  ``verdict_unsettled``: the answer said its verdict is not settled (the accuracy block's
         ``verdict``, or, in rows saved before it, infinite estimates of both quantities).
         ``covered_with_reference``: the same with the reference's own uncertainty (the spread of its draws,
@@ -73,8 +77,9 @@ def evaluate(row: dict[str, Any]) -> dict[str, Any]:
         a = relative_error(float(ans[q]), float(ref[q]))
         out["estimated"][q], out["actual"][q] = e, a
         out["reference_spread"][q] = float(spread.get(q, 0.0))
-        out["covered"][q] = bool(math.isinf(e) or (agree and e >= a))
-        out["covered_with_reference"][q] = bool(math.isinf(e) or (agree and e + out["reference_spread"][q] >= a))
+        out["covered"][q] = bool(math.isinf(e) or (agree and e + ROUNDOFF >= a))
+        out["covered_with_reference"][q] = bool(math.isinf(e) or (agree and e + out["reference_spread"][q] + ROUNDOFF
+                                                                  >= a))
     out["covered_both"] = all(out["covered"].values())
     out["covered_both_with_reference"] = all(out["covered_with_reference"].values())
     return out
