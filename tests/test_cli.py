@@ -65,6 +65,21 @@ def test_an_answer_short_of_its_target_says_by_how_much_and_why():
     assert [x.split()[:2] for x in lines[1:]] == [["level", "0"], ["level", "1"]] and "2,100 vertices" in lines[2]
 
 
+def test_a_failure_at_the_deepest_squeeze_says_its_rho_is_that_setting():
+    """Every level squeezes at most as deep as the body as given: a failure that got there answers the setting, and
+    the summary says so rather than "0 %"."""
+    from fem_grasp.cli.run import _accuracy_lines
+
+    level = {"inner_size": 2e-3, "step": 4e-4, "success": False, "finger_force": 8.3, "seconds": 1.0,
+             "mesh_seconds": 0.2, "squeeze_depth": 0.0226, "max_squeeze": 0.0226}
+    acc = {"target": 0.05, "converged": True, "estimated_error": {"squeeze_depth": 0.0, "finger_force": 0.034},
+           "note": "", "levels": [dict(level, level=0, vertices=450), dict(level, level=1, vertices=1300)]}
+    head = _accuracy_lines(acc, quick=False)[0]
+    assert "estimated error rho* none (rho is the deepest squeeze, a setting), finger force 3.4 %" in head
+    acc["levels"][-1]["squeeze_depth"] = 0.0201  # stopped short of it (a squeeze that failed at an event)
+    assert "estimated error rho* 0 %, finger force 3.4 %" in _accuracy_lines(acc, quick=False)[0]
+
+
 def test_an_answer_whose_verdict_is_not_settled_says_why():
     """Infinite estimates: the verdict itself is not settled, for the reason the accuracy block gives (a failure
     within its error of the weight), or, in a result written before that block had a reason, the two last levels'

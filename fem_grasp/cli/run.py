@@ -114,8 +114,13 @@ def _accuracy_lines(acc: dict[str, Any], quick: bool) -> list[str]:
             return "unknown"
         return f"{100 * x:.0f} %" if x >= 0.1 else f"{100 * x:.2g} %"
 
+    last = acc["levels"][-1]
+    deepest = last.get("max_squeeze")
+    # a failure that squeezed to the deepest squeeze answers that setting, the same on every level: no error
+    rho_error = ("none (rho is the deepest squeeze, a setting)" if not last["success"] and deepest
+                 and last["squeeze_depth"] >= deepest * (1 - 1e-9) else pct(e["squeeze_depth"]))
     if acc["converged"]:
-        head = (f"accuracy   target {100 * acc['target']:g} %: estimated error rho* {pct(e['squeeze_depth'])}, "
+        head = (f"accuracy   target {100 * acc['target']:g} %: estimated error rho* {rho_error}, "
                 f"finger force {pct(e['finger_force'])} ({levels_label(len(acc['levels']), acc.get('refinement'))}, "
                 f"{acc.get('seconds', 0):.0f} s)")
     elif len(acc["levels"]) == 1:
@@ -137,7 +142,7 @@ def _accuracy_lines(acc: dict[str, Any], quick: bool) -> list[str]:
                 + ("; run without --quick for the refined answer" if quick else ""))
     else:
         head = (f"accuracy   target {100 * acc['target']:g} %, not reached: estimated error rho* "
-                f"{pct(e['squeeze_depth'])}, finger force {pct(e['finger_force'])} ({acc.get('note', '')})"
+                f"{rho_error}, finger force {pct(e['finger_force'])} ({acc.get('note', '')})"
                 + ("; run without --quick for the refined answer" if quick else ""))
     lines = [head]
     given = acc.get("given_mesh")
