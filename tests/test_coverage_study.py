@@ -161,6 +161,9 @@ def test_a_saved_reference_is_used_again_only_for_its_object_and_a_coarser_answe
     assert not reusable(saved, CoverageObject.of_seed(1).to_dict(), acc)  # another object
     assert not reusable(saved, obj, _accuracy(levels_nodes=(10, 20, 30)))  # the answer went as fine
     assert not reusable(dict(saved, status="timed out"), obj, acc) and not reusable(None, obj, acc)
+    # draws that disagree on the verdict are a reference's finding too (running them again finds it again)
+    split = dict(combine_draws([_draw(), _draw(success=False)]), plan=saved["plan"], object=obj)
+    assert split["status"] == "draws disagree" and reusable(split, obj, acc)
     # squeezed to another deepest squeeze: a failure there stopped elsewhere
     deeper = dict(saved, plan=dict(saved["plan"], max_squeeze=0.021))
     assert not reusable(deeper, obj, acc)

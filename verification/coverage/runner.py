@@ -113,9 +113,11 @@ def combine_draws(draws: list[dict[str, Any]]) -> dict[str, Any]:
 
 def reusable(reference: dict[str, Any] | None, obj: dict[str, Any], accuracy: dict[str, Any]) -> bool:
     """Whether a saved reference (a row's ``reference``) checks this answer: the same object, a reference that
-    ran, finer at the patches than the answer's last level, and squeezed at most as deep as the answer (one saved
-    before its plan recorded that depth: where it lifted the object short of the answer's deepest squeeze)."""
-    if not reference or reference.get("status") != "ok" or "plan" not in reference:
+    ran — its draws agreeing on the verdict, or not (then the verdict is not settled at its resolution, which
+    running the same draws again finds again) —, finer at the patches than the answer's last level, and squeezed
+    at most as deep as the answer (one saved before its plan recorded that depth: where it lifted the object
+    short of the answer's deepest squeeze)."""
+    if not reference or reference.get("status") not in ("ok", "draws disagree") or "plan" not in reference:
         return False
     if reference.get("object") not in (None, obj):
         return False
