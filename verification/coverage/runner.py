@@ -224,7 +224,7 @@ def supervised(seed: int, config: dict[str, Any], poll: float = 2.0) -> dict[str
     reference ``config["reference_seconds"]`` per draw after it; a phase that overruns is recorded as ``timed
     out`` and its process terminated (a timed-out answer keeps the loop's levels so far as ``levels_so_far``; a
     reference that timed out or whose process died is the mean of the draws that finished, if any, with
-    ``ended_early`` saying how it ended)."""
+    ``ended_early`` saying how it ended, and keeps its ``plan``, so that ``--references`` can use it again)."""
     ctx = multiprocessing.get_context("spawn")
     receive, send = ctx.Pipe(duplex=False)
     proc = ctx.Process(target=_child, args=(seed, config, send), daemon=True)
@@ -252,7 +252,9 @@ def supervised(seed: int, config: dict[str, Any], poll: float = 2.0) -> dict[str
             elif kind == "answer":
                 row, phase, started = value, "reference", time.monotonic()
                 cap = config["reference_seconds"] * int(config.get("reference_draws", 1))
-                row["reference"] = {}
+                # the plan run_object makes, kept here too: a reference that ends early is reusable by it
+                row["reference"] = {"plan": reference_plan(row["answer"]["accuracy"],
+                                                           config["max_reference_contacts"])}
             elif kind == "reference_draw":
                 row["reference"].setdefault("draws", []).append(value)
             elif kind == "done":
