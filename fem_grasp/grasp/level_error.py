@@ -39,9 +39,9 @@ def found_by_lift_test(ans: Any) -> bool:
 
 def three_level_errors(levels: Sequence[dict[str, Any]]) -> dict[str, dict[str, Any]]:
     """Per quantity (ρ* and Σ f·n̂), :func:`~fem_grasp.grasp.estimates.sequence_uncertainty` of the last three
-    levels (records as :meth:`~fem_grasp.grasp.accuracy.AccuracyLevel.to_dict` writes them), when all three lifted the object (the verdict
-    the levels compare) at decreasing patch spacings; else empty (a failed pickup's ρ* is where the squeeze
-    stopped, not a converging quantity)."""
+    levels (records as :meth:`~fem_grasp.grasp.accuracy.AccuracyLevel.to_dict` writes them), when all three
+    lifted the object (the verdict the levels compare) at decreasing patch spacings; else empty (a failed
+    pickup's ρ* is where the squeeze stopped, not a converging quantity)."""
     last = list(levels)[-3:]
     if len(last) < 3 or not all((lv["success"] or "lift was not run" in lv.get("reason", ""))
                                 and (lv.get("squeeze_depth") or 0.0) > 0 for lv in last):
@@ -75,10 +75,11 @@ def estimated_error(change: dict[str, float], ans: GraspAnswer,
                     three_levels: dict[str, dict[str, Any]] | None = None) -> dict[str, float]:
     """Relative error of a level's answer: :data:`TWO_LEVEL_SAFETY` × its change from the level before — or,
     where the last three levels lifted the object, the larger of that and their uncertainty (``three_levels``,
-    :func:`three_level_errors`) — plus, for a level whose ρ the lift test found (:func:`found_by_lift_test`: ρ*, or
-    a failed lift's last attempt), its resolution (it is found up to one increment, or sub-increment, late, and the finger force grows with ρ*, about in proportion near the
-    lift-off) — and, as it is read at ρ*, at least ρ*'s error times the force's exponent over ρ
-    (:func:`~fem_grasp.grasp.answer.force_exponent`, at least 1).  The coverage study's seed 4 at 5 % with nested
+    :func:`three_level_errors`) — plus, for a level whose ρ the lift test found (:func:`found_by_lift_test`: ρ*,
+    or a failed lift's last attempt), its resolution (it is found up to one increment, or sub-increment, late,
+    and the finger force grows with ρ*, about in proportion near the lift-off) — and, as it is read at ρ*, at
+    least ρ*'s error times the force's exponent over ρ (:func:`~fem_grasp.grasp.answer.force_exponent`, at
+    least 1).  The coverage study's seed 4 at 5 % with nested
     levels: ρ* 15.61, 15.81, 16.00 mm stated 4.9 %, 3.8 % short of the reference; its forces 30.63, 28.65,
     28.81 N stated 3.9 %, 5.3 % short: the force errs by more than ρ* does (by 1.0 to 1.7 times on the study's
     lifted objects), as a force growing as ρ^1.5 does.  For ρ* the change itself is

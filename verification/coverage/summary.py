@@ -54,9 +54,10 @@ def evaluate(row: dict[str, Any]) -> dict[str, Any]:
         ``status``: "compared", "no answer" (the answer failed or ran out of time) or "no reference" (too large,
         timed out, failed); when compared, ``verdicts_agree``, per quantity ``estimated``, ``actual`` (|answer −
         reference| / |reference|) and ``covered``, and ``covered_both``.  A quantity is covered when its estimate
-        is at least its actual error (less :data:`ROUNDOFF`) and the verdicts agree, or when its estimate is infinite (the answer says it
-        does not know).  ``verdict_unsettled``: the answer said its verdict is not settled (the accuracy block's
-        ``verdict``, or, in rows saved before it, infinite estimates of both quantities).
+        is at least its actual error (less :data:`ROUNDOFF`) and the verdicts agree, or when its estimate is
+        infinite (the answer says it does not know).  ``verdict_unsettled``: the answer said its verdict is not
+        settled (the accuracy block's ``verdict``, or, in rows saved before it, infinite estimates of both
+        quantities).
         ``covered_with_reference``: the same with the reference's own uncertainty (the spread of its draws,
         :func:`~verification.coverage.runner.combine_draws`) added to the estimate, and ``reference_spread``.
     """
