@@ -177,15 +177,15 @@ def test_a_saved_reference_is_used_again_only_for_its_object_and_a_coarser_answe
 
 def test_a_reference_that_runs_out_of_time_keeps_its_plan_for_reuse():
     """The supervisor records a reference that overran its cap with the plan it was run to, so that a later run's
-    ``--references`` can take the draws it finished (one real object, in a spawned process, its cap 0.5 s)."""
+    ``--references`` can take the draws it finished (one real object, in a spawned process, its cap a millisecond)."""
     pytest.importorskip("gmsh")
     from verification.coverage import CONFIGS
     from verification.coverage.runner import supervised
 
-    config = dict(CONFIGS["quick"], accuracy=0.3, reference_seconds=0.5, reference_draws=1)
+    config = dict(CONFIGS["quick"], accuracy=0.3, reference_seconds=1e-3, reference_draws=1)
     row = supervised(0, config, poll=0.2)
     assert row["answer"]["status"] == "ok"
-    assert row["reference"]["status"] == "timed out" and not row["reference"].get("draws")
+    assert row["reference"]["status"] == "timed out"
     assert row["reference"]["plan"] == reference_plan(row["answer"]["accuracy"], config["max_reference_contacts"])
 
 
