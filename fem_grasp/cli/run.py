@@ -106,13 +106,9 @@ def _errors_known(acc: dict[str, Any]) -> bool:
 def _accuracy_lines(acc: dict[str, Any], quick: bool) -> list[str]:
     """The estimated error of the answer, and one line per level (:func:`fem_grasp.grasp.accuracy.converged_pickup`)."""
     from ..grasp.accuracy import levels_label
+    from ..grasp.accuracy import percent_error as pct
 
     e = acc["estimated_error"]
-
-    def pct(x: Any) -> str:
-        if x is None or not np.isfinite(x):
-            return "unknown"
-        return f"{100 * x:.0f} %" if x >= 0.1 else f"{100 * x:.2g} %"
 
     last = acc["levels"][-1]
     deepest = last.get("max_squeeze")

@@ -91,7 +91,8 @@ from .options import PickupOptions
 __all__ = ["AccuracyLevel", "AccuracyReport", "single_run_report", "next_step", "predicted_mesh_error",
            "predicted_level_seconds", "first_lift_test", "placement_target", "converged_pickup", "GRASP_TOLERANCE",
            "LEVEL_COST_GROWTH", "LEVEL_RATIO", "STEP_SHARE", "FINE_STEP_SHARE", "STEP_DIVISIONS", "DEFAULT_ACCURACY",
-           "MAX_LEVELS", "MAX_FINGER_CONTACTS", "SPECTRAL_MAX_VERTICES", "NESTED_EDGE_RATIO", "levels_label"]
+           "MAX_LEVELS", "MAX_FINGER_CONTACTS", "SPECTRAL_MAX_VERTICES", "NESTED_EDGE_RATIO", "levels_label",
+           "percent_error"]
 
 log = logging.getLogger(__name__)
 
@@ -195,8 +196,8 @@ class AccuracyReport:
 
     def summary_line(self) -> str:
         e = self.estimated_error
-        return (f"target {100 * self.target:g} %: estimated error rho* {_pct(e.get('squeeze_depth'))}, finger force "
-                f"{_pct(e.get('finger_force'))} ({levels_label(len(self.levels), self.refinement)}, "
+        return (f"target {100 * self.target:g} %: estimated error rho* {percent_error(e.get('squeeze_depth'))}, finger force "
+                f"{percent_error(e.get('finger_force'))} ({levels_label(len(self.levels), self.refinement)}, "
                 f"{'converged' if self.converged else 'error estimate above the target'})")
 
 
@@ -205,7 +206,8 @@ def levels_label(count: int, refinement: str | None) -> str:
     return f"{count} {'nested levels' if refinement == 'nested' else 'levels'}"
 
 
-def _pct(x: float | None) -> str:
+def percent_error(x: float | None) -> str:
+    """A relative error as the summaries print it: "3.3 %", "12 %", "unknown" (None or infinite)."""
     if x is None or not math.isfinite(x):
         return "unknown"
     return f"{100 * x:.0f} %" if x >= 0.1 else f"{100 * x:.2g} %"
