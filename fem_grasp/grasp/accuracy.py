@@ -24,8 +24,8 @@ points and the geometry can make them nodes, level 0 is the body remeshed at
 its spacing with them as nodes (:data:`GRASP_TOLERANCE`: the answer moves with
 the grasp); each next level remeshes the
 geometry (:mod:`fem_grasp.mesh.remesh`) with half the spacing at those patches
-(:data:`LEVEL_RATIO`), the table patch at four times that (:data:`TABLE_LAG`) and a
-finer outer mesh — or, with ``PickupOptions.refinement = "nested"``, bisects the
+(:data:`LEVEL_RATIO`), the table patch at four times that (:data:`TABLE_LAG`) and the
+bulk √2 finer (:data:`OUTER_EXPONENT`) — or, with ``PickupOptions.refinement = "nested"``, bisects the
 level before to the same sizes (:mod:`fem_grasp.mesh.bisection`, :data:`NESTED_EDGE_RATIO`),
 so that the levels differ only in resolution —, grasps at the same points (as nodes where the geometry can
 embed them, else at each level's nearest surface nodes), and takes
@@ -91,8 +91,8 @@ from .options import PickupOptions
 __all__ = ["AccuracyLevel", "AccuracyReport", "single_run_report", "next_step", "predicted_mesh_error",
            "predicted_level_seconds", "first_lift_test", "placement_target", "converged_pickup", "GRASP_TOLERANCE",
            "LEVEL_COST_GROWTH", "LEVEL_RATIO", "STEP_SHARE", "FINE_STEP_SHARE", "STEP_DIVISIONS", "DEFAULT_ACCURACY",
-           "MAX_LEVELS", "MAX_FINGER_CONTACTS", "SPECTRAL_MAX_VERTICES", "NESTED_EDGE_RATIO", "levels_label",
-           "percent_error"]
+           "MAX_LEVELS", "MAX_FINGER_CONTACTS", "SPECTRAL_MAX_VERTICES", "NESTED_EDGE_RATIO", "OUTER_EXPONENT",
+           "outer_spacing", "levels_label", "percent_error"]
 
 log = logging.getLogger(__name__)
 
@@ -221,6 +221,18 @@ PATCH_RADIUS = 1.5
 #: as a wide, smooth pressure, and its many contacts make every return mapping of the squeeze dearer (the steam
 #: bun's flat base at R/4 took more than 900 s against 37 s with only the fingertips graded; `make converge`).
 TABLE_LAG = 4.0
+#: Each level divides the spacing away from the patches (the bulk) by ``LEVEL_RATIO ** OUTER_EXPONENT``, √2,
+#: where it halves the patches': P1's error in the bulk's stiffness falls as the square of its spacing and the
+#: patches' about as their spacing, so both fall by about half from level to level and the levels' change sees
+#: both.  A bulk kept at level 0's spacing (0) or refined more slowly (0.25) is faster and its levels do not see
+#: the bulk's error, so their estimate understated it (docs/accuracy.md, "The bulk's spacing").
+OUTER_EXPONENT = 0.5
+
+
+def outer_spacing(outer: float, level: int, inner: float) -> float:
+    """Level ``level``'s spacing away from the patches: level 0's, ``outer``, divided by
+    ``LEVEL_RATIO ** (OUTER_EXPONENT × level)``, and never finer than the level's patch spacing ``inner``."""
+    return max(outer / LEVEL_RATIO ** (OUTER_EXPONENT * level), inner)
 
 
 def placement_target(geometry: Any, result: Any, direction: Any, spacing: float) -> np.ndarray:
@@ -489,7 +501,7 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
                            "to go on: --max-finger-contacts N, the scene's [solver] max_finger_contacts or "
                            "PickupOptions.max_finger_contacts)")
             break
-        outer_l = max(outer / LEVEL_RATIO ** (0.5 * level), inner_l)
+        outer_l = outer_spacing(outer, level, inner_l)
         t0 = time.perf_counter()
         if opts.refinement == "nested":
             mesh = _nested_level_mesh(geo, level_mesh, fingers, table, inner_l, PATCH_RADIUS * prev_inner, outer_l)

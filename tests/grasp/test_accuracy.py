@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from fem_grasp import Body, TetMesh, box_mesh
-from fem_grasp.grasp.accuracy import DEFAULT_ACCURACY, STEP_SHARE, converged_pickup
+from fem_grasp.grasp.accuracy import DEFAULT_ACCURACY, LEVEL_RATIO, OUTER_EXPONENT, STEP_SHARE, converged_pickup
 from fem_grasp.grasp.answer import answer_of
 from fem_grasp.grasp.estimates import relative_change
 from fem_grasp.grasp.pickup import pickup
@@ -102,6 +102,17 @@ def test_each_level_halves_the_patch_spacing_and_resolves_rho_to_its_share_of_th
         assert b["resolution"] <= STEP_SHARE * TARGET * a["squeeze_depth"] * (1 + 1e-12)
         assert b["resolution"] == pytest.approx(b["step"] / b["step_divisions"])
         assert b["lift_test_step"] == pytest.approx(lv[0]["lift_test_step"])  # every level ramps in level 0's h
+
+
+def test_each_level_refines_the_bulk_by_the_square_root_of_the_patches_ratio(levels):
+    """P1's stiffness error in the bulk falls as the square of its spacing, the patches' about as theirs: the bulk's
+    spacing falls by √2 per level where the patches' halves, so that the levels' change sees both errors fall."""
+    lv = levels.accuracy["levels"]
+    assert OUTER_EXPONENT == 0.5
+    for a, b in zip(lv, lv[1:]):
+        expected = max(a["outer_size"] / LEVEL_RATIO**OUTER_EXPONENT, b["inner_size"])
+        assert b["outer_size"] == pytest.approx(expected, rel=1e-12)
+        assert b["outer_size"] > b["inner_size"]  # the 4 cm box: the bulk stays coarser than the patches
 
 
 def test_every_level_squeezes_at_most_as_deep_as_the_body_as_given(levels):

@@ -51,14 +51,14 @@ def reference_plan(accuracy: dict[str, Any], max_contacts: float) -> dict[str, A
     loop's levels do), the lift-test step h half the last level's and the deepest squeeze the answer's (the loop
     keeps level 0's on every level) — and whether it is too large to run
     (its predicted contacts per fingertip, the last level's times four, above ``max_contacts``)."""
-    from fem_grasp.grasp.accuracy import LEVEL_RATIO, PATCH_RADIUS
+    from fem_grasp.grasp.accuracy import LEVEL_RATIO, PATCH_RADIUS, outer_spacing
 
     levels = accuracy["levels"]
     last = levels[-1]
     inner = last["inner_size"] / LEVEL_RATIO
     predicted = max(last["finger_nodes"]) * LEVEL_RATIO**2
     return {"inner_size": inner, "radius": PATCH_RADIUS * last["inner_size"],
-            "outer_size": max(levels[0]["outer_size"] / LEVEL_RATIO ** (0.5 * (last["level"] + 1)), inner),
+            "outer_size": outer_spacing(levels[0]["outer_size"], last["level"] + 1, inner),
             "step": last.get("resolution", last["step"]), "step_divisions": 4,
             "lift_test_step": last["lift_test_step"] / 2.0 if last["lift_test_step"] else None,
             "max_squeeze": _deepest_squeeze(accuracy),
