@@ -791,14 +791,16 @@ def _source(ref: dict[str, Any]) -> str:
     return f"verification/converge/references.json: {made} of {src.get('date')} on {src.get('machine')}"
 
 
-def accuracy_worker(name: str, run: str, draw: int = 0) -> None:
+def accuracy_worker(name: str, run: str, draw: int = 0, outer_exponent: float | None = None) -> None:
     """Run in a subprocess: one of :data:`ACCURACY_RUNS` of a shipped scene, one JSON line with its answer, its
     wall time (``Scene.run()`` with no mesh or rest cache: loading the mesh, the rest, the pickup; the numba
     kernels loaded before) and the error it states.  The run is made twice: the first call of the process
     (``seconds``: what a command pays) and a later one (``later_seconds``: a session that runs several, its
     imports and the allocator's pages paid already), with ``later_same``, whether it gave the same answer.
     ``draw`` k > 0: gmsh's inputs rounded to a grid 2**k times as coarse (another draw of the same levels'
-    meshes), the first call only."""
+    meshes), the first call only.  ``outer_exponent``: the levels' refinement of the bulk instead of
+    :data:`~fem_grasp.grasp.accuracy.OUTER_EXPONENT` (a study of the rule; ``--accuracy-outer-exponent``)."""
+    from fem_grasp.grasp import accuracy as accuracy_loop
     from fem_grasp.grasp.answer import answer_of
     from fem_grasp.io.scene import Scene
     from fem_grasp.mesh import gmsh_session
@@ -806,6 +808,8 @@ def accuracy_worker(name: str, run: str, draw: int = 0) -> None:
     if run not in dict(ACCURACY_RUNS):
         raise SystemExit(f"unknown run {run!r}; expected one of {', '.join(k for k, _ in ACCURACY_RUNS)}")
     gmsh_session.POINT_QUANTUM *= 2.0 ** draw
+    if outer_exponent is not None:
+        accuracy_loop.OUTER_EXPONENT = float(outer_exponent)
 
     def scene() -> Scene:
         shipped = Scene.load(name)
@@ -889,10 +893,12 @@ def accuracy_errors(raw: dict[str, Any], reference: dict[str, Any]) -> dict[str,
     return row
 
 
-def run_accuracy_worker(name: str, run: str, cap: float, draw: int = 0) -> dict[str, Any]:
+def run_accuracy_worker(name: str, run: str, cap: float, draw: int = 0,
+                        outer_exponent: float | None = None) -> dict[str, Any]:
     """:func:`accuracy_worker` in a subprocess of at most ``cap`` seconds: its JSON line, or a ``status`` that says
     why there is none ("cap" or the error)."""
-    cmd = [sys.executable, "-m", "bench.bench", "--worker-accuracy", f"{name}:{run}:{int(draw)}"]
+    spec = f"{name}:{run}:{int(draw)}" + ("" if outer_exponent is None else f":{float(outer_exponent)!r}")
+    cmd = [sys.executable, "-m", "bench.bench", "--worker-accuracy", spec]
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         out, err = proc.communicate(timeout=cap)
@@ -913,18 +919,20 @@ def default_accuracy(name: str) -> float | None:
 
 
 def section_accuracy(cap: float = 600.0, quick: bool = False, compute: bool = False,
-                     objects: tuple[str, ...] = ACCURACY_OBJECTS, draws: int = ACCURACY_DRAWS) -> dict[str, Any]:
+                     objects: tuple[str, ...] = ACCURACY_OBJECTS, draws: int = ACCURACY_DRAWS,
+                     outer_exponent: float | None = None) -> dict[str, Any]:
     """Per shipped object, the wall time and the actual error of the one level run, the default and the adaptive
     loop (module notes) against the object's reference: its pinned one (the placement rule's own grasp points,
     :mod:`verification.converge.references`) where it has one, with the error against the study's (each mesh
     grasping at its own nodes) beside it as ``error_study``; else the study's.  Objects without either are
     skipped.  The default is run again on ``draws`` other draws of its meshes (``rows["draws"]``, a list of
-    rows)."""
+    rows).  ``outer_exponent``: every loop refines the bulk by that instead of the library's rule (the rows then
+    measure that rule; ``out["outer_exponent"]`` says so)."""
     from verification.converge import references
 
     refs = study_references(quick=quick, compute=compute, objects=objects)
     out: dict[str, Any] = {"study": "quick" if quick else "full", "cap_s": cap, "target": ACCURACY_TARGET,
-                           "draws": draws, "objects": {}}
+                           "draws": draws, "outer_exponent": outer_exponent, "objects": {}}
     for name in objects:
         ref = refs.get(name)
         if not ref:
@@ -942,14 +950,14 @@ def section_accuracy(cap: float = 600.0, quick: bool = False, compute: bool = Fa
             if run == "adaptive" and default_is_adaptive:  # the same run as the default: its row, not a rerun
                 rows[run] = dict(rows["default"], same_as="default")
                 continue
-            raw = run_accuracy_worker(name, run, cap)
+            raw = run_accuracy_worker(name, run, cap, 0, outer_exponent)
             rows[run] = accuracy_errors(raw, reference) if "answer" in raw else raw
             if "answer" in raw and pinned and study:
                 rows[run]["error_study"] = accuracy_errors(raw, study)["error"]
             log.info("accuracy %s, %s: %s", name, run, rows[run].get("status"))
         rows["draws"] = []
         for draw in range(1, draws + 1):
-            raw = run_accuracy_worker(name, "default", cap, draw)
+            raw = run_accuracy_worker(name, "default", cap, draw, outer_exponent)
             rows["draws"].append(accuracy_errors(raw, reference) if "answer" in raw else raw)
             log.info("accuracy %s, default, mesh draw %d: %s", name, draw, rows["draws"][-1].get("status"))
         out["objects"][name] = {"reference": reference, "study_reference": study if pinned else None, "rows": rows}
@@ -974,6 +982,9 @@ def print_accuracy(sec: dict[str, Any]) -> None:
           "rho* / force\n    (the scene's expected_error, or the adaptive loop's); covers: stated >= actual for both "
           "('NO, ref' where only\n    the stated error plus the reference's own uncertainty covers the difference)")
     print("    seconds: the first call of a process (a command's) / a later call in it (a session's)")
+    if sec.get("outer_exponent") is not None:
+        print(f"    every level refines the bulk by 2**{sec['outer_exponent']:g} (--accuracy-outer-exponent), not by the "
+              "library's rule: these rows measure that rule, not the library's answers")
     print(f"{'object':<11} {'run':<28} {'seconds':>11} {'vertices':>8} {'verdict':<22} {'rho* mm':>8} "
           f"{'error':>15} {'force N':>8} {'error':>15} {'stated':>15} {'covers':>7}")
     for name, obj in sec["objects"].items():
@@ -1108,6 +1119,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--accuracy-compute", action="store_true",
                     help="section accuracy: compute the convergence study's missing references first (hours; "
                          "minutes with --converge-quick); by default an object without one is skipped")
+    ap.add_argument("--accuracy-outer-exponent", type=float, default=None, metavar="X",
+                    help="section accuracy: every level refines the bulk by 2**X instead of the library's rule "
+                         "(OUTER_EXPONENT, 0.5): a study of that rule (0: the bulk at level 0's spacing)")
     ap.add_argument("--worker-scaling", type=int, help=argparse.SUPPRESS)
     ap.add_argument("--worker-accuracy", help=argparse.SUPPRESS)
     ap.add_argument("--worker-floor", type=int, help=argparse.SUPPRESS)
@@ -1121,8 +1135,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         floor_worker(args.worker_floor, args.reps)
         return {}
     if args.worker_accuracy:
-        name, run, draw = args.worker_accuracy.split(":")
-        accuracy_worker(name, run, int(draw))
+        name, run, draw, *outer = args.worker_accuracy.split(":")
+        accuracy_worker(name, run, int(draw), float(outer[0]) if outer else None)
         return {}
     sections = args.only or list(SECTIONS)
     data: dict[str, Any] = {}
@@ -1160,7 +1174,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                                               routes=ROUTES)
         elif name == "accuracy":
             data["accuracy"] = section_accuracy(args.accuracy_cap, args.converge_quick, args.accuracy_compute,
-                                                tuple(args.accuracy_objects), args.accuracy_draws)
+                                                tuple(args.accuracy_objects), args.accuracy_draws,
+                                                args.accuracy_outer_exponent)
         elif name == "divisions":
             from bench.divisions import measure
 

@@ -338,12 +338,13 @@ def test_the_accuracy_section_measures_each_run_against_the_study_reference(monk
            "default": _fake_answer(rho=0.0104, force=6.6, stated={"squeeze_depth": 0.05, "finger_force": 0.05}),
            "adaptive": {"status": "cap", "cap_s": 7.0},
            "nested": _fake_answer(rho=0.0101, force=6.06, stated={"squeeze_depth": 0.02, "finger_force": 0.02})}
-    ran = []
+    ran, exponents = [], set()
     # another draw of the default's meshes: 8 % / 3 % off, stating 10 % / 10 %
     drawn = _fake_answer(rho=0.0108, force=6.18, stated={"squeeze_depth": 0.1, "finger_force": 0.1})
 
-    def fake_worker(name, run, cap, draw=0):
+    def fake_worker(name, run, cap, draw=0, outer_exponent=None):
         ran.append((name, run, cap, draw))
+        exponents.add(outer_exponent)
         return drawn if draw else raw[run]
 
     monkeypatch.setattr(bench, "run_accuracy_worker", fake_worker)
@@ -354,6 +355,7 @@ def test_the_accuracy_section_measures_each_run_against_the_study_reference(monk
     assert ran == [("orange", run, 7.0, 0) for run, _ in bench.ACCURACY_RUNS] + [("orange", "default", 7.0, k)
                                                                                   for k in (1, 2)]
     assert sec["objects"]["tomato"] == {"reference": None}
+    assert exponents == {None} and sec["outer_exponent"] is None  # the library's rule for the bulk
     rows = sec["objects"]["orange"]["rows"]
     one, default = rows["one_level"], rows["default"]
     assert one["verdict_ok"] and one["error"]["squeeze_depth"] == pytest.approx(0.1)
@@ -406,6 +408,13 @@ def test_the_accuracy_section_measures_each_run_against_the_study_reference(monk
                           "objects": {"orange": {"reference": reference, "rows": again}}})
     assert "the same run as Scene.run() as shipped" in capsys.readouterr().out
 
+    # a study of the bulk's rule: every run refines the bulk by the exponent asked for, and the table says so
+    exponents.clear()
+    study_rule = bench.section_accuracy(cap=7.0, objects=("orange",), draws=1, outer_exponent=0.0)
+    assert exponents == {0.0} and study_rule["outer_exponent"] == 0.0
+    bench.print_accuracy(study_rule)
+    assert "refines the bulk by 2**0 (--accuracy-outer-exponent)" in capsys.readouterr().out
+
 
 def test_the_accuracy_section_measures_against_the_pinned_reference_where_an_object_has_one(monkeypatch, capsys):
     """Where an object has a reference at the placement rule's own grasp points (pinned), every run's error and
@@ -422,7 +431,7 @@ def test_the_accuracy_section_measures_against_the_pinned_reference_where_an_obj
                                          "date": "2026-12-04", "machine": "test"}}
     monkeypatch.setattr(bench, "study_references", lambda quick, compute, objects: {
         "orange": dict(study, pinned=pinned), "tomato": {"pinned": pinned}})
-    monkeypatch.setattr(bench, "run_accuracy_worker", lambda name, run, cap, draw=0: _fake_answer(
+    monkeypatch.setattr(bench, "run_accuracy_worker", lambda name, run, cap, draw=0, outer_exponent=None: _fake_answer(
         rho=0.0102, force=5.88, stated={"squeeze_depth": 0.03, "finger_force": 0.06}))
     sec = bench.section_accuracy(cap=7.0, objects=("orange", "tomato"))
     orange, tomato = sec["objects"]["orange"], sec["objects"]["tomato"]
