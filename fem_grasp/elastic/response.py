@@ -38,7 +38,8 @@ if TYPE_CHECKING:
 __all__ = ["BACKENDS", "COLLINEAR_TOLERANCE", "CollinearContactError", "ContactResponse", "ContactSolution",
            "MAX_CONDITION", "NEIGHBOUR_BACKWARD_ERROR", "NEIGHBOUR_NODES", "NEIGHBOUR_SHARE",
            "WARN_CONDITION", "check_contact_set", "contact_dofs", "contact_response", "equilibrium_residual",
-           "neighbour_limit", "principal_submatrix", "solve_contact"]
+           "neighbour_limit", "principal_submatrix", "solve_contact", "add_symmetric_product", "symmetrize",
+           "norm1", "DENSE_BLOCK"]
 
 log = logging.getLogger(__name__)
 
@@ -100,6 +101,42 @@ def principal_submatrix(a: np.ndarray, rows: np.ndarray) -> np.ndarray:
         for j0, b0, width in runs:
             out[i0:i0 + length, j0:j0 + width] = a[a0:a0 + length, b0:b0 + width]
     return out
+
+
+#: Rows (and columns) per block of :func:`symmetrize` and :func:`norm1`: a few hundred kilobytes, in cache.
+DENSE_BLOCK = 128
+
+
+def add_symmetric_product(a: np.ndarray, u: np.ndarray, w: np.ndarray) -> None:
+    """``a += u w uᵀ`` in place, for a C-ordered square ``a`` and a symmetric ``w``: one BLAS dgemm with β = 1 on
+    ``aᵀ`` (Fortran-ordered), as (u w uᵀ)ᵀ is u w uᵀ, without the (n, n) temporary of ``a += u @ (w @ u.T)``
+    (a third of that time at 1,500 rows)."""
+    b = np.ascontiguousarray(w @ u.T)
+    gemm = la.get_blas_funcs("gemm", (a, u, b))
+    out = gemm(1.0, u, b, beta=1.0, c=a.T, overwrite_c=True)
+    if not np.shares_memory(out, a):  # not updated in place (a not C-ordered): copy the result back
+        a[...] = out.T
+
+
+def symmetrize(a: np.ndarray, block: int = DENSE_BLOCK) -> None:
+    """``a ← (a + aᵀ) / 2`` in place, block by block (no (n, n) temporary; the same numbers as the formula)."""
+    n = len(a)
+    for i in range(0, n, block):
+        d = a[i:i + block, i:i + block]
+        d[...] = 0.5 * (d + d.T)
+        for j in range(i + block, n, block):
+            m = a[i:i + block, j:j + block] + a[j:j + block, i:i + block].T
+            m *= 0.5
+            a[i:i + block, j:j + block] = m
+            a[j:j + block, i:i + block] = m.T
+
+
+def norm1(a: np.ndarray, block: int = DENSE_BLOCK) -> float:
+    """‖a‖₁, the largest column sum of |a|, summed block of rows by block of rows (no (n, n) temporary)."""
+    sums = np.zeros(a.shape[1])
+    for i in range(0, len(a), block):
+        sums += np.abs(a[i:i + block]).sum(axis=0)
+    return float(sums.max(initial=0.0))
 
 
 def check_contact_set(points: np.ndarray, nodes: np.ndarray) -> np.ndarray:
@@ -391,7 +428,7 @@ class ContactResponse:
                 return None
         if factors:
             u = np.hstack(factors)
-            inv += u @ (la.block_diag(*weights) @ u.T)
+            add_symmetric_product(inv, u, la.block_diag(*weights))
         if added:
             ws = w @ s_inv
             inv[:, to_added] = -ws
@@ -400,14 +437,14 @@ class ContactResponse:
             mat[:, to_added] = v
             mat[to_added, :] = v.T
             mat[np.ix_(to_added, to_added)] = d
-        inv = inv + inv.T  # M⁻¹ is symmetric: without this its round-off drifts along a chain of updates
-        inv *= 0.5
-        condition = float(np.abs(mat).sum(axis=0).max() * np.abs(inv).sum(axis=0).max())
+        symmetrize(inv)  # M⁻¹ is symmetric: without this its round-off drifts along a chain of updates
+        mat_norm = norm1(mat)  # M is symmetric: its ∞-norm too
+        condition = float(mat_norm * norm1(inv))
         if not condition < WARN_CONDITION:
             return None
         probe = np.cos(np.arange(len(mat)) * 1.618)  # a fixed probe with no structure aligned to the mesh's
         x = inv @ probe
-        backward = float(np.abs(mat @ x - probe).max() / (np.abs(mat).sum(axis=1).max() * np.abs(x).max()))
+        backward = float(np.abs(mat @ x - probe).max() / (mat_norm * np.abs(x).max()))
         if not backward <= NEIGHBOUR_BACKWARD_ERROR:
             log.debug("derived contact response refused: backward error %.2e", backward)
             return None

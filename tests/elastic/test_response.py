@@ -3,7 +3,7 @@ import pytest
 import scipy.sparse.linalg as spla
 
 from fem_grasp import Body, CollinearContactError, ContactResponse, TetMesh, solve_contact
-from fem_grasp.elastic.response import contact_dofs, principal_submatrix
+from fem_grasp.elastic.response import add_symmetric_product, contact_dofs, norm1, principal_submatrix, symmetrize
 from tests.helpers import perturbed_box
 
 
@@ -338,3 +338,27 @@ def test_principal_submatrix_is_fancy_indexing_with_zero_placeholders(rows, rng)
     ok = rows >= 0
     assert np.array_equal(got[np.ix_(ok, ok)], a[np.ix_(rows[ok], rows[ok])])
     assert not got[~ok].any() and not got[:, ~ok].any()
+
+
+@pytest.mark.parametrize("n", [1, 5, 127, 128, 129, 300])
+def test_the_in_place_dense_updates_are_their_formulas(n):
+    """What a derived response does to M⁻¹ in place, block by block: a symmetric rank-k update u w uᵀ (one dgemm
+    on the transpose), the symmetric part (the same numbers as (a + aᵀ)/2, exactly symmetric) and ‖a‖₁, at sizes
+    below, at and across the block."""
+    rng = np.random.default_rng(n)
+    a = rng.standard_normal((n, n))
+    u = rng.standard_normal((n, 7))
+    w = rng.standard_normal((7, 7))
+    w = w + w.T
+    updated = a.copy()
+    add_symmetric_product(updated, u, w)
+    expected = a + u @ w @ u.T
+    assert np.abs(updated - expected).max() <= 1e-13 * np.abs(expected).max()
+    sym = a.copy()
+    symmetrize(sym)
+    assert np.array_equal(sym, 0.5 * (a + a.T)) and np.array_equal(sym, sym.T)
+    assert norm1(a) == pytest.approx(np.abs(a).sum(axis=0).max(), rel=1e-14)
+    assert norm1(a) == pytest.approx(np.linalg.norm(a, 1), rel=1e-14)
+    strided = np.asfortranarray(a)  # not C-ordered: updated all the same
+    add_symmetric_product(strided, u, w)
+    assert np.abs(strided - expected).max() <= 1e-13 * np.abs(expected).max()
