@@ -983,8 +983,8 @@ def print_accuracy(sec: dict[str, Any]) -> None:
           "('NO, ref' where only\n    the stated error plus the reference's own uncertainty covers the difference)")
     print("    seconds: the first call of a process (a command's) / a later call in it (a session's)")
     if sec.get("outer_exponent") is not None:
-        print(f"    every level refines the bulk by 2**{sec['outer_exponent']:g} (--accuracy-outer-exponent), not by the "
-              "library's rule: these rows measure that rule, not the library's answers")
+        print(f"    every level refines the bulk by 2**{sec['outer_exponent']:g} (--accuracy-outer-exponent), "
+              "not by the library's rule: these rows measure that rule, not the library's answers")
     print(f"{'object':<11} {'run':<28} {'seconds':>11} {'vertices':>8} {'verdict':<22} {'rho* mm':>8} "
           f"{'error':>15} {'force N':>8} {'error':>15} {'stated':>15} {'covers':>7}")
     for name, obj in sec["objects"].items():

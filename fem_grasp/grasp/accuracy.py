@@ -196,8 +196,9 @@ class AccuracyReport:
 
     def summary_line(self) -> str:
         e = self.estimated_error
-        return (f"target {100 * self.target:g} %: estimated error rho* {percent_error(e.get('squeeze_depth'))}, finger force "
-                f"{percent_error(e.get('finger_force'))} ({levels_label(len(self.levels), self.refinement)}, "
+        return (f"target {100 * self.target:g} %: estimated error rho* {percent_error(e.get('squeeze_depth'))}, "
+                f"finger force {percent_error(e.get('finger_force'))} "
+                f"({levels_label(len(self.levels), self.refinement)}, "
                 f"{'converged' if self.converged else 'error estimate above the target'})")
 
 
