@@ -5,7 +5,7 @@ study, each with a README.md (what it checks, against what, the command):
 
 ``dolfinx``        fem_grasp's K, G, strain energies and contact solves against FEniCSx/dolfinx, entry by entry;
                    manufactured solutions, locking and stability
-``hertz``          a sphere squeezed between rigid planes against Hertz theory
+``hertz``          a sphere squeezed between rigid planes against Hertz theory; a fingertip pressed into a block
 ``roundoff``       the same answer under round-off perturbations
 ``random_scenes``  random valid scenes never crash
 ``converge``       convergence of the pickup answer under refinement

@@ -13,7 +13,8 @@ from ._common.cli import dispatch
 STUDIES = {
     "all": ("every study into one report (make verify)", "verification.report"),
     "dolfinx": ("fem_grasp against dolfinx; linear studies", "verification.dolfinx.__main__"),
-    "hertz": ("sphere indentation against Hertz theory", "verification.hertz.__main__"),
+    "hertz": ("sphere indentation against Hertz theory; node contact against a weighted gap",
+              "verification.hertz.__main__"),
     "roundoff": ("same answer under round-off perturbations", "verification.roundoff.__main__"),
     "random_scenes": ("random valid scenes never crash", "verification.random_scenes.__main__"),
     "converge": ("pickup answer under refinement (make converge)", "verification.converge.__main__"),

@@ -23,7 +23,10 @@ idealisation neglects the compliance of the rest of the sphere; that
 correction is of relative order (δ/R)^½ and lowers the force.  The report
 therefore also extrapolates F/F_Hertz to δ → 0 with a fit in (δ/R)^½.
 
-``python -m verification hertz [--quick]`` runs it alone (``hertz.html``, ``hertz.json``); it is a stage of the
+A second set-up, :mod:`.indenter`, presses a rigid sphere (a fingertip) into an elastic block and compares
+the paper's node contact with a weighted-gap contact on meshes of several spacings and gmsh seeds.
+
+``python -m verification hertz [--quick]`` runs both alone (``hertz.html``, ``hertz.json``); it is a stage of the
 full report too.  Figure, headline checks and the report's section: :mod:`.report`.
 """
 
@@ -41,10 +44,14 @@ from fem_grasp import Body, TetMesh
 
 from .._common.run import Stages
 from ..dolfinx.linalg import factorized
-from .report import checks, hertz_plot, section
+from ._mesh import graded_mesh, hertz_force
+from .indenter import INDENTER_CONFIGS, indenter_study
+from .report import checks as _hertz_checks
+from .report import hertz_plot, indenter_checks, indenter_plot, indenter_section
+from .report import section as _hertz_section
 
-__all__ = ["CONFIGS", "STAGES", "OctantIndentation", "checks", "hertz_force", "hertz_study", "octant_sphere", "run",
-           "section"]
+__all__ = ["CONFIGS", "STAGES", "OctantIndentation", "checks", "hertz_force", "hertz_study", "indenter_study",
+           "octant_sphere", "run", "section"]
 
 log = logging.getLogger(__name__)
 
@@ -55,48 +62,8 @@ def octant_sphere(radius: float, pole_size: float, far_size: float, refine_radiu
     The size grows linearly from ``pole_size`` at distance ``refine_radius``
     from the pole to ``far_size`` at distance ``2 × refine_radius``.
     """
-    import gmsh
-
-    gmsh.initialize([], False)
-    try:
-        for key, val in {"General.Terminal": 0, "General.NumThreads": 1, "Mesh.RandomSeed": 1,
-                         "Mesh.MeshSizeExtendFromBoundary": 0, "Mesh.MeshSizeFromPoints": 0,
-                         "Mesh.MeshSizeFromCurvature": 0, "Mesh.Algorithm": 6, "Mesh.Algorithm3D": 1,
-                         "Mesh.Optimize": 1}.items():
-            gmsh.option.setNumber(key, val)
-        gmsh.model.add("octant")
-        occ = gmsh.model.occ
-        occ.addSphere(0.0, 0.0, 0.0, radius, -1, 0.0, np.pi / 2, np.pi / 2)
-        occ.synchronize()
-        pole = occ.addPoint(0.0, 0.0, radius)
-        occ.synchronize()
-        fields = gmsh.model.mesh.field
-        dist = fields.add("Distance")
-        fields.setNumbers(dist, "PointsList", [pole])
-        thr = fields.add("Threshold")
-        fields.setNumber(thr, "InField", dist)
-        fields.setNumber(thr, "SizeMin", pole_size)
-        fields.setNumber(thr, "SizeMax", far_size)
-        fields.setNumber(thr, "DistMin", refine_radius)
-        fields.setNumber(thr, "DistMax", 2.0 * refine_radius)
-        fields.setAsBackgroundMesh(thr)
-        gmsh.model.mesh.generate(3)
-        tags, coords, _ = gmsh.model.mesh.getNodes()
-        _, elem_nodes = gmsh.model.mesh.getElementsByType(4)
-    finally:
-        gmsh.finalize()
-    points = coords.reshape(-1, 3)
-    lookup = np.zeros(int(tags.max()) + 1, dtype=np.int64)
-    lookup[tags.astype(np.int64)] = np.arange(len(tags))
-    tets = lookup[elem_nodes.astype(np.int64)].reshape(-1, 4)
-    used, tets = np.unique(tets, return_inverse=True)
-    return TetMesh(points[used], tets.reshape(-1, 4))
-
-
-def hertz_force(delta: np.ndarray | float, radius: float, young: float, poisson: float) -> np.ndarray:
-    """Hertz's load for an elastic sphere pressed by δ onto a rigid plane."""
-    e_star = young / (1.0 - poisson**2)
-    return 4.0 / 3.0 * e_star * np.sqrt(radius) * np.asarray(delta, dtype=float) ** 1.5
+    return graded_mesh(lambda occ: occ.addSphere(0.0, 0.0, 0.0, radius, -1, 0.0, np.pi / 2, np.pi / 2),
+                       (0.0, 0.0, radius), pole_size, far_size, refine_radius)
 
 
 class OctantIndentation:
@@ -238,16 +205,34 @@ CONFIGS: dict[str, dict[str, Any]] = {
     "quick": {"pole_sizes": [0.04, 0.02], "deltas": [0.0025, 0.005, 0.01, 0.02]},
 }
 #: Stages of :func:`run`.
-STAGES = 2
+STAGES = 4
 
 
 def run(quick: bool, out_dir: Path, stages: Stages) -> tuple[dict[str, Any], dict[str, str]]:
-    """The study and its figure; returns its part of the summary and its pictures."""
-    cfg = CONFIGS["quick" if quick else "full"]
-    part: dict[str, Any] = {"config": cfg}
+    """The study and its figure, then the rigid fingertip pressed into a block (:mod:`.indenter`); returns its part
+    of the summary and its pictures."""
+    key = "quick" if quick else "full"
+    cfg = CONFIGS[key]
+    part: dict[str, Any] = {"config": cfg, "indenter_config": INDENTER_CONFIGS[key]}
     images: dict[str, str] = {}
     stages.run("Hertz", lambda: hertz_study(cfg["pole_sizes"], cfg["deltas"]), lambda v: part.__setitem__("hertz", v))
     if "hertz" in part:
         stages.run("Hertz plot", lambda: images.__setitem__(
             "hertz", hertz_plot(part["hertz"], out_dir / "hertz.png").name))
+    stages.run("Indenter: node contact or weighted gap", lambda: indenter_study(**INDENTER_CONFIGS[key]),
+               lambda v: part.__setitem__("indenter", v))
+    if "indenter" in part:
+        stages.run("Indenter plot", lambda: images.__setitem__(
+            "indenter", indenter_plot(part["indenter"], out_dir / "indenter.png").name))
     return part, images
+
+
+def checks(part: dict[str, Any]) -> list[dict[str, Any]]:
+    """The sphere between planes against Hertz, then the indenter's (:func:`.report.indenter_checks`)."""
+    return _hertz_checks(part) + indenter_checks(part)
+
+
+def section(s: dict[str, Any], images: dict[str, str]) -> str:
+    """The report's sections: the sphere between planes, then the rigid fingertip pressed into a block."""
+    return "\n".join(p for p in (_hertz_section(s, images), indenter_section(s.get("indenter"), images.get("indenter")))
+                     if p)
