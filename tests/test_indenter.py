@@ -22,6 +22,7 @@ from verification.hertz import hertz_force  # noqa: E402
 from verification.hertz.indenter import (  # noqa: E402
     BlockIndentation,
     complementarity,
+    dual_moments,
     indenter_study,
     quarter_block,
     triangle_moments,
@@ -96,13 +97,13 @@ def test_mortar_matrices(indentation):
     assert (mean_height >= 0).all() and (mean_height <= indentation.heights.max() * 1.5).all()
 
 
-def test_both_contacts_satisfy_their_conditions_and_approach_hertz(indentation):
-    """At three indentations both discretisations give a force growing with δ, near Hertz's (the block is
+def test_every_contact_satisfies_its_conditions_and_approaches_hertz(indentation):
+    """At three indentations the three discretisations give a force growing with δ, near Hertz's (the block is
     finite and clamped: within 20 %), and within 10 % of each other; no tension, no penetration."""
     radius = indentation.radius
     deltas = np.array([0.005, 0.01, 0.02]) * radius
     hertz = hertz_force(deltas, radius, 2e4, 0.3)
-    for method in (indentation.node_contact, indentation.weighted_gap):
+    for method in (indentation.node_contact, indentation.weighted_gap, indentation.dual_gap):
         rows = [method(d) for d in deltas]
         forces = np.array([r["force"] for r in rows])
         assert (np.diff(forces) > 0).all()
@@ -113,8 +114,20 @@ def test_both_contacts_satisfy_their_conditions_and_approach_hertz(indentation):
             assert r["max_complementarity_rel"] <= 1e-9
             assert r["n_active"] >= 3
     node = np.array([indentation.node_contact(d)["force"] for d in deltas])
-    weighted = np.array([indentation.weighted_gap(d)["force"] for d in deltas])
-    np.testing.assert_allclose(weighted / node, 1.0, atol=0.1)
+    for method in (indentation.weighted_gap, indentation.dual_gap):
+        np.testing.assert_allclose(np.array([method(d)["force"] for d in deltas]) / node, 1.0, atol=0.1)
+
+
+def test_dual_heights_are_exact_for_a_linear_profile(indentation):
+    """The dual basis reproduces a P1 function's nodal values (∫ Φ_k f dA = A_k f_k, triangle by triangle): a plane's
+    heights in place of the sphere's come back at the nodes."""
+    xy = indentation.mesh.points[indentation.candidates][:, :2]
+    plane = lambda q: 0.3 * q[..., 0] - 0.7 * q[..., 1] + 0.01  # noqa: E731
+    tris = indentation.triangles
+    _, moments, _ = triangle_moments(xy[tris], plane)
+    dual = np.bincount(tris.ravel(), dual_moments(moments).ravel(), minlength=len(xy))
+    inner = indentation.areas > 0
+    np.testing.assert_allclose(dual[inner] / indentation.areas[inner], plane(xy[inner]), rtol=1e-12, atol=1e-15)
 
 
 def test_quick_study_passes_its_checks():
