@@ -59,8 +59,8 @@ def test_hat_function_moments_are_exact_for_a_quadratic_profile():
 
 
 def test_complementarity_solves_the_bound_constrained_quadratic_program():
-    """The active-set answer is the minimiser of ½ λᵀAλ − bᵀλ over λ ≥ 0 (NNLS on A's Cholesky factor), with
-    g = Aλ − b ≥ 0 and λ·g = 0 to round-off."""
+    """The active-set answer is the minimiser of ½ λᵀAλ − bᵀλ over λ ≥ 0 (NNLS on A's Cholesky factor),
+    with g = Aλ − b ≥ 0 and λ·g = 0 to round-off."""
     rng = np.random.default_rng(7)
     for n in (5, 40):
         q = rng.standard_normal((n, n))

@@ -105,7 +105,12 @@ def dual_moments(moments: np.ndarray) -> np.ndarray:
 
 def complementarity(a: np.ndarray, b: np.ndarray, max_iter: int = 200) -> tuple[np.ndarray, np.ndarray, int]:
     """λ ≥ 0 with g = a λ − b ≥ 0 and λ·g = 0, for a symmetric positive definite ``a``, by the primal–dual
-    active-set iteration (exact once the active set repeats); returns (λ, g, iterations)."""
+    active-set iteration (exact once the active set repeats); returns (λ, g, iterations).
+
+    Raises
+    ------
+    RuntimeError
+        When the active sets cycle or do not settle within ``max_iter`` iterations (no answer is returned then)."""
     n = len(b)
     scale = 1.0 / float(np.mean(np.diag(a)))
     active = b > 0
@@ -117,8 +122,10 @@ def complementarity(a: np.ndarray, b: np.ndarray, max_iter: int = 200) -> tuple[
             lam[active] = la.solve(a[np.ix_(active, active)], b[active], assume_a="pos", check_finite=False)
         g = a @ lam - b
         new = lam - scale * g > 0
-        if np.array_equal(new, active) or new.tobytes() in seen:
+        if np.array_equal(new, active):
             return lam, g, it
+        if new.tobytes() in seen:
+            raise RuntimeError(f"the active-set iteration cycles (after {it} iterations)")
         seen.add(new.tobytes())
         active = new
     raise RuntimeError(f"the active-set iteration did not settle in {max_iter} iterations")
@@ -172,8 +179,8 @@ class BlockIndentation:
         self.areas = np.bincount(local.ravel(), np.repeat(area / 3.0, 3), minlength=m)
         self.height_moments = np.bincount(local.ravel(), moments.ravel(), minlength=m)
         self.triangles = local  # (t, 3) positions in ``candidates``
-        self.dual_heights = np.divide(np.bincount(local.ravel(), dual_moments(moments).ravel(), minlength=m), self.areas,
-                                      out=np.array(self.heights), where=self.areas > 0)
+        dual = np.bincount(local.ravel(), dual_moments(moments).ravel(), minlength=m)
+        self.dual_heights = np.divide(dual, self.areas, out=np.array(self.heights), where=self.areas > 0)
         self.mortar = self.mass @ self.compliance @ self.mass
         self.setup_seconds = time.perf_counter() - t0
 
