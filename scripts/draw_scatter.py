@@ -1,0 +1,119 @@
+"""Where draws of one level's mesh differ: in the squeeze's force, or in where the lift test first holds mg.
+
+The accuracy loop's levels are gmsh meshes, and meshes of one spacing differ by a few per cent in ρ* (docs/accuracy.md,
+"The draw of a level's mesh").  This script runs a scene's default (``Scene.run()``) on several draws of its meshes,
+as ``python -m bench.bench --only accuracy`` does (gmsh's inputs rounded to grids 2, 4, … times as coarse: a move of
+at most a millionth of a spacing), and compares, on each draw's last level:
+
+* the squeeze: Σ f·n̂ over both fingers at five depths that every draw squeezed through (the elastic and contact
+  response of the mesh, node contact and all);
+* the lift test: ρ*, the force at lift-off, and the depth over which the liftable weight w(ρ) stayed one step h
+  below mg before it reached mg (the plateau: how slowly w approaches mg).
+
+Usage::
+
+    python scripts/draw_scatter.py                      # tomato and orange, five draws each
+    python scripts/draw_scatter.py steam_bun --draws 3
+
+Prints one block per scene.  Needs gmsh (the ``mesh`` extra); a draw takes what the default takes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+from typing import Any, Sequence
+
+import numpy as np
+
+#: Depths of the squeeze compared across draws: this many, from this fraction of the shallowest ρ* up to it.
+DEPTHS, FIRST_DEPTH = 5, 0.3
+
+
+def draw_worker(name: str, draw: int) -> dict[str, Any]:
+    """One draw of a scene's default run: the last level's squeeze (ρ, Σ f·n̂) at every event, its w(ρ) points,
+    ρ* and the force at lift-off."""
+    from fem_grasp.contact.obstacles import sphere_normals
+    from fem_grasp.io.scene import Scene
+    from fem_grasp.mesh import gmsh_session
+
+    gmsh_session.POINT_QUANTUM *= 2.0 ** draw
+    result = Scene.load(name).run(cache_dir=None)
+    squeeze = []
+    for snap in result.snapshots:
+        if snap.phase != "squeeze":
+            continue
+        total = 0.0
+        for f, key in enumerate(("finger1", "finger2")):
+            nodes = snap.contact_nodes[key]
+            if len(nodes):
+                normals = sphere_normals(snap.node_positions(nodes), snap.finger_centers[f])
+                total += float(np.einsum("ki,ki->", snap.contact_forces[key], normals))
+        squeeze.append((float(snap.squeeze_depth), total))
+    levels = (result.accuracy or {}).get("levels") or [{}]
+    return {"name": name, "draw": draw, "vertices": levels[-1].get("vertices"), "success": bool(result.success),
+            "squeeze_depth": float(result.squeeze_depth), "finger_force": float(result.finger_normal_force),
+            "weight": float(result.body.weight), "liftable": [list(map(float, p)) for p in result.liftable],
+            "squeeze": squeeze}
+
+
+def _spread(values: np.ndarray) -> float:
+    """(largest − smallest) / mean, per cent."""
+    return float(100.0 * np.ptp(values) / np.mean(values))
+
+
+def summary(draws: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """The spreads across draws (module notes), from :func:`draw_worker`'s records of one scene."""
+    rho = np.array([d["squeeze_depth"] for d in draws])
+    force = np.array([d["finger_force"] for d in draws])
+    top = float(rho.min())
+    depths = np.linspace(FIRST_DEPTH * top, top, DEPTHS)
+    curves = []
+    for d in draws:
+        pts = np.array(sorted(d["squeeze"]))
+        curves.append(np.interp(depths, pts[:, 0], pts[:, 1]))
+    curves = np.array(curves)
+    plateaus = []  # from the first depth tested at the last weight below mg (a lower bound: tests start near ρ*)
+    for d in draws:
+        below = [(r, w) for r, w in d["liftable"] if w < d["weight"] * (1 - 1e-12) and r <= d["squeeze_depth"]]
+        top_weight = max((w for _, w in below), default=None)
+        start_depth = min((r for r, w in below if w == top_weight), default=d["squeeze_depth"])
+        plateaus.append((d["squeeze_depth"] - start_depth) / d["squeeze_depth"])
+    return {"draws": len(draws), "vertices": [d["vertices"] for d in draws], "squeeze_depth_mm": (1e3 * rho).tolist(),
+            "squeeze_depth_spread": _spread(rho), "finger_force_spread": _spread(force),
+            "depths_mm": (1e3 * depths).tolist(), "squeeze_force_spread": [_spread(c) for c in curves.T],
+            "plateau": plateaus}
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("scenes", nargs="*", default=["tomato", "orange"])
+    parser.add_argument("--draws", type=int, default=5, help="draws per scene (default 5)")
+    parser.add_argument("--worker", nargs=2, metavar=("NAME", "DRAW"), help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.worker:
+        print(json.dumps(draw_worker(args.worker[0], int(args.worker[1]))))
+        return 0
+    if args.draws < 2:
+        parser.error("--draws must be at least 2 (a spread needs two draws)")
+    for name in args.scenes:
+        draws = []
+        for draw in range(args.draws):  # each in a process of its own: the rounding grid is the process's
+            out = subprocess.run([sys.executable, __file__, "--worker", name, str(draw)], check=True,
+                                 capture_output=True, text=True).stdout
+            draws.append(json.loads(out.strip().splitlines()[-1]))
+        s = summary(draws)
+        print(f"{name}: {s['draws']} draws, last level {min(s['vertices'])}–{max(s['vertices'])} vertices")
+        print(f"  rho* (mm)                 {', '.join(f'{r:.3f}' for r in s['squeeze_depth_mm'])}: spread "
+              f"{s['squeeze_depth_spread']:.1f} %; force at lift-off spread {s['finger_force_spread']:.1f} %")
+        print(f"  squeeze force at rho (mm) {', '.join(f'{r:.2f}' for r in s['depths_mm'])}: spread "
+              f"{', '.join(f'{x:.1f}' for x in s['squeeze_force_spread'])} %")
+        print(f"  w(rho) at its last weight below mg over at least the last "
+              f"{', '.join(f'{100 * p:.1f}' for p in s['plateau'])} % of rho* (per draw)")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
