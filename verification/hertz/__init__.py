@@ -24,7 +24,8 @@ correction is of relative order (δ/R)^½ and lowers the force.  The report
 therefore also extrapolates F/F_Hertz to δ → 0 with a fit in (δ/R)^½.
 
 A second set-up, :mod:`.indenter`, presses a rigid sphere (a fingertip) into an elastic block and compares
-the paper's node contact with a weighted-gap contact on meshes of several spacings and gmsh seeds.
+the paper's node contact with weighted-gap contacts (mortar and dual mortar) on meshes of several spacings and
+gmsh seeds.
 
 ``python -m verification hertz [--quick]`` runs both alone (``hertz.html``, ``hertz.json``); it is a stage of the
 full report too.  Figure, headline checks and the report's section: :mod:`.report`.

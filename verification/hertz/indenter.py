@@ -57,7 +57,7 @@ from fem_grasp import Body, TetMesh
 from ..dolfinx.linalg import factorized
 from ._mesh import graded_mesh, hertz_force
 
-__all__ = ["BlockIndentation", "INDENTER_CONFIGS", "complementarity", "dual_moments", "indenter_study",
+__all__ = ["BlockIndentation", "INDENTER_CONFIGS", "METHODS", "complementarity", "dual_moments", "indenter_study",
            "quarter_block", "top_triangles", "triangle_moments"]
 
 log = logging.getLogger(__name__)
@@ -237,7 +237,8 @@ def _swing(errors: np.ndarray, a: np.ndarray) -> float:
 def indenter_study(contact_sizes: list[float], seeds: int, reference_size: float, deltas: list[float],
                    radius: float = 0.01, young: float = 2e4, poisson: float = 0.3, block: float = 1.0,
                    far_size: float = 0.08) -> dict[str, Any]:
-    """Force against indentation for both contact discretisations, on meshes of several spacings and seeds.
+    """Force against indentation for each contact discretisation (:data:`METHODS`), on meshes of several spacings
+    and seeds.
 
     Parameters
     ----------
@@ -250,7 +251,7 @@ def indenter_study(contact_sizes: list[float], seeds: int, reference_size: float
 
     Returns
     -------
-    dict: the reference (both methods' forces, their largest relative difference), and per spacing and method
+    dict: the reference (each method's forces, their mean and largest relative spread), and per spacing and method
     the relative error against the reference over δ and seeds: mean, largest, RMS, the spread across seeds (the
     largest over δ) and the swing (:func:`_swing`, the largest over seeds)
     """

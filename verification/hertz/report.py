@@ -107,7 +107,7 @@ def section(s: dict[str, Any], images: dict[str, str]) -> str:
 
 
 def indenter_plot(study: dict, path: str | Path) -> Path:
-    """F/F_Hertz against the contact radius for both contact discretisations on each spacing (seed 1), and their
+    """F/F_Hertz against the contact radius for each contact discretisation on each spacing (seed 1), and their
     errors against the fine mesh: RMS and swing against the spacing."""
     plt = _plt()
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
@@ -145,7 +145,7 @@ def indenter_plot(study: dict, path: str | Path) -> Path:
 
 
 def indenter_checks(part: dict[str, Any]) -> list[dict[str, Any]]:
-    """Both discretisations solved exactly, converging to one answer near Hertz's."""
+    """Every discretisation solved exactly, all converging to one answer near Hertz's."""
     out: list[dict[str, Any]] = []
     st = part.get("indenter")
     if st:
