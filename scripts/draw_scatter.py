@@ -14,6 +14,7 @@ Usage::
 
     python scripts/draw_scatter.py                      # tomato and orange, five draws each
     python scripts/draw_scatter.py steam_bun --draws 3
+    python scripts/draw_scatter.py tomato --lift-test-step 0.0125   # the lift test in steps of mg/80
 
 Prints one block per scene.  Needs gmsh (the ``mesh`` extra); a draw takes what the default takes.
 """
@@ -32,15 +33,21 @@ import numpy as np
 DEPTHS, FIRST_DEPTH = 5, 0.3
 
 
-def draw_worker(name: str, draw: int) -> dict[str, Any]:
+def draw_worker(name: str, draw: int, lift_test_step: float | None = None) -> dict[str, Any]:
     """One draw of a scene's default run: the last level's squeeze (ρ, Σ f·n̂) at every event, its w(ρ) points,
-    ρ* and the force at lift-off."""
+    ρ* and the force at lift-off; ``lift_test_step``: the lift test's step h as a fraction of the weight instead of
+    the scene's."""
     from fem_grasp.contact.obstacles import sphere_normals
     from fem_grasp.io.scene import Scene
     from fem_grasp.mesh import gmsh_session
 
     gmsh_session.POINT_QUANTUM *= 2.0 ** draw
-    result = Scene.load(name).run(cache_dir=None)
+    scene = Scene.load(name)
+    if lift_test_step is not None:
+        if scene.weight is None:
+            raise SystemExit(f"{name}: --lift-test-step needs a scene that states its weight ([material] weight)")
+        scene = scene.with_(lift_test_step=lift_test_step * scene.weight)
+    result = scene.run(cache_dir=None)
     squeeze = []
     for snap in result.snapshots:
         if snap.phase != "squeeze":
@@ -91,17 +98,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scenes", nargs="*", default=["tomato", "orange"])
     parser.add_argument("--draws", type=int, default=5, help="draws per scene (default 5)")
+    parser.add_argument("--lift-test-step", type=float, metavar="FRACTION",
+                        help="the lift test's step h as a fraction of the weight (default: the scene's, mg/20)")
     parser.add_argument("--worker", nargs=2, metavar=("NAME", "DRAW"), help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.worker:
-        print(json.dumps(draw_worker(args.worker[0], int(args.worker[1]))))
+        print(json.dumps(draw_worker(args.worker[0], int(args.worker[1]), args.lift_test_step)))
         return 0
     if args.draws < 2:
         parser.error("--draws must be at least 2 (a spread needs two draws)")
     for name in args.scenes:
         draws = []
         for draw in range(args.draws):  # each in a process of its own: the rounding grid is the process's
-            out = subprocess.run([sys.executable, __file__, "--worker", name, str(draw)], check=True,
+            step = [] if args.lift_test_step is None else ["--lift-test-step", repr(args.lift_test_step)]
+            out = subprocess.run([sys.executable, __file__, "--worker", name, str(draw), *step], check=True,
                                  capture_output=True, text=True).stdout
             draws.append(json.loads(out.strip().splitlines()[-1]))
         s = summary(draws)
