@@ -8,7 +8,8 @@ at most a millionth of a spacing), and compares, on each draw's last level:
 * the squeeze: Σ f·n̂ over both fingers at five depths that every draw squeezed through (the elastic and contact
   response of the mesh, node contact and all);
 * the lift test: ρ*, the force at lift-off, and the depth over which the liftable weight w(ρ) stayed one step h
-  below mg before it reached mg (the plateau: how slowly w approaches mg).
+  below mg before it reached mg (the plateau: how slowly w approaches mg);
+* the lift: the share of the weight finger 1 carries at lift-off (half, for a grasp held alike by both fingers).
 
 Usage::
 
@@ -35,8 +36,8 @@ DEPTHS, FIRST_DEPTH = 5, 0.3
 
 def draw_worker(name: str, draw: int, lift_test_step: float | None = None) -> dict[str, Any]:
     """One draw of a scene's default run: the last level's squeeze (ρ, Σ f·n̂) at every event, its w(ρ) points,
-    ρ* and the force at lift-off; ``lift_test_step``: the lift test's step h as a fraction of the weight instead of
-    the scene's."""
+    ρ*, the force at lift-off and the weight each finger carries there; ``lift_test_step``: the lift test's step h
+    as a fraction of the weight instead of the scene's."""
     from fem_grasp.contact.obstacles import sphere_normals
     from fem_grasp.io.scene import Scene
     from fem_grasp.mesh import gmsh_session
@@ -60,10 +61,11 @@ def draw_worker(name: str, draw: int, lift_test_step: float | None = None) -> di
                 total += float(np.einsum("ki,ki->", snap.contact_forces[key], normals))
         squeeze.append((float(snap.squeeze_depth), total))
     levels = (result.accuracy or {}).get("levels") or [{}]
+    fingers = result.finger_forces if result.success else None
     return {"name": name, "draw": draw, "vertices": levels[-1].get("vertices"), "success": bool(result.success),
             "squeeze_depth": float(result.squeeze_depth), "finger_force": float(result.finger_normal_force),
             "weight": float(result.body.weight), "liftable": [list(map(float, p)) for p in result.liftable],
-            "squeeze": squeeze}
+            "squeeze": squeeze, "finger_vertical": [f.vertical for f in fingers] if fingers else None}
 
 
 def _spread(values: np.ndarray) -> float:
@@ -88,7 +90,9 @@ def summary(draws: Sequence[dict[str, Any]]) -> dict[str, Any]:
         top_weight = max((w for _, w in below), default=None)
         start_depth = min((r for r, w in below if w == top_weight), default=d["squeeze_depth"])
         plateaus.append((d["squeeze_depth"] - start_depth) / d["squeeze_depth"])
-    return {"draws": len(draws), "vertices": [d["vertices"] for d in draws], "squeeze_depth_mm": (1e3 * rho).tolist(),
+    shares = [d["finger_vertical"][0] / sum(d["finger_vertical"]) for d in draws if d.get("finger_vertical")]
+    return {"finger1_share": shares, "draws": len(draws), "vertices": [d["vertices"] for d in draws],
+            "squeeze_depth_mm": (1e3 * rho).tolist(),
             "squeeze_depth_spread": _spread(rho), "finger_force_spread": _spread(force),
             "depths_mm": (1e3 * depths).tolist(), "squeeze_force_spread": [_spread(c) for c in curves.T],
             "plateau": plateaus}
@@ -107,19 +111,32 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     if args.draws < 2:
         parser.error("--draws must be at least 2 (a spread needs two draws)")
+    from fem_grasp.errors import SceneError
+    from fem_grasp.io.scene import Scene
+
+    for name in args.scenes:
+        try:
+            Scene.load(name)
+        except SceneError as exc:
+            parser.error(str(exc))
     for name in args.scenes:
         draws = []
         for draw in range(args.draws):  # each in a process of its own: the rounding grid is the process's
             step = [] if args.lift_test_step is None else ["--lift-test-step", repr(args.lift_test_step)]
-            out = subprocess.run([sys.executable, __file__, "--worker", name, str(draw), *step], check=True,
-                                 capture_output=True, text=True).stdout
-            draws.append(json.loads(out.strip().splitlines()[-1]))
+            run = subprocess.run([sys.executable, __file__, "--worker", name, str(draw), *step],
+                                 capture_output=True, text=True)
+            if run.returncode != 0:
+                tail = "\n".join(run.stderr.strip().splitlines()[-5:])
+                raise SystemExit(f"{name}, draw {draw}: the run failed (exit {run.returncode}):\n{tail}")
+            draws.append(json.loads(run.stdout.strip().splitlines()[-1]))
         s = summary(draws)
         print(f"{name}: {s['draws']} draws, last level {min(s['vertices'])}–{max(s['vertices'])} vertices")
         print(f"  rho* (mm)                 {', '.join(f'{r:.3f}' for r in s['squeeze_depth_mm'])}: spread "
               f"{s['squeeze_depth_spread']:.1f} %; force at lift-off spread {s['finger_force_spread']:.1f} %")
         print(f"  squeeze force at rho (mm) {', '.join(f'{r:.2f}' for r in s['depths_mm'])}: spread "
               f"{', '.join(f'{x:.1f}' for x in s['squeeze_force_spread'])} %")
+        shares = ", ".join(f"{100 * x:.1f}" for x in s["finger1_share"])
+        print(f"  finger 1's share of the weight at lift-off {shares} %")
         print(f"  w(rho) at its last weight below mg over at least the last "
               f"{', '.join(f'{100 * p:.1f}' for p in s['plateau'])} % of rho* (per draw)")
     return 0

@@ -55,17 +55,18 @@ def test_pinned_reference_grasps_exactly_at_the_rules_points(capsys):
     assert two["force"]["error"] == pytest.approx(0.2 / 5.2) and two["rho"]["value"] == 0.0096
 
 
-def test_draw_scatter_summarises_the_squeeze_and_the_lift_test():
+def test_draw_scatter_summarises_the_squeeze_and_the_lift_test(capsys):
     """The spreads across draws: ρ* and the lift-off force as (max − min) / mean, the squeeze's Σ f·n̂ compared at
-    common depths up to the shallowest ρ*, and the depth over which w(ρ) sat at its last weight below mg."""
+    common depths up to the shallowest ρ*, the depth over which w(ρ) sat at its last weight below mg, and finger 1's
+    share of the weight at lift-off (of the draws that lifted)."""
     module = _load("draw_scatter")
     weight = 1.0
     draws = [{"vertices": 100, "squeeze_depth": 0.010, "finger_force": 4.0, "weight": weight,
               "squeeze": [(0.0, 0.0), (0.010, 5.0)],
-              "liftable": [(0.008, 0.9), (0.009, 0.95), (0.0095, 0.95), (0.010, 1.0)]},
+              "liftable": [(0.008, 0.9), (0.009, 0.95), (0.0095, 0.95), (0.010, 1.0)], "finger_vertical": [0.4, 0.6]},
              {"vertices": 110, "squeeze_depth": 0.012, "finger_force": 6.0, "weight": weight,
               "squeeze": [(0.0, 0.0), (0.012, 6.6)],  # 10 % stiffer than the first at every depth
-              "liftable": [(0.0115, 0.95), (0.012, 1.0)]}]
+              "liftable": [(0.0115, 0.95), (0.012, 1.0)], "finger_vertical": None}]  # not lifted: no share
     s = module.summary(draws)
     assert s["squeeze_depth_spread"] == pytest.approx(100 * 0.002 / 0.011)
     assert s["finger_force_spread"] == pytest.approx(100 * 2.0 / 5.0)
@@ -73,5 +74,9 @@ def test_draw_scatter_summarises_the_squeeze_and_the_lift_test():
     # forces 0.5 ρ/mm and 0.55 ρ/mm: a spread of 0.05 / 0.525 at every depth
     assert s["squeeze_force_spread"] == pytest.approx([100 * 0.05 / 0.525] * module.DEPTHS)
     assert s["plateau"] == pytest.approx([0.1, 0.5 / 12])
+    assert s["finger1_share"] == pytest.approx([0.4])
     with pytest.raises(SystemExit):
         module.main(["tomato", "--draws", "1"])
+    with pytest.raises(SystemExit):
+        module.main(["no_such_scene", "--draws", "2"])
+    assert "no shipped scene of that name" in capsys.readouterr().err
