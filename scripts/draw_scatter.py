@@ -38,7 +38,6 @@ def draw_worker(name: str, draw: int, lift_test_step: float | None = None) -> di
     """One draw of a scene's default run: the last level's squeeze (ρ, Σ f·n̂) at every event, its w(ρ) points,
     ρ*, the force at lift-off and the weight each finger carries there; ``lift_test_step``: the lift test's step h
     as a fraction of the weight instead of the scene's."""
-    from fem_grasp.contact.obstacles import sphere_normals
     from fem_grasp.io.scene import Scene
     from fem_grasp.mesh import gmsh_session
 
@@ -49,17 +48,8 @@ def draw_worker(name: str, draw: int, lift_test_step: float | None = None) -> di
             raise SystemExit(f"{name}: --lift-test-step needs a scene that states its weight ([material] weight)")
         scene = scene.with_(lift_test_step=lift_test_step * scene.weight)
     result = scene.run(cache_dir=None)
-    squeeze = []
-    for snap in result.snapshots:
-        if snap.phase != "squeeze":
-            continue
-        total = 0.0
-        for f, key in enumerate(("finger1", "finger2")):
-            nodes = snap.contact_nodes[key]
-            if len(nodes):
-                normals = sphere_normals(snap.node_positions(nodes), snap.finger_centers[f])
-                total += float(np.einsum("ki,ki->", snap.contact_forces[key], normals))
-        squeeze.append((float(snap.squeeze_depth), total))
+    squeeze = [(float(snap.squeeze_depth), sum(f.normal_sum for f in snap.finger_forces(result.directions)))
+               for snap in result.snapshots if snap.phase == "squeeze"]
     levels = (result.accuracy or {}).get("levels") or [{}]
     fingers = result.finger_forces if result.success else None
     return {"name": name, "draw": draw, "vertices": levels[-1].get("vertices"), "success": bool(result.success),
