@@ -103,7 +103,8 @@ class PickupOptions:
     first_lift_test : float or None
         The depth ρ of the first lift test, metres (None: a test after every increment, Algorithm 1 as printed),
         made at the first end of a sub-increment (``step / step_divisions``, counted from the start) at or past
-        it: the squeeze reaches the increment in which that falls untested, then goes on in sub-increments.  If
+        it: the squeeze reaches the increment below the one in which that falls untested, then goes on in
+        sub-increments.  If
         the first test passes, the ends of the (sub-)increments below it are tested from the deepest down to the
         first that fails, and ρ* is the last that passed (where that failing end is a whole increment below, the
         increment is divided); if it fails, the next sub-increment is tested, and if that fails too the squeeze

@@ -47,7 +47,9 @@ Default scene (the paper's §IV, where it is silent our choice)
   squeeze from the lift-start state (Algorithm 1 step 6, "otherwise go back
   to step 3"): the lift test, path-independent, can pass where the real lift,
   which unloads the table gradually, slips; up to ``max_lift_attempts`` = 4
-  lifts, each recorded in ``result.lift_attempts``;
+  lifts, each recorded in ``result.lift_attempts``; the squeeze resumes with
+  its first lift test at the next end of a sub-increment
+  (``PickupOptions.step_divisions``);
 * lift-test step h = mg/20; lift increment equal to the squeeze increment,
   maximum lift height equal to the object's height (a soft object stays on
   the table while its contacts with the fingers stretch: at E = 1e4 Pa the
@@ -249,9 +251,10 @@ def pickup(body: Body, options: PickupOptions | None = None, *, rest_state: Rest
         result.lift_test_step = float(lt.step)
         t_squeeze = t0
         timings["squeeze"] = timings["lift_test"] = timings["lift"] = 0.0
+        first_test = opts.first_lift_test or 0.0
         while True:
             sq = squeeze(tracker, state, (d1, d2), ratio, lt, max_squeeze=max_squeeze, step=step,
-                         divisions=opts.step_divisions, first_test=opts.first_lift_test or 0.0,
+                         divisions=opts.step_divisions, first_test=first_test,
                          on_event=lambda st, ev: snap(st, "event", ev))
             result.events.extend(sq.events)
             result.liftable.extend(sq.liftable)
@@ -294,6 +297,8 @@ def pickup(body: Body, options: PickupOptions | None = None, *, rest_state: Rest
                      sq.state.squeeze_depth, lf.reason)
             snap(lf.state, f"lift failed (attempt {attempt})")
             state = replace(sq.state, phase="squeeze")
+            # on from the next end of a sub-increment: ρ* was found to one, and the next lift may start there
+            first_test = state.squeeze_depth + step / opts.step_divisions
             t_squeeze = time.perf_counter()
         result.success = lf.success
         result.outcome = "picked up" if lf.success else "lift failed"

@@ -103,8 +103,8 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
         (default 1: Algorithm 1 as printed)
     first_test : (``PickupOptions.first_lift_test``) the depth of the first lift test, metres (default 0: a test
         after every increment, Algorithm 1 as printed), made at the first end of a sub-increment ``step /
-        divisions`` at or past it: the squeeze reaches the increment in which that falls in untested increments,
-        then goes on in sub-increments (:func:`_tests_from`).  Should the first test pass, the ends below it are
+        divisions`` at or past it: the squeeze reaches the increment below the one in which that falls in untested
+        increments, then goes on in sub-increments (:func:`_tests_from`).  Should the first test pass, the ends below it are
         tested from the deepest down to the first that fails, and ρ* is the last that passed (a failing
         increment's end below the sub-increments brackets a whole increment, divided as below); should it fail,
         the next sub-increment is tested, and should that fail too, the squeeze goes on from it as without a
@@ -252,8 +252,8 @@ def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *
                 adopt: Callable[[ContactState, SpeculativeOutcome], bool] | None = None,
                 ) -> tuple[ContactState, str, ContactState | None]:
     """The squeeze with its first lift test at ``first_test`` (see :func:`squeeze`): in increments ``step`` to the
-    start of the one in which it falls, untested, then in sub-increments (``step / divisions``) to the first test
-    and, should it fail, the next.
+    start of the increment below the one in which it falls, untested, then in sub-increments (``step / divisions``)
+    to the first test and, should it fail, the next.
 
     ``speculate`` starts the lift test of the end below the first test's beside it (:class:`SpeculativeTest`), as
     soon as the squeeze reaches that end; ``adopt`` records its outcome in place of testing that end again, should
@@ -269,9 +269,13 @@ def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *
     # ``first_test``, the sub-increments from the end of the increment before it: the depths tested are those of
     # testing every sub-increment, whatever ``first_test`` is (the accuracy loop's levels compare answers on
     # grids of their own, not on one that a coarser answer chose).
+    # The sub-increments begin an increment below the first test's, so that a walk down from a passing first test
+    # meets a failing end on their grid where a finer level's ρ* lies a few sub-increments below the coarser's:
+    # from the first test's own increment the orange's finest level met an untested increment's end, and squeezed
+    # that increment again in sub-increments to test its four ends, the last for the second time.
     start, sub = state.squeeze_depth, step / divisions
     first_sub = math.ceil((first_test - start) / sub * (1.0 - 1e-9))
-    c0 = min(start + (first_sub - 1) // divisions * step, max_squeeze)
+    c0 = min(start + max((first_sub - 1) // divisions - 1, 0) * step, max_squeeze)
     if c0 > start + 1e-9 * step:
         grid = [start + step]
 
