@@ -69,6 +69,33 @@ def test_a_first_test_that_passes_tests_the_increments_below_it_from_the_deepest
     assert len(late.liftable) < len(every.liftable)
 
 
+def test_a_first_test_a_few_sub_increments_above_rho_star_walks_down_on_its_grid(tomato, monkeypatch):
+    """A finer level's ρ* a few sub-increments below the coarser's: the walk down from the passing first test goes
+    one end at a time to the first that fails, and no depth is tested twice (the increment below the first test's
+    is squeezed in sub-increments on the way, not again after a failing increment's end)."""
+    from fem_grasp.grasp.lift_test import LiftTest
+
+    body, opts, every = tomato
+    update = LiftTest.update
+    tested = []
+
+    def recording(self, state, **kw):
+        w = update(self, state, **kw)
+        tested.append((state.squeeze_depth, w))
+        return w
+
+    monkeypatch.setattr(LiftTest, "update", recording)
+    sub = every.step / every.step_divisions
+    late = pickup(body, opts.replace(first_lift_test=every.squeeze_depth + 3.5 * sub))
+    _same_answer(every, late)
+    depths = sorted(r for r, _ in tested)
+    assert all(b - a > 0.5 * sub for a, b in zip(depths, depths[1:]))  # none twice
+    assert len(depths) <= 6
+    mg = body.weight
+    held = [w >= mg * (1 - 1e-12) for _, w in sorted(tested)]
+    assert held == [False] + [True] * (len(held) - 1)  # from the first test down to the first that fails
+
+
 def test_a_first_test_at_rho_star_costs_two_or_three_tests(tomato):
     """At the answer itself: the test there and the sub-increment below it (three where the two paths' w(ρ) differ
     at a knife edge), against a test at every increment below ρ* and at every sub-increment of the passing one."""
