@@ -104,8 +104,8 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
     first_test : (``PickupOptions.first_lift_test``) the depth of the first lift test, metres (default 0: a test
         after every increment, Algorithm 1 as printed), made at the first end of a sub-increment ``step /
         divisions`` at or past it: the squeeze reaches the increment below the one in which that falls in untested
-        increments, then goes on in sub-increments (:func:`_tests_from`).  Should the first test pass, the ends below it are
-        tested from the deepest down to the first that fails, and ρ* is the last that passed (a failing
+        increments, then goes on in sub-increments (:func:`_tests_from`).  Should the first test pass, the ends
+        below it are tested from the deepest down to the first that fails, and ρ* is the last that passed (a failing
         increment's end below the sub-increments brackets a whole increment, divided as below); should it fail,
         the next sub-increment is tested, and should that fail too, the squeeze goes on from it as without a
         first test.  ρ* is that of testing every sub-increment wherever w(ρ) crosses mg once; a first test at a
