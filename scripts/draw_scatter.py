@@ -9,7 +9,11 @@ at most a millionth of a spacing), and compares, on each draw's last level:
   response of the mesh, node contact and all);
 * the lift test: ρ*, the force at lift-off, and the depth over which the liftable weight w(ρ) stayed one step h
   below mg before it reached mg (the plateau: how slowly w approaches mg);
-* the lift: the share of the weight finger 1 carries at lift-off (half, for a grasp held alike by both fingers).
+* the lift: the share of the weight finger 1 carries at lift-off (half, for a grasp held alike by both fingers);
+* the rest: the tilt of the hull facet the last level rests on (§III-A places the body rigidly on a stable facet of
+  its convex hull), from the body's given orientation towards finger 1's horizontal squeeze direction, in degrees:
+  a smooth body rests with its centre of mass above its lowest point (the paper shapes as given: upright), and a
+  mesh's facet tilts it from there by up to about the facet's size over the radius of curvature.
 
 Usage::
 
@@ -55,7 +59,16 @@ def draw_worker(name: str, draw: int, lift_test_step: float | None = None) -> di
     return {"name": name, "draw": draw, "vertices": levels[-1].get("vertices"), "success": bool(result.success),
             "squeeze_depth": float(result.squeeze_depth), "finger_force": float(result.finger_normal_force),
             "weight": float(result.body.weight), "liftable": [list(map(float, p)) for p in result.liftable],
-            "squeeze": squeeze, "finger_vertical": [f.vertical for f in fingers] if fingers else None}
+            "squeeze": squeeze, "finger_vertical": [f.vertical for f in fingers] if fingers else None,
+            "rest_tilt": rest_tilt(result.rest.pose.rotation, result.directions[0])}
+
+
+def rest_tilt(rotation: np.ndarray, direction: np.ndarray) -> float:
+    """The resting facet's tilt (degrees) along a squeeze direction's horizontal part: the angle of the facet's
+    outward normal (the body's downward direction it was turned from, Rᵀ(−ẑ)) from −ẑ, towards that direction."""
+    normal = np.asarray(rotation).T @ np.array([0.0, 0.0, -1.0])
+    towards = np.array([direction[0], direction[1], 0.0])
+    return float(np.degrees(np.arcsin(normal @ towards / np.linalg.norm(towards))))
 
 
 def _spread(values: np.ndarray) -> float:
@@ -81,7 +94,9 @@ def summary(draws: Sequence[dict[str, Any]]) -> dict[str, Any]:
         start_depth = min((r for r, w in below if w == top_weight), default=d["squeeze_depth"])
         plateaus.append((d["squeeze_depth"] - start_depth) / d["squeeze_depth"])
     shares = [d["finger_vertical"][0] / sum(d["finger_vertical"]) for d in draws if d.get("finger_vertical")]
-    return {"finger1_share": shares, "draws": len(draws), "vertices": [d["vertices"] for d in draws],
+    tilts = [d["rest_tilt"] for d in draws if d.get("finger_vertical") and d.get("rest_tilt") is not None]
+    return {"finger1_share": shares, "rest_tilt": tilts, "draws": len(draws),
+            "vertices": [d["vertices"] for d in draws],
             "squeeze_depth_mm": (1e3 * rho).tolist(),
             "squeeze_depth_spread": _spread(rho), "finger_force_spread": _spread(force),
             "depths_mm": (1e3 * depths).tolist(), "squeeze_force_spread": [_spread(c) for c in curves.T],
@@ -127,6 +142,8 @@ def main(argv: Sequence[str] | None = None) -> int:
               f"{', '.join(f'{x:.1f}' for x in s['squeeze_force_spread'])} %")
         shares = ", ".join(f"{100 * x:.1f}" for x in s["finger1_share"])
         print(f"  finger 1's share of the weight at lift-off {shares} %")
+        tilts = ", ".join(f"{t:+.2f}" for t in s["rest_tilt"])
+        print(f"  the last level's resting tilt towards finger 1's squeeze direction {tilts} deg")
         print(f"  w(rho) at its last weight below mg over at least the last "
               f"{', '.join(f'{100 * p:.1f}' for p in s['plateau'])} % of rho* (per draw)")
     return 0

@@ -63,7 +63,8 @@ def test_draw_scatter_summarises_the_squeeze_and_the_lift_test(capsys):
     weight = 1.0
     draws = [{"vertices": 100, "squeeze_depth": 0.010, "finger_force": 4.0, "weight": weight,
               "squeeze": [(0.0, 0.0), (0.010, 5.0)],
-              "liftable": [(0.008, 0.9), (0.009, 0.95), (0.0095, 0.95), (0.010, 1.0)], "finger_vertical": [0.4, 0.6]},
+              "liftable": [(0.008, 0.9), (0.009, 0.95), (0.0095, 0.95), (0.010, 1.0)], "finger_vertical": [0.4, 0.6],
+              "rest_tilt": 2.4},
              {"vertices": 110, "squeeze_depth": 0.012, "finger_force": 6.0, "weight": weight,
               "squeeze": [(0.0, 0.0), (0.012, 6.6)],  # 10 % stiffer than the first at every depth
               "liftable": [(0.0115, 0.95), (0.012, 1.0)], "finger_vertical": None}]  # not lifted: no share
@@ -74,7 +75,16 @@ def test_draw_scatter_summarises_the_squeeze_and_the_lift_test(capsys):
     # forces 0.5 ρ/mm and 0.55 ρ/mm: a spread of 0.05 / 0.525 at every depth
     assert s["squeeze_force_spread"] == pytest.approx([100 * 0.05 / 0.525] * module.DEPTHS)
     assert s["plateau"] == pytest.approx([0.1, 0.5 / 12])
-    assert s["finger1_share"] == pytest.approx([0.4])
+    assert s["finger1_share"] == pytest.approx([0.4]) and s["rest_tilt"] == pytest.approx([2.4])
+    # a facet whose outward normal leans 3° towards +y, the body turned so that it faces down: +3° towards +y,
+    # -3° towards -y, none across
+    from fem_grasp.grasp.pose import rotation_between
+
+    lean = np.array([0.0, np.sin(np.radians(3.0)), -np.cos(np.radians(3.0))])
+    turned = rotation_between(lean, np.array([0.0, 0.0, -1.0]))
+    assert module.rest_tilt(turned, np.array([0.0, 0.97, -0.23])) == pytest.approx(3.0)
+    assert module.rest_tilt(turned, np.array([0.0, -0.97, -0.23])) == pytest.approx(-3.0)
+    assert module.rest_tilt(turned, np.array([1.0, 0.0, 0.0])) == pytest.approx(0.0, abs=1e-12)
     with pytest.raises(SystemExit):
         module.main(["tomato", "--draws", "1"])
     with pytest.raises(SystemExit):
