@@ -106,6 +106,10 @@ def section(s: dict[str, Any], images: dict[str, str]) -> str:
     return "\n".join(parts)
 
 
+#: Each contact discretisation's marker, line style and colour in :func:`indenter_plot`.
+_METHOD_STYLE = {"node": ("o", "-", "C0"), "weighted": ("s", "--", "C3"), "dual": ("^", ":", "C2")}
+
+
 def indenter_plot(study: dict, path: str | Path) -> Path:
     """F/F_Hertz against the contact radius for each contact discretisation on each spacing (seed 1), and their
     errors against the fine mesh: RMS and swing against the spacing."""
@@ -119,9 +123,9 @@ def indenter_plot(study: dict, path: str | Path) -> Path:
                  label=f"fine mesh, h = {ref['contact_size_rel']:g} a_max ({ref['vertices']} vertices)")
     for level in study["levels"]:
         colour = None
-        for method, style in (("node", "o-"), ("weighted", "s--"), ("dual", "^:")):
+        for method, (marker, dash, _) in _METHOD_STYLE.items():
             f = np.array(level["methods"][method]["forces"][0]) / hertz
-            line, = axes[0].plot(a_rel, f, style, ms=3, lw=0.9, color=colour, fillstyle="none",
+            line, = axes[0].plot(a_rel, f, marker + dash, ms=3, lw=0.9, color=colour, fillstyle="none",
                                  label=f"{method}, h = {level['contact_size_rel']:g} a_max")
             colour = line.get_color()
     axes[0].set_xlabel("contact radius a / R = (δ / R)^½")
@@ -130,7 +134,7 @@ def indenter_plot(study: dict, path: str | Path) -> Path:
     axes[0].legend(fontsize=6, ncol=2)
     axes[0].grid(True, alpha=0.3)
     sizes = [level["contact_size_rel"] for level in study["levels"]]
-    for method, marker, colour in (("node", "o", "C0"), ("weighted", "s", "C3"), ("dual", "^", "C2")):
+    for method, (marker, _, colour) in _METHOD_STYLE.items():
         rms = [100 * level["methods"][method]["rms_error"] for level in study["levels"]]
         swing = [100 * level["methods"][method]["swing"] for level in study["levels"]]
         axes[1].loglog(sizes, rms, marker + "-", color=colour, label=f"{method}: RMS error against the fine mesh")
