@@ -85,7 +85,7 @@ from .placement import check_contact_nodes, check_directions, check_finger_place
 from .rest import RestState, rest
 from .results import OUTCOMES, LiftAttempt, PickupResult, Snapshot
 from .rigid import rigid_grasp
-from .squeeze import initial_state, squeeze
+from .squeeze import SqueezeOutcome, initial_state, next_passed, squeeze
 
 __all__ = ["DEFAULT_FRICTION", "OUTCOMES", "LiftAttempt", "PickupCheckError", "PickupOptions", "PickupResult",
            "Snapshot", "default_finger_contacts", "default_max_squeeze", "pickup"]
@@ -252,10 +252,11 @@ def pickup(body: Body, options: PickupOptions | None = None, *, rest_state: Rest
         t_squeeze = t0
         timings["squeeze"] = timings["lift_test"] = timings["lift"] = 0.0
         first_test = opts.first_lift_test or 0.0
+        resumed: SqueezeOutcome | None = None
         while True:
-            sq = squeeze(tracker, state, (d1, d2), ratio, lt, max_squeeze=max_squeeze, step=step,
-                         divisions=opts.step_divisions, first_test=first_test,
-                         on_event=lambda st, ev: snap(st, "event", ev))
+            sq = resumed if resumed is not None else squeeze(
+                tracker, state, (d1, d2), ratio, lt, max_squeeze=max_squeeze, step=step,
+                divisions=opts.step_divisions, first_test=first_test, on_event=lambda st, ev: snap(st, "event", ev))
             result.events.extend(sq.events)
             result.liftable.extend(sq.liftable)
             result.squeeze_depth = sq.state.squeeze_depth
@@ -296,10 +297,12 @@ def pickup(body: Body, options: PickupOptions | None = None, *, rest_state: Rest
             log.info("lift attempt %d at ρ = %.4g m failed (%s); squeezing further", attempt,
                      sq.state.squeeze_depth, lf.reason)
             snap(lf.state, f"lift failed (attempt {attempt})")
+            t_squeeze = time.perf_counter()
+            # The next end of a sub-increment, where the walk down tested it already, else squeezed to and tested.
+            resumed = next_passed(sq, on_event=lambda st, ev: snap(st, "event", ev))
             state = replace(sq.state, phase="squeeze")
             # on from the next end of a sub-increment: ρ* was found to one, and the next lift may start there
             first_test = state.squeeze_depth + step / opts.step_divisions
-            t_squeeze = time.perf_counter()
         result.success = lf.success
         result.outcome = "picked up" if lf.success else "lift failed"
         first = result.lift_attempts[0].squeeze_depth

@@ -33,7 +33,7 @@ from ..errors import TrackingError
 from .lift_test import LiftTest, SpeculativeOutcome, SpeculativeTest
 from .rest import RestState
 
-__all__ = ["SqueezeOutcome", "initial_state", "squeeze"]
+__all__ = ["PassedAbove", "SqueezeOutcome", "initial_state", "next_passed", "squeeze"]
 
 log = logging.getLogger(__name__)
 
@@ -57,6 +57,24 @@ def initial_state(tracker: Tracker, rest_state: RestState, finger_nodes: tuple[i
                               nodes=nodes, owner=owner, disp=disp, sliding=sliding)
 
 
+@dataclass(frozen=True)
+class PassedAbove:
+    """A squeeze state beyond ρ* whose lift test passed on the walk down from a passing first test: where a lift
+    that fails resumes (Algorithm 1 step 6), without squeezing to it and testing it again.
+
+    Attributes
+    ----------
+    state : the squeeze state at the next end of a sub-increment above the one before (ρ* or the previous
+        ``PassedAbove``): the first at or past it + a sub-increment, where squeezing on from it tests next
+    steps : the squeeze's events from the state before to this one, as (state, events) per step
+    liftable : w(ρ) there, newtons (≥ mg)
+    """
+
+    state: ContactState
+    steps: tuple[tuple[ContactState, list[ContactEvent]], ...]
+    liftable: float
+
+
 @dataclass
 class SqueezeOutcome:
     """Result of :func:`squeeze`.
@@ -70,6 +88,8 @@ class SqueezeOutcome:
     failed : the tracking found no quasi-static state (else, without passing, the maximum depth was reached)
     liftable : [(ρ, w(ρ))] after every increment
     lift_test_time : seconds spent in the lift test
+    ahead : the tested and passing ends of sub-increments just above ρ*, deepest last (:class:`PassedAbove`;
+        empty unless a first test passed and the walk down ended on the sub-increments' ends)
     """
 
     state: ContactState
@@ -79,6 +99,26 @@ class SqueezeOutcome:
     liftable: list[tuple[float, float]] = field(default_factory=list)
     lift_test_time: float = 0.0
     failed: bool = False
+    ahead: list[PassedAbove] = field(default_factory=list)
+
+
+def next_passed(previous: SqueezeOutcome,
+                on_event: Callable[[ContactState, list[ContactEvent]], None] | None = None) -> SqueezeOutcome | None:
+    """The squeeze resumed after a lift from ``previous.state`` failed, where the walk down tested the next
+    sub-increment's end already and it passed: that state as a passed squeeze (its events reported to
+    ``on_event``), with the rest of ``previous.ahead``; None where there is none.  Squeezing from the lift's start
+    again would compute the same state (the same increments from the same state) and the same test, to round-off.
+    """
+    if not previous.ahead:
+        return None
+    nxt = previous.ahead[0]
+    out = SqueezeOutcome(nxt.state, passed=True, liftable=[(nxt.state.squeeze_depth, nxt.liftable)],
+                         ahead=previous.ahead[1:])
+    for st, events in nxt.steps:
+        out.events.extend(events)
+        if on_event is not None:
+            on_event(st, events)
+    return out
 
 
 def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray, np.ndarray], ratio: float,
@@ -203,9 +243,10 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
 
     try:
         if first_test > state.squeeze_depth * (1.0 + 1e-12):
-            final, outcome, below = _tests_from(tracker, state, velocities, max_squeeze=max_squeeze, step=step,
-                                                divisions=divisions, first_test=first_test, test=test,
-                                                record=record, last=last, speculate=speculate, adopt=adopt)
+            final, outcome, below, above = _tests_from(tracker, state, velocities, max_squeeze=max_squeeze,
+                                                       step=step, divisions=divisions, first_test=first_test,
+                                                       test=test, record=record, last=last, speculate=speculate,
+                                                       adopt=adopt)
             stopped = outcome == "passed"
             if outcome == "failed twice":  # on in increments from the second test, as without a first test
                 keep()
@@ -213,7 +254,8 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
                 final, stopped = in_increments(final)
             elif below is None:
                 keep_to(final.squeeze_depth)
-                pending.clear()  # beyond ρ*: squeezed on to tests that were not needed
+                out.ahead = _passed_above(above, pending, out.liftable)
+                pending.clear()  # beyond ρ*: squeezed on to tests that were not needed, kept for a failed lift
             else:  # w(ρ) crossed mg in an untested increment: divided as in the path without a first test
                 again[0] = True
                 tested[0], passing[0] = below, final
@@ -245,12 +287,29 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
     return out
 
 
+def _passed_above(above: list[ContactState], pending: list[tuple[ContactState, list[ContactEvent]]],
+                  liftable: list[tuple[float, float]]) -> list[PassedAbove]:
+    """The walk's passing states above ρ* (``above``, shallowest first) with the event steps that lead to each
+    (``pending``, in order of ρ) and their w(ρ) (from ``liftable``)."""
+    out: list[PassedAbove] = []
+    steps = list(pending)
+    for st in above:
+        rho = st.squeeze_depth
+        upto = [(s, ev) for s, ev in steps if s.squeeze_depth <= rho * (1.0 + 1e-12)]
+        del steps[:len(upto)]
+        w = [wl for r, wl in liftable if abs(r - rho) <= 1e-12 * rho]
+        if not w:  # not recorded as tested: nothing to resume from beyond it
+            break
+        out.append(PassedAbove(st, tuple(upto), max(w)))
+    return out
+
+
 def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *, max_squeeze: float, step: float,
                 divisions: int, first_test: float, test: Callable[[ContactState], bool],
                 record: Callable[[ContactState, list[ContactEvent]], None],
                 last: list, speculate: Callable[[ContactState], SpeculativeTest] | None = None,
                 adopt: Callable[[ContactState, SpeculativeOutcome], bool] | None = None,
-                ) -> tuple[ContactState, str, ContactState | None]:
+                ) -> tuple[ContactState, str, ContactState | None, list[ContactState]]:
     """The squeeze with its first lift test at ``first_test`` (see :func:`squeeze`): in increments ``step`` to the
     start of the increment below the one in which it falls, untested, then in sub-increments (``step / divisions``)
     to the first test and, should it fail, the next.
@@ -259,10 +318,12 @@ def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *
     soon as the squeeze reaches that end; ``adopt`` records its outcome in place of testing that end again, should
     the first test pass (both None: that end is tested after the first, as the others).
 
-    Returns (state, outcome, bracket): outcome ``"passed"`` (the state is at ρ*, or, with a ``bracket``, w(ρ)
-    crossed mg in an untested increment from the bracket's state to this one, still to be divided),
+    Returns (state, outcome, bracket, above): outcome ``"passed"`` (the state is at ρ*, or, with a ``bracket``,
+    w(ρ) crossed mg in an untested increment from the bracket's state to this one, still to be divided),
     ``"stopped"`` (at the maximum depth, not passed) or ``"failed twice"`` (the first two tests failed, the state
-    is the second's: the squeeze goes on from it in increments).
+    is the second's: the squeeze goes on from it in increments); ``above``: where the walk down from a passing
+    first test ended at ρ* without a bracket, the states it tested and passed one sub-increment after another
+    above ρ*, shallowest first (else empty).
     """
     untested: list[ContactState] = []  # the ends of the increments below the sub-increments
     # The first test at the first end of a sub-increment (on the grid of sub-increments from the start) at or past
@@ -350,16 +411,28 @@ def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *
                 beside_it.pop().cancel()
     if not tests or not tests[-1]:
         on = len(tests) == 2 and final.squeeze_depth < max_squeeze * (1.0 - 1e-9)
-        return final, ("failed twice" if on else "stopped"), None
+        return final, ("failed twice" if on else "stopped"), None, []
     if len(tests) == 2:  # the first failed, the next passed
-        return final, "passed", None
+        return final, "passed", None, []
     # The first test passed: the ends below it from the deepest down to the first that fails, ρ* the last that
     # passed; where the two are further apart than a sub-increment (increments' ends), their increment is divided.
+    walked = [final]  # the passing ends, deepest first
+    # The ends that each follow the one before as squeezing on from it would reach them (the first end at or past
+    # it + a sub-increment): the sub-increments' from the start of theirs, the increments' too when undivided.
+    chain = {id(st) for st in (untested if divisions == 1 else untested[-1:]) + subs}
+
+    def above() -> list[ContactState]:
+        """The passing ends above ρ* (walked[-1]), shallowest first, where ρ* is on the chain of ends."""
+        return walked[-2::-1] if id(walked[-1]) in chain else []
+
     for n, st in enumerate(below_first()):
         if not (adopt(st, ahead[0]) if n == 0 and ahead and adopt is not None else test(st)):
-            return final, "passed", (st if final.squeeze_depth - st.squeeze_depth > 1.5 * sub else None)
+            if final.squeeze_depth - st.squeeze_depth > 1.5 * sub:
+                return final, "passed", st, []
+            return final, "passed", None, above()
         final = st
-    return final, "passed", None
+        walked.append(st)
+    return final, "passed", None, above()
 
 
 def _divide(tracker: Tracker, start: ContactState, end: float, velocities: np.ndarray, sub: float,

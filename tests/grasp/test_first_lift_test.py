@@ -96,6 +96,63 @@ def test_a_first_test_a_few_sub_increments_above_rho_star_walks_down_on_its_grid
     assert held == [False] + [True] * (len(held) - 1)  # from the first test down to the first that fails
 
 
+def test_a_lift_that_fails_resumes_at_the_walks_next_passing_end_without_testing_it_again(tomato, monkeypatch):
+    """A lift from ρ* that slides off resumes at the next end of a sub-increment (Algorithm 1 step 6).  Where the
+    walk down from a passing first test tested that end and it passed, the lift starts from the walk's state there:
+    no depth tested twice, and the answer of squeezing to it again from the lift's start (the same increments from
+    the same state) — the same depth, the verdict, the force within 1 % of mg and the squeeze's events between."""
+    import sys
+
+    from fem_grasp.grasp.lift import LiftOutcome
+    from fem_grasp.grasp.lift_test import LiftTest
+
+    pickup_module = sys.modules["fem_grasp.grasp.pickup"]  # the module; fem_grasp.grasp.pickup is the function
+    body, opts, every = tomato
+    real_lift, update = pickup_module.run_lift, LiftTest.update
+    lifts, tested = [], []
+
+    def first_slides_off(tracker, state, **kw):
+        lifts.append(state.squeeze_depth)
+        if len(lifts) % 2 == 1:  # the first lift of each pickup below
+            return LiftOutcome(state, [], False, "made to slide off by the test")
+        return real_lift(tracker, state, **kw)
+
+    def recording(self, state, **kw):
+        w = update(self, state, **kw)
+        tested.append((state.squeeze_depth, w))
+        return w
+
+    monkeypatch.setattr(pickup_module, "run_lift", first_slides_off)
+    monkeypatch.setattr(LiftTest, "update", recording)
+    sub = every.step / every.step_divisions
+    at = opts.replace(lift=True, first_lift_test=every.squeeze_depth + 3.5 * sub)
+    walked = pickup(body, at)
+    walk_tests, walk_lifts = list(tested), list(lifts)
+    monkeypatch.setattr(pickup_module, "next_passed", lambda *a, **k: None)  # squeezed to and tested again
+    again = pickup(body, at)
+
+    mg = body.weight
+    rho1, rho2 = walk_lifts
+    assert walked.success and again.success and len(walked.lift_attempts) == len(again.lift_attempts) == 2
+    # the first end at or past ρ* + a sub-increment (events can move it further), the same both ways
+    assert rho1 + sub * (1 - 1e-9) <= rho2 < rho1 + 2 * sub and lifts[3] == pytest.approx(rho2, rel=1e-9)
+    assert walked.squeeze_depth == pytest.approx(rho2, rel=1e-9)
+    walk_tested_it = [w >= mg * (1 - 1e-12) for r, w in walk_tests if abs(r - rho2) <= 1e-9 * rho2]  # and passed
+    depths = sorted(r for r, _ in walk_tests)
+    assert all(b - a > 0.5 * sub for a, b in zip(depths, depths[1:]))  # none twice
+    assert walk_tested_it == [True] and len(tested) == 2 * len(walk_tests) + 1  # squeezing again: once more
+    assert [r for r, _ in walked.liftable] == sorted({r for r, _ in walked.liftable})
+    assert max(walked.liftable)[0] == pytest.approx(rho2, rel=1e-9)
+    assert abs(walked.finger_normal_force - again.finger_normal_force) <= 0.01 * mg
+
+    def squeezed_between(result):
+        return [e for e in result.events if e.phase == "squeeze" and rho1 * (1 + 1e-12) < e.squeeze_depth]
+
+    n1, n2 = len(squeezed_between(walked)), len(squeezed_between(again))
+    assert n2 > 0 and abs(n1 - n2) <= max(2, 0.2 * n2)
+    assert all(e.squeeze_depth <= rho2 * (1 + 1e-12) for e in squeezed_between(walked))
+
+
 def test_a_first_test_at_rho_star_costs_two_or_three_tests(tomato):
     """At the answer itself: the test there and the sub-increment below it (three where the two paths' w(ρ) differ
     at a knife edge), against a test at every increment below ρ* and at every sub-increment of the passing one."""
