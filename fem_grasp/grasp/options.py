@@ -107,9 +107,9 @@ class PickupOptions:
         sub-increments.  If the first test passes, the ends of the (sub-)increments below it are tested from the
         deepest down to the first that fails, and ρ* is the last that passed (where that failing end is a whole
         increment below, the increment is divided); if it fails, the next sub-increment is tested, and if that
-        fails too the squeeze goes on as without a first test.  This is the answer of testing every sub-increment wherever w(ρ) crosses
-        mg once; w(ρ) (``result.liftable``) has no entries below the tests made.  The accuracy loop sets it at
-        the coarser level's ρ*: a level that agrees with it costs two lift tests.
+        fails too the squeeze goes on as without a first test.  This is the answer of testing every sub-increment
+        wherever w(ρ) crosses mg once; w(ρ) (``result.liftable``) has no entries below the tests made.  The
+        accuracy loop sets it at the coarser level's ρ*: a level that agrees with it costs two lift tests.
     max_lift : float or None
         The lift height at which a lift that has not left the table fails, metres.  None: the object's height.
     lift : bool
