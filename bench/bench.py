@@ -101,7 +101,8 @@ Sections (``--only NAME``, repeatable; default all):
     other tetrahedra, as another CPU's round-off would do to them
     unrounded); the row gives how often the loop converges, the spread of
     its time, its answer's error and its stated error, and how often that
-    covers the error.
+    covers the error.  The nested levels are run again on the same draws
+    (their draw is level 0's mesh, which they refine).
 ``divisions``
     Per shipped scene, the pickup at its squeeze increment s, at s with the
     increment in which the lift test passes divided in four
@@ -926,7 +927,8 @@ def section_accuracy(cap: float = 600.0, quick: bool = False, compute: bool = Fa
     :mod:`verification.converge.references`) where it has one, with the error against the study's (each mesh
     grasping at its own nodes) beside it as ``error_study``; else the study's.  Objects without either are
     skipped.  The default is run again on ``draws`` other draws of its meshes (``rows["draws"]``, a list of
-    rows).  ``outer_exponent``: every loop refines the bulk by that instead of the library's rule (the rows then
+    rows), and so are the nested levels (``rows["nested_draws"]``: their draw is level 0's mesh, which they
+    refine).  ``outer_exponent``: every loop refines the bulk by that instead of the library's rule (the rows then
     measure that rule; ``out["outer_exponent"]`` says so)."""
     from verification.converge import references
 
@@ -955,11 +957,12 @@ def section_accuracy(cap: float = 600.0, quick: bool = False, compute: bool = Fa
             if "answer" in raw and pinned and study:
                 rows[run]["error_study"] = accuracy_errors(raw, study)["error"]
             log.info("accuracy %s, %s: %s", name, run, rows[run].get("status"))
-        rows["draws"] = []
-        for draw in range(1, draws + 1):
-            raw = run_accuracy_worker(name, "default", cap, draw, outer_exponent)
-            rows["draws"].append(accuracy_errors(raw, reference) if "answer" in raw else raw)
-            log.info("accuracy %s, default, mesh draw %d: %s", name, draw, rows["draws"][-1].get("status"))
+        for run, key in (("default", "draws"), ("nested", "nested_draws")):
+            rows[key] = []
+            for draw in range(1, draws + 1):
+                raw = run_accuracy_worker(name, run, cap, draw, outer_exponent)
+                rows[key].append(accuracy_errors(raw, reference) if "answer" in raw else raw)
+                log.info("accuracy %s, %s, mesh draw %d: %s", name, run, draw, rows[key][-1].get("status"))
         out["objects"][name] = {"reference": reference, "study_reference": study if pinned else None, "rows": rows}
     return out
 
@@ -1016,22 +1019,27 @@ def print_accuracy(sec: dict[str, Any]) -> None:
                 print(f"{'':<11} {label:<28} the same run as {dict(ACCURACY_RUNS)[r['same_as']]}")
                 continue
             _print_accuracy_row(label, r)
-        draws = obj["rows"].get("draws") or []
-        for k, r in enumerate(draws, 1):
-            _print_accuracy_row(f"Scene.run(), mesh draw {k}", r)
-        runs = [obj["rows"]["default"]] + draws
-        ok = [r for r in runs if r.get("status") == "ok"]
-        if draws and ok:
-            secs = sorted(r["seconds"] for r in ok)
-            # NaN where neither the run nor the reference picks it up: no ρ* to compare
-            worst = {q: max((r["error"][q] for r in ok if not math.isnan(r["error"][q])), default=math.nan)
-                     for q in ACCURACY_QUANTITIES}
-            label = f"Scene.run(), all {len(runs)} draws"
-            print(f"{'':<11} {label:<28} converged {sum(bool(r['converged']) for r in ok)}/{len(runs)}, median "
-                  f"{statistics.median(secs):.1f} s ({secs[0]:.1f}-{secs[-1]:.1f}), verdict "
-                  f"{sum(r['verdict_ok'] for r in ok)}/{len(runs)}, largest error {_pct(worst['squeeze_depth'])} / "
-                  f"{_pct(worst['finger_force'])}, stated error covers it {sum(bool(r['covers']) for r in ok)}"
-                  f"/{len(runs)}")
+        for run, key, name_of in (("default", "draws", "Scene.run()"), ("nested", "nested_draws", "nested levels")):
+            draws = obj["rows"].get(key) or []
+            for k, r in enumerate(draws, 1):
+                _print_accuracy_row(f"{name_of}, mesh draw {k}", r)
+            _print_draws_summary(f"{name_of}, all {len(draws) + 1} draws", [obj["rows"][run]] + draws, bool(draws))
+
+
+def _print_draws_summary(label: str, runs: list[dict[str, Any]], drawn: bool) -> None:
+    """The line of :func:`print_accuracy` that sums up a run over the draws of its meshes."""
+    ok = [r for r in runs if r.get("status") == "ok"]
+    if not (drawn and ok):
+        return
+    secs = sorted(r["seconds"] for r in ok)
+    # NaN where neither the run nor the reference picks it up: no ρ* to compare
+    worst = {q: max((r["error"][q] for r in ok if not math.isnan(r["error"][q])), default=math.nan)
+             for q in ACCURACY_QUANTITIES}
+    print(f"{'':<11} {label:<28} converged {sum(bool(r['converged']) for r in ok)}/{len(runs)}, median "
+          f"{statistics.median(secs):.1f} s ({secs[0]:.1f}-{secs[-1]:.1f}), verdict "
+          f"{sum(r['verdict_ok'] for r in ok)}/{len(runs)}, largest error {_pct(worst['squeeze_depth'])} / "
+          f"{_pct(worst['finger_force'])}, stated error covers it {sum(bool(r['covers']) for r in ok)}"
+          f"/{len(runs)}")
 
 
 def _print_accuracy_row(label: str, r: dict[str, Any]) -> None:
@@ -1114,8 +1122,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--accuracy-objects", nargs="+", choices=ACCURACY_OBJECTS, default=list(ACCURACY_OBJECTS),
                     help="section accuracy: the shipped scenes to run (default: all five)")
     ap.add_argument("--accuracy-draws", type=int, default=ACCURACY_DRAWS,
-                    help="section accuracy: run the default again on this many other draws of its meshes (gmsh's "
-                         f"inputs rounded to other grids; default {ACCURACY_DRAWS}, 0: none)")
+                    help="section accuracy: run the default and the nested levels again on this many other draws "
+                         f"of their meshes (gmsh's inputs rounded to other grids; default {ACCURACY_DRAWS}, 0: none)")
     ap.add_argument("--accuracy-compute", action="store_true",
                     help="section accuracy: compute the convergence study's missing references first (hours; "
                          "minutes with --converge-quick); by default an object without one is skipped")

@@ -351,9 +351,9 @@ def test_the_accuracy_section_measures_each_run_against_the_study_reference(monk
     monkeypatch.setattr(bench, "default_accuracy", lambda name: None)  # a default of one run: three runs
     sec = bench.section_accuracy(cap=7.0, objects=("orange", "tomato"), draws=2)
     assert asked == [(False, False, ("orange", "tomato"))]  # read only: the study is not started
-    # tomato: no reference, not run; the default again on two other draws of its meshes
-    assert ran == [("orange", run, 7.0, 0) for run, _ in bench.ACCURACY_RUNS] + [("orange", "default", 7.0, k)
-                                                                                  for k in (1, 2)]
+    # tomato: no reference, not run; the default and the nested levels again on two other draws of their meshes
+    assert ran == [("orange", run, 7.0, 0) for run, _ in bench.ACCURACY_RUNS] + [
+        ("orange", run, 7.0, k) for run in ("default", "nested") for k in (1, 2)]
     assert sec["objects"]["tomato"] == {"reference": None}
     assert exponents == {None} and sec["outer_exponent"] is None  # the library's rule for the bulk
     rows = sec["objects"]["orange"]["rows"]
@@ -394,15 +394,19 @@ def test_the_accuracy_section_measures_each_run_against_the_study_reference(monk
     assert len(draws) == 2 and draws[0]["covers"] is True
     assert draws[0]["error"]["squeeze_depth"] == pytest.approx(0.08)
     # the default and its two draws: the largest error of each quantity, covered by two of the three
-    (summary,) = [line for line in text.splitlines() if "all 3 draws" in line]
+    (summary,) = [line for line in text.splitlines() if "Scene.run(), all 3 draws" in line]
     assert "largest error 8 % / 10 %" in summary and "covers it 2/3" in summary and "verdict 3/3" in summary
+    # the nested levels (1 % / 1 %) and the same two draws: their own line
+    assert len(rows["nested_draws"]) == 2
+    (summary,) = [line for line in text.splitlines() if "nested levels, all 3 draws" in line]
+    assert "largest error 8 % / 3 %" in summary and "covers it 3/3" in summary
 
     # where the scene's default is the adaptive loop at the target, that run is not made twice: its row repeats
     monkeypatch.setattr(bench, "default_accuracy", lambda name: bench.ACCURACY_TARGET)
     ran.clear()
     again = bench.section_accuracy(cap=7.0, objects=("orange",), draws=0)["objects"]["orange"]["rows"]
     assert ran == [("orange", "one_level", 7.0, 0), ("orange", "default", 7.0, 0), ("orange", "nested", 7.0, 0)]
-    assert again["draws"] == []
+    assert again["draws"] == again["nested_draws"] == []
     assert again["adaptive"]["same_as"] == "default" and again["adaptive"]["error"] == again["default"]["error"]
     bench.print_accuracy({"study": "full", "cap_s": 7.0, "target": 0.05,
                           "objects": {"orange": {"reference": reference, "rows": again}}})
