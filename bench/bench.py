@@ -897,9 +897,10 @@ def accuracy_errors(raw: dict[str, Any], reference: dict[str, Any]) -> dict[str,
 def run_accuracy_worker(name: str, run: str, cap: float, draw: int = 0,
                         outer_exponent: float | None = None) -> dict[str, Any]:
     """:func:`accuracy_worker` in a subprocess of at most ``cap`` seconds: its JSON line, or a ``status`` that says
-    why there is none ("cap" or the error)."""
+    why there is none ("cap" or the error, with the last lines of its stderr as ``stderr_tail``: with Python's
+    fault handler on, a crash in native code leaves every thread's Python stack there)."""
     spec = f"{name}:{run}:{int(draw)}" + ("" if outer_exponent is None else f":{float(outer_exponent)!r}")
-    cmd = [sys.executable, "-m", "bench.bench", "--worker-accuracy", spec]
+    cmd = [sys.executable, "-X", "faulthandler", "-m", "bench.bench", "--worker-accuracy", spec]
     proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         out, err = proc.communicate(timeout=cap)
@@ -908,8 +909,16 @@ def run_accuracy_worker(name: str, run: str, cap: float, draw: int = 0,
         proc.communicate()
         return {"status": "cap", "cap_s": cap}
     if proc.returncode != 0:
-        return {"status": "error", "error": err.strip().splitlines()[-1] if err.strip() else f"exit {proc.returncode}"}
+        lines = err.strip().splitlines()
+        log.warning("accuracy %s, %s, draw %d: exit %d; its stderr ends:\n%s", name, run, draw, proc.returncode,
+                    "\n".join(lines[-STDERR_TAIL:]))
+        return {"status": "error", "error": lines[-1] if lines else f"exit {proc.returncode}",
+                "stderr_tail": lines[-STDERR_TAIL:]}
     return json.loads(out.strip().splitlines()[-1])
+
+
+#: Lines of a failed worker's stderr kept in its row (:func:`run_accuracy_worker`).
+STDERR_TAIL = 60
 
 
 def default_accuracy(name: str) -> float | None:

@@ -466,6 +466,10 @@ def test_the_accuracy_section_runs_a_shipped_scene_in_a_subprocess_within_its_ca
     assert raw["later_seconds"] > 0 and raw["later_same"] is True
     assert raw["stated"] == {"squeeze_depth": scene.expected_error, "finger_force": scene.expected_error}
     assert bench.run_accuracy_worker("foam_block", "one_level", cap=0.5) == {"status": "cap", "cap_s": 0.5}
+    # a worker that fails: its last stderr line as the error, the lines before it kept for a post-mortem
+    failed = bench.run_accuracy_worker("foam_block", "no_such_run", cap=600.0)
+    assert failed["status"] == "error" and "unknown run 'no_such_run'" in failed["error"]
+    assert failed["stderr_tail"][-1] == failed["error"] and len(failed["stderr_tail"]) <= bench.STDERR_TAIL
 
 
 def test_the_divisions_section_measures_the_three_increments_of_a_scene(capsys):
