@@ -744,8 +744,8 @@ ACCURACY_RUNS = (("one_level", "one level (accuracy off)"), ("default", "Scene.r
                  ("nested", f"nested levels, {100 * ACCURACY_TARGET:g} %"))
 #: The quantities compared, as named in the answer and in the loop's estimate.
 ACCURACY_QUANTITIES = ("squeeze_depth", "finger_force")
-#: Other draws of the default's meshes (``--accuracy-draws``): draw k rounds gmsh's inputs to a grid 2**k times
-#: :data:`fem_grasp.mesh.gmsh_session.POINT_QUANTUM`.
+#: Other draws of the default's and the nested levels' meshes (``--accuracy-draws``): draw k rounds gmsh's inputs to
+#: a grid 2**k times :data:`fem_grasp.mesh.gmsh_session.POINT_QUANTUM`.
 ACCURACY_DRAWS = 4
 
 
