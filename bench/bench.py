@@ -1032,13 +1032,13 @@ def print_accuracy(sec: dict[str, Any]) -> None:
             draws = obj["rows"].get(key) or []
             for k, r in enumerate(draws, 1):
                 _print_accuracy_row(f"{name_of}, mesh draw {k}", r)
-            _print_draws_summary(f"{name_of}, all {len(draws) + 1} draws", [obj["rows"][run]] + draws, bool(draws))
+            _print_draws_summary(f"{name_of}, all {len(draws) + 1} draws", [obj["rows"][run]] + draws)
 
 
-def _print_draws_summary(label: str, runs: list[dict[str, Any]], drawn: bool) -> None:
-    """The line of :func:`print_accuracy` that sums up a run over the draws of its meshes."""
+def _print_draws_summary(label: str, runs: list[dict[str, Any]]) -> None:
+    """The line of :func:`print_accuracy` that sums up a run over the draws of its meshes (none for one run)."""
     ok = [r for r in runs if r.get("status") == "ok"]
-    if not (drawn and ok):
+    if len(runs) < 2 or not ok:
         return
     secs = sorted(r["seconds"] for r in ok)
     # NaN where neither the run nor the reference picks it up: no ρ* to compare
