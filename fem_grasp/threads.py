@@ -20,10 +20,14 @@ kinds of solve inside it are the opposite case, and get the threads back:
   for a core), so they are kept for sizes where they pay.
 
 While two lift tests run side by side (:func:`side_by_side`, the speculative lift test of
-:class:`~fem_grasp.grasp.lift_test.SpeculativeTest`), nothing gets the threads back: the limit is one
-setting of the whole process, so a solve given two threads by one test would run the other test's BLAS
-calls on two threads too for as long as it lasts, and which calls those are would depend on the timing of
-the two (and with it, where OpenBLAS splits a sum by its threads, their round-off).
+:class:`~fem_grasp.grasp.lift_test.SpeculativeTest`), BLAS keeps one thread from the section's start to its
+end and nothing gets the threads back: the limit is one setting of the whole process, so a solve given two
+threads by one test would run the other test's BLAS calls on two threads too for as long as it lasts, and
+which calls those are would depend on the timing of the two (and with it, where OpenBLAS splits a sum by its
+threads, their round-off).  The section holds the limit itself because each thread's tracking enters and
+leaves :func:`one_blas_thread` of its own: without an enclosing one, the first thread to leave would restore
+the threads of before while the other still computed (and OpenBLAS would change its thread count under a
+running call).
 
 threadpoolctl is optional: without it nothing is limited.
 """
@@ -49,15 +53,18 @@ _SECTIONS_LOCK = threading.Lock()
 
 @contextlib.contextmanager
 def side_by_side() -> Iterator[None]:
-    """A section in which two computations may run in two threads: :func:`outer_blas_threads` changes nothing."""
+    """A section in which two computations may run in two threads: BLAS on one thread throughout
+    (:func:`one_blas_thread`, entered by the thread that opens the section), and :func:`outer_blas_threads`
+    changes nothing (module notes)."""
     global _SECTIONS
-    with _SECTIONS_LOCK:
-        _SECTIONS += 1
-    try:
-        yield
-    finally:
+    with one_blas_thread():
         with _SECTIONS_LOCK:
-            _SECTIONS -= 1
+            _SECTIONS += 1
+        try:
+            yield
+        finally:
+            with _SECTIONS_LOCK:
+                _SECTIONS -= 1
 
 
 def blas_threads_held() -> bool:

@@ -51,7 +51,7 @@ import scipy.sparse as sp
 
 from ..mesh.tetmesh import check_rotation
 from ..settings import DEFAULT_SETTINGS
-from ..threads import blas_threads_held, one_blas_thread, outer_blas_threads, side_by_side
+from ..threads import blas_threads_held, outer_blas_threads, side_by_side
 from . import sparse_solvers
 from .sparse_solvers import choose_solver, factorize, solve_lock
 
@@ -333,14 +333,14 @@ class Compliance:
         """A section in which :meth:`solve_ahead` queues columns for a background thread (module notes, "Columns
         solved ahead"); with a solver that holds the GIL it changes nothing.
 
-        BLAS keeps one thread throughout (:func:`~fem_grasp.threads.one_blas_thread`, and no solve gets the
-        threads back: :func:`~fem_grasp.threads.side_by_side`), so every column has the same round-off whichever
-        thread solves it and whenever; on leaving, the section waits for the columns it queued.
+        BLAS keeps one thread throughout and no solve gets the threads back (:func:`~fem_grasp.threads.side_by_side`),
+        so every column has the same round-off whichever thread solves it and whenever; on leaving, the section
+        waits for the columns it queued.
         """
         if not getattr(self._solve, "releases_gil", False) or self._ahead_on or not blas_threads_held():
             yield
             return
-        with one_blas_thread(), side_by_side():
+        with side_by_side():
             self._ahead_on = True
             try:
                 yield

@@ -236,7 +236,7 @@ class SpeculativeTest:
     its own squeeze state), so this one starts with the first, in a helper thread, and is abandoned if the
     first fails.  It runs on a branch of the lift test's tracker (:meth:`Tracker.branch`: caches of its own)
     whether or not a thread runs it (``threaded=False``: at :meth:`result`, in the calling thread), so both
-    ways give the same numbers; while it lasts the BLAS threads stay as they are (:func:`side_by_side`).  The
+    ways give the same numbers; while it lasts BLAS keeps one thread (:func:`side_by_side`).  The
     compiled kernels release the GIL; a sparse solve for new compliance columns waits for the other thread's.
     """
 
