@@ -296,6 +296,13 @@ _TMP = Path(tempfile.mkdtemp(prefix="fem_grasp_ux_tests_"))
 atexit.register(shutil.rmtree, _TMP, ignore_errors=True)
 
 
+def blas_threads() -> int:
+    """The BLAS threads in force now (threadpoolctl, which the caller has checked is installed)."""
+    import threadpoolctl
+
+    return max(i["num_threads"] for i in threadpoolctl.threadpool_info() if i["user_api"] == "blas")
+
+
 @lru_cache(maxsize=None)
 def cli_run(scene: str, *flags: str) -> tuple[int, Path]:
     """Run ``fem-grasp run SCENE --quick --out DIR *flags`` in-process once per session; (exit status, DIR)."""

@@ -8,10 +8,7 @@ import pytest
 threadpoolctl = pytest.importorskip("threadpoolctl")
 
 from fem_grasp.threads import one_blas_thread, side_by_side  # noqa: E402
-
-
-def blas_threads() -> int:
-    return max(i["num_threads"] for i in threadpoolctl.threadpool_info() if i["user_api"] == "blas")
+from tests.helpers import blas_threads  # noqa: E402
 
 
 def test_a_side_by_side_section_holds_one_blas_thread_while_either_thread_leaves_its_own_limit():

@@ -9,7 +9,7 @@ from fem_grasp import Body, ContactResponse, solve_contact
 from fem_grasp.elastic import compliance as cp
 from fem_grasp.elastic import sparse_solvers as ss
 from tests.elastic.test_sparse_solvers import AVAILABLE
-from tests.helpers import perturbed_box
+from tests.helpers import blas_threads, perturbed_box
 
 
 @pytest.fixture(scope="module")
@@ -180,9 +180,6 @@ def test_column_solves_use_every_blas_thread_inside_the_tracking_limit(body):
     get the threads back (fem_grasp.threads), as do dense systems of DENSE_THREADS_MIN rows or more."""
     threadpoolctl = pytest.importorskip("threadpoolctl")
     from fem_grasp.threads import one_blas_thread
-
-    def blas_threads():
-        return max(i["num_threads"] for i in threadpoolctl.threadpool_info() if i["user_api"] == "blas")
 
     comp = cp.Compliance(body.stiffness, body.mesh.points, body.rigid_modes, solver="superlu")
     seen = []
