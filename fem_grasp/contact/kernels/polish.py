@@ -94,23 +94,21 @@ def _evaluate(x, rec, c, f0, mu, d, act, slide, offs, with_jacobian):
             dmap[i, 2, j] = (e2 - dd[k, 2]) / h
             geo[i, 0, j] = ((p0 - proj[i, 0]) * f[k, 0] + (p1 - proj[i, 1]) * f[k, 1] + (p2 - proj[i, 2]) * f[k, 2]) / h
             geo[i, 1, j] = ((p3 - proj[i, 3]) * f[k, 0] + (p4 - proj[i, 4]) * f[k, 1] + (p5 - proj[i, 5]) * f[k, 2]) / h
-    jac = np.zeros((n_x, n_x))
-    left = np.zeros((3, 3))
+    # Row by row of the Jacobian: (A_i C_ij) D_j for every j, reading contact i's three rows of C once per row.
+    jac = np.empty((n_x, n_x))
     for i in range(q):
-        ki = act[i]
-        si = 2 if slide[i] else 3
-        for j in range(q):
-            kj = act[j]
-            sj = 2 if slide[j] else 3
-            # A_i C_ij, then (A_i C_ij) D_j
-            for a in range(si):
-                for e in range(3):
-                    left[a, e] = (amap[i, a, 0] * c[3 * ki, 3 * kj + e] + amap[i, a, 1] * c[3 * ki + 1, 3 * kj + e]
-                                  + amap[i, a, 2] * c[3 * ki + 2, 3 * kj + e])
-            for a in range(si):
-                for b in range(sj):
-                    jac[offs[i] + a, offs[j] + b] = (left[a, 0] * dmap[j, 0, b] + left[a, 1] * dmap[j, 1, b]
-                                                     + left[a, 2] * dmap[j, 2, b])
+        r0 = 3 * act[i]
+        for a in range(2 if slide[i] else 3):
+            a0, a1, a2 = amap[i, a, 0], amap[i, a, 1], amap[i, a, 2]
+            row = offs[i] + a
+            for j in range(q):
+                c0 = 3 * act[j]
+                l0 = a0 * c[r0, c0] + a1 * c[r0 + 1, c0] + a2 * c[r0 + 2, c0]
+                l1 = a0 * c[r0, c0 + 1] + a1 * c[r0 + 1, c0 + 1] + a2 * c[r0 + 2, c0 + 1]
+                l2 = a0 * c[r0, c0 + 2] + a1 * c[r0 + 1, c0 + 2] + a2 * c[r0 + 2, c0 + 2]
+                o = offs[j]
+                for b in range(2 if slide[j] else 3):
+                    jac[row, o + b] = l0 * dmap[j, 0, b] + l1 * dmap[j, 1, b] + l2 * dmap[j, 2, b]
         if slide[i]:
             for a in range(2):
                 for b in range(2):
