@@ -199,15 +199,44 @@ def _polish_system(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarra
     return act, offs, x, evaluate
 
 
+def _lu_factors(a: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """scipy's LU factors of ``a`` in its own precision; None when a pivot is exactly zero."""
+    with blas_threads_for(len(a)), warnings.catch_warnings():
+        warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)  # a zero pivot is checked below
+        lu = scipy.linalg.lu_factor(a, check_finite=False)
+    return lu if np.all(np.diagonal(lu[0])) else None
+
+
+def _fresh_step(jac: np.ndarray, r: np.ndarray, single: bool) -> tuple[tuple | None, np.ndarray | None]:
+    """(LU factors of a new Jacobian for the chord steps, the Newton step −J⁻¹ r), or (None, None) when J is exactly
+    singular: with ``single``, single-precision factors and the step refined once against J, where its defect is
+    within :data:`~fem_grasp.contact.kernels.polish.SINGLE_PRECISION_DEFECT` of r (the kernel's ``_refined_step``);
+    else double precision's."""
+    if single:
+        lu = _lu_factors(jac.astype(np.float32))
+        if lu is not None:
+            step = -scipy.linalg.lu_solve(lu, r, check_finite=False)  # in r's precision (dgetrs)
+            step = step - scipy.linalg.lu_solve(lu, jac @ step + r, check_finite=False)
+            if np.linalg.norm(jac @ step + r) <= polish.SINGLE_PRECISION_DEFECT * np.linalg.norm(r):
+                return lu, step
+    lu = _lu_factors(jac)
+    return (None, None) if lu is None else (lu, -scipy.linalg.lu_solve(lu, r, check_finite=False))
+
+
+#: The polish's settings as :func:`_polish` takes them: (iterations, step halvings, chord contraction, single
+#: precision factors).
+DEFAULT_POLISH_LIMITS = (DEFAULT_SETTINGS.polish_iterations, DEFAULT_SETTINGS.polish_halvings,
+                         DEFAULT_SETTINGS.chord_contraction, DEFAULT_SETTINGS.single_precision_factors)
+
+
 def _polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, status: np.ndarray,
             d: np.ndarray, u: np.ndarray, tol: float, stick_tol: float, max_slip: float,
-            limits: tuple[int, int, float] = (DEFAULT_SETTINGS.polish_iterations, DEFAULT_SETTINGS.polish_halvings,
-                                              DEFAULT_SETTINGS.chord_contraction)
-            ) -> Polished | None:
+            limits: tuple[int, int, float, bool] = DEFAULT_POLISH_LIMITS) -> Polished | None:
     """Newton's method on the smooth system of fixed statuses (:func:`_polish_system`): the polished state, and
     whether every status holds there; None when it does not converge.  ``limits``: (iterations, step halvings,
-    chord contraction), the settings ``polish_iterations``, ``polish_halvings`` and ``chord_contraction``."""
-    iterations, halvings, contraction = limits
+    chord contraction, single precision), the settings ``polish_iterations``, ``polish_halvings``,
+    ``chord_contraction`` and ``single_precision_factors``."""
+    iterations, halvings, contraction, single = limits
     system = _polish_system(rec, c, f0, mu, status, d, u)
     if system is None:
         return None
@@ -222,12 +251,11 @@ def _polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, stat
         fresh = lu is None
         try:
             if fresh:
-                with blas_threads_for(len(r)), warnings.catch_warnings():
-                    warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)  # a zero pivot is checked below
-                    lu = scipy.linalg.lu_factor(jac, check_finite=False)
-                if not np.all(np.diagonal(lu[0])):
+                lu, step = _fresh_step(jac, r, single)
+                if lu is None:
                     return None  # exactly singular, as numpy's solve would say
-            step = -scipy.linalg.lu_solve(lu, r, check_finite=False)
+            else:
+                step = -scipy.linalg.lu_solve(lu, r, check_finite=False)
         except (np.linalg.LinAlgError, ValueError):
             return None
         if not np.isfinite(step).all():
@@ -273,16 +301,13 @@ def _polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, stat
 
 def _compiled_polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, status: np.ndarray,
                      d: np.ndarray, u: np.ndarray, tol: float, stick_tol: float, max_slip: float,
-                     limits: tuple[int, int, float] = (DEFAULT_SETTINGS.polish_iterations,
-                                                       DEFAULT_SETTINGS.polish_halvings,
-                                                       DEFAULT_SETTINGS.chord_contraction)
-                     ) -> Polished | None:
+                     limits: tuple[int, int, float, bool] = DEFAULT_POLISH_LIMITS) -> Polished | None:
     """:func:`_polish` in one kernel call (:mod:`~fem_grasp.contact.kernels.polish`)."""
     with np.errstate(over="ignore", invalid="ignore"):
         outcome, dd, u2, f = polish.polish(np.ascontiguousarray(rec), np.ascontiguousarray(c), np.ascontiguousarray(f0),
                                       np.ascontiguousarray(mu, dtype=float), status, np.ascontiguousarray(d),
                                       np.ascontiguousarray(u), float(tol), float(stick_tol), float(max_slip),
-                                      int(limits[0]), int(limits[1]), float(limits[2]))
+                                      int(limits[0]), int(limits[1]), float(limits[2]), bool(limits[3]))
     return None if outcome == polish.FAILED else Polished(outcome == polish.HOLDS, dd, u2, f)
 
 
@@ -325,7 +350,7 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
         position: a nearby state (a relaxation of the same start positions with fewer contacts, say). Only where
         the sweeps begin: the static state they find is a property of the problem, wherever they begin.
     settings : the iteration bounds (``drift_*``, ``growth_sweeps``, ``stuck_sweeps``, ``stall_sweeps``) and the
-        polish (``polish_*``, ``chord_contraction``, ``compiled_polish``) of :class:`~fem_grasp.settings.EngineSettings`
+        polish (``polish_*``, ``chord_contraction``, ``single_precision_factors``, ``compiled_polish``) of :class:`~fem_grasp.settings.EngineSettings`
         (default: the defaults)
 
     Raises
@@ -336,7 +361,7 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
     """
     cfg = DEFAULT_SETTINGS if settings is None else settings
     compiled_polish = jit.ENABLED if cfg.compiled_polish is None else cfg.compiled_polish
-    limits = (cfg.polish_iterations, cfg.polish_halvings, cfg.chord_contraction)
+    limits = (cfg.polish_iterations, cfg.polish_halvings, cfg.chord_contraction, cfg.single_precision_factors)
     c = np.asarray(stiffness, float)
     f0 = np.array(forces, float)
     m = len(f0)

@@ -127,3 +127,32 @@ def test_the_inverse_norm_estimate_bounds_the_norm_as_lapacks_does():
         assert exact / 4 <= est <= exact * (1 + 1e-9)
         assert est >= 0.5 / (rcond * anorm)
     assert dense.inverse_norm1_estimate(np.zeros((0, 0)), np.zeros(0, np.int64)) == 0.0
+
+
+@pytest.mark.parametrize("mode", ["compiled", "plain"])
+def test_single_precision_factors_are_sgetrfs_and_solve_in_double(mode):
+    """A float32 matrix is factorised by LAPACK's sgetrf (scipy's factors of it), and solving a float64 system with
+    those factors gives a float64 solution whose defect is single precision's: ~cond × 6e-8 of b."""
+    if mode == "compiled" and not jit.ENABLED:
+        pytest.skip("numba is not installed: only the plain-Python kernels exist here")
+    results = (single_factor_and_solve() if mode == "compiled" or not jit.ENABLED
+               else in_plain_python("tests.contact.test_dense:single_factor_and_solve"))
+    for (lu, piv, info, x), (a, b) in zip(results, _systems()):
+        assert info == 0 and lu.dtype == np.float32 and x.dtype == np.float64
+        ref_lu, ref_piv = scipy.linalg.lu_factor(a.astype(np.float32))
+        np.testing.assert_allclose(lu, ref_lu, rtol=0, atol=1e-5 * np.abs(ref_lu).max())
+        np.testing.assert_array_equal(piv, ref_piv)
+        defect = np.linalg.norm(a @ x - b) / np.linalg.norm(b)
+        assert defect <= 100 * np.linalg.cond(a) * np.finfo(np.float32).eps
+        assert defect > 1e3 * np.finfo(float).eps or len(a) == 1  # single precision's, not double's
+
+
+def single_factor_and_solve():
+    """:func:`factor_and_solve` with the matrices in single precision and the right-hand sides in double."""
+    run = _factor_and_solve
+    if jit.ENABLED:
+        import numba
+
+        dense.lu_solve(np.eye(1), np.zeros(1, np.int64), np.ones(1))  # puts the compiled kernels in place
+        run = numba.njit(run)
+    return [tuple(np.asarray(v) for v in run(a.astype(np.float32), b)) for a, b in _systems()]

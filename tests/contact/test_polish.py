@@ -26,7 +26,8 @@ def test_both_polishes_take_their_iteration_limits_from_the_settings(monkeypatch
     calls, _ = _polish_calls(monkeypatch, None)
     monkeypatch.undo()
     s = DEFAULT_SETTINGS
-    default, none = (s.polish_iterations, s.polish_halvings, s.chord_contraction), (0, s.polish_halvings, 0.25)
+    default = (s.polish_iterations, s.polish_halvings, s.chord_contraction, s.single_precision_factors)
+    none = (0, s.polish_halvings, 0.25, True)
     converging = [args[:10] for args in calls if relaxation._polish(*args[:10], default) is not None]
     assert len(converging) >= 3
     for args in converging:
@@ -145,3 +146,58 @@ def test_a_polish_says_when_its_root_breaks_a_status():
     f = ref.forces[0]
     assert np.hypot(f[0], f[1]) == pytest.approx(0.2 * f[2], rel=1e-9)
     assert relaxation._adoptable(ref, args[4], np.inf)
+
+
+@pytest.mark.parametrize("seed", JITTER_SEEDS)
+def test_single_precision_factors_reach_the_double_precision_states(seed):
+    """The polish's Jacobians factorised in single precision (refined against the double-precision Jacobian) or in
+    double: every polish of the test problems that converges both ways reaches the same root within the polish's
+    tolerance, and the return mappings reach the same static states (or fail alike), compiled and in numpy."""
+    double = DEFAULT_SETTINGS.replace(single_precision_factors=False)
+    assert DEFAULT_SETTINGS.single_precision_factors
+    compared = 0
+    for args, kwargs in relaxation_problems(seed):
+        for compiled in (True, False):
+            single = DEFAULT_SETTINGS.replace(compiled_polish=compiled)
+            assert_same_relaxation(_outcome(args, {**kwargs, "settings": single}),
+                                   _outcome(args, {**kwargs, "settings": double.replace(compiled_polish=compiled)}))
+            compared += 1
+    assert compared == 14
+
+
+def _ill_conditioned_release(cond: float):
+    """A polish of four released table contacts whose stiffness C has condition number ``cond``: its Jacobian is
+    C itself, its root δ = −C⁻¹ f⁰ (where every released contact carries no force)."""
+    from fem_grasp.contact.kernels import gauss_seidel as gs
+
+    rng = np.random.default_rng(3)
+    m = 4
+    positions = np.c_[rng.uniform(-0.01, 0.01, (m, 2)), np.zeros(m)]
+    q, _ = np.linalg.qr(rng.normal(size=(3 * m, 3 * m)))
+    c = 100.0 * q @ np.diag(np.logspace(0.0, -np.log10(cond), 3 * m)) @ q.T
+    c = 0.5 * (c + c.T)
+    rec = gs.contact_records(positions, [None] * m, np.array([0.0, 0.0, 1.0]),
+                             np.stack([c[3 * k:3 * k + 3, 3 * k:3 * k + 3] for k in range(m)]))
+    f0 = rng.normal(size=(m, 3))
+    args = (rec, c, f0, np.full(m, 0.5), np.full(m, relaxation.RELEASE, dtype=np.int64), np.zeros((m, 3)),
+            np.zeros((m, 2)), 1e-7, 1e-7, np.inf)
+    return args, -np.linalg.solve(c, f0.ravel()).reshape(m, 3)
+
+
+def test_a_jacobian_too_ill_conditioned_for_single_precision_is_factorised_in_double(monkeypatch):
+    """At cond(J) = 1e9 single-precision factors cannot give a Newton step (their solve is off by ~cond × 6e-8):
+    the polish falls back to double precision's and reaches the root, compiled and in numpy, as double precision
+    alone does; with the fallback disabled the numpy polish finds no root."""
+    from fem_grasp.contact.kernels import polish
+
+    args, root = _ill_conditioned_release(1e9)
+    s = DEFAULT_SETTINGS
+    limits = (s.polish_iterations, s.polish_halvings, s.chord_contraction)
+    for run in (relaxation._polish, relaxation._compiled_polish):
+        for single in (True, False):
+            out = run(*args, (*limits, single))
+            assert out is not None
+            assert np.abs(out.forces).max() <= args[7]  # released: no force, to the polish's tolerance
+            np.testing.assert_allclose(out.displacements, root, rtol=0, atol=1e-6 * np.abs(root).max())
+    monkeypatch.setattr(polish, "SINGLE_PRECISION_DEFECT", np.inf)
+    assert relaxation._polish(*args, (*limits, True)) is None

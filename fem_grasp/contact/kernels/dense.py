@@ -1,4 +1,4 @@
-"""Dense LU factors for the compiled kernels: LAPACK's dgetrf, and solves with its factors.
+"""Dense LU factors for the compiled kernels: LAPACK's dgetrf (sgetrf in single precision), and solves with them.
 
 The kernels' Newton iterations solve dense systems of tens to a few hundred
 unknowns, the return mapping's polish reusing one factorisation for several
@@ -27,11 +27,13 @@ ENTRY_POINTS = ("lu_solve", "lu_solve_transposed", "inverse_norm1_estimate")
 
 
 def lu_factor(a: np.ndarray) -> tuple[np.ndarray, np.ndarray, int]:
-    """(LU factors, 0-based pivots, info) of a square matrix by LAPACK's dgetrf (info > 0: an exactly zero pivot
-    U[info−1, info−1]; the factors are then incomplete)."""
+    """(LU factors, 0-based pivots, info) of a square matrix by LAPACK's dgetrf, or sgetrf for a float32 matrix
+    (factors in the matrix's precision; info > 0: an exactly zero pivot U[info−1, info−1]; the factors are then
+    incomplete)."""
     if a.shape[0] == 0:  # older scipy's dgetrf refuses an empty matrix (its leading dimension 0)
-        return np.array(a, dtype=float), np.zeros(0, np.int64), 0
-    lu, piv, info = scipy.linalg.lapack.dgetrf(a)
+        return np.array(a), np.zeros(0, np.int64), 0
+    getrf = scipy.linalg.lapack.sgetrf if a.dtype == np.float32 else scipy.linalg.lapack.dgetrf
+    lu, piv, info = getrf(a)
     return lu, piv.astype(np.int64), int(info)
 
 
@@ -47,10 +49,11 @@ if ENABLED:
         ensure_lapack()
         getrf = _LAPACK().numba_xxgetrf(a.dtype)
         kind = ord(get_blas_kind(a.dtype, "lu_factor"))
+        dtype = np.float32 if str(a.dtype) == "float32" else np.float64
 
         def impl(a):
             n = a.shape[0]
-            lu = np.empty((n, n)).T  # Fortran order, as LAPACK keeps it
+            lu = np.empty((n, n), dtype).T  # Fortran order, as LAPACK keeps it
             lu[:, :] = a
             piv = np.zeros(max(n, 1), np.int32)
             info = 0
@@ -63,7 +66,8 @@ if ENABLED:
 
 @jit
 def lu_solve(lu, piv, b):
-    """x with A x = b from :func:`lu_factor`'s factors of A (scipy's ``lu_solve``: the row swaps, then L and U).
+    """x with A x = b from :func:`lu_factor`'s factors of A (scipy's ``lu_solve``: the row swaps, then L and U), in
+    b's precision whatever the factors' (single-precision factors of a double-precision system: see the polish).
 
     Column by column, as LAPACK's reference dtrsv: the factors are in Fortran order, so each step reads one column
     contiguously (four times faster than row by row at 840 unknowns, where the polish of a fine patch solves)."""
