@@ -101,6 +101,35 @@ def _pickup(name: str, quick: bool = False) -> dict[str, Any]:
     return _answer(seconds, result)
 
 
+def _scene_run(name: str, changes: dict[str, Any]) -> dict[str, Any]:
+    """``fem-grasp run NAME`` as a user runs it (the scene's own accuracy target: the time to an answer with its
+    stated error), with :meth:`~fem_grasp.io.scene.Scene.with_`'s ``changes``; the answer is the final level's."""
+    from fem_grasp.io.scene import run_scene
+
+    t0 = time.perf_counter()
+    result = run_scene(name, cache_dir=None, **changes)
+    return _answer(time.perf_counter() - t0, result)
+
+
+def scene_run_request(spec: str) -> dict[str, Any]:
+    """The worker's request for ``--runs SPEC``: ``NAME`` or ``NAME:key=value,key=value`` (a shipped scene and
+    :meth:`~fem_grasp.io.scene.Scene.with_`'s changes; a value is a Python literal or else a string, as in a scene
+    file: ``tomato:refinement=nested,max_finger_contacts=600``)."""
+    import ast
+
+    name, _, rest = spec.partition(":")
+    changes: dict[str, Any] = {}
+    for item in filter(None, rest.split(",")):
+        key, eq, value = item.partition("=")
+        if not eq or not key.strip():
+            raise SystemExit(f"--runs {spec}: expected NAME:key=value[,key=value], got {item!r}")
+        try:
+            changes[key.strip()] = ast.literal_eval(value.strip())
+        except (ValueError, SyntaxError):
+            changes[key.strip()] = value.strip()
+    return {"run": name, "changes": changes}
+
+
 def _orange_pickup(path: str) -> dict[str, Any]:
     """The scaling section's uniform orange (a gmsh mesh saved by the parent) at the orange scene's 20 kPa, Table I
     ν and weight, pickup()'s default friction and the paper scenes' placement rule, rest included."""
@@ -150,6 +179,8 @@ def serve() -> int:
         try:
             if "search" in request:
                 answer = _search(request["search"], int(request["candidates"]), bool(request.get("quick")))
+            elif "run" in request:
+                answer = _scene_run(request["run"], request["changes"])
             elif "route" in request:
                 answer = _route_pickup(request["mesh"], request["route"])
             elif "mesh" in request:
@@ -457,14 +488,16 @@ def section_tracker(baseline: str = DEFAULT_BASELINE, reps: int = 3, scenes: tup
                     export_to: Path | None = None, large: tuple[int, ...] = (),
                     mesh_cache: Path | None = None, routes: tuple[tuple[str, float], ...] = (),
                     against: tuple[str, ...] = (), searches: tuple[str, ...] = (),
-                    candidates: int = SEARCH_CANDIDATES) -> dict[str, Any]:
+                    candidates: int = SEARCH_CANDIDATES, runs: tuple[str, ...] = ()) -> dict[str, Any]:
     """Time the shipped scenes' pickups (their ``[quick]`` variants with ``quick``) with the baseline's fem_grasp
     and this checkout's, interleaved (module notes); medians of ``reps`` after the first call.  ``large``: also
     the uniform orange of about that many vertices (the scaling section's, rest included), one row each;
     ``routes``: also these (scene, inner spacing / R) graded meshes (:data:`ROUTES`).  ``searches``: also a placement
     search of ``candidates`` placements of each of these scenes, compared placement by placement
-    (:func:`compare_search`; a test of "the same answer" far wider than one pickup).  ``against``: the baseline is
-    this checkout with these settings instead of a commit (module notes)."""
+    (:func:`compare_search`; a test of "the same answer" far wider than one pickup).  ``runs``: also these scenes
+    as ``fem-grasp run`` answers by default, the accuracy loop included (:func:`scene_run_request`).  ``against``:
+    the baseline is this checkout with these settings instead of a commit (module notes)."""
+    run_requests = [(f"{spec} (run)", scene_run_request(spec)) for spec in runs]  # a bad spec stops before any work
     if against:
         env, switches = _against(list(against))
         sha = "this checkout with " + " ".join(against)
@@ -488,6 +521,7 @@ def section_tracker(baseline: str = DEFAULT_BASELINE, reps: int = 3, scenes: tup
                 cases.append((f"orange {size / 1000:g}k", {"mesh": str(cache / f"orange_{int(size)}.npz")}))
             for name, inner in routes:
                 cases.append((f"{name} R/{1 / inner:g}", {"mesh": str(route_mesh(name, inner, cache)), "route": name}))
+        cases += run_requests
         cases += [(f"search {name}", {"search": name, "candidates": candidates, "quick": quick}) for name in searches]
         for scene, request in cases:
             runs: dict[str, list[dict[str, Any]]] = {"baseline": [], "current": []}
@@ -570,6 +604,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="also a placement search of each of these scenes (fem-grasp search's candidates, in the "
                          "worker's process), compared placement by placement")
     ap.add_argument("--candidates", type=int, default=SEARCH_CANDIDATES, help="placements per --search")
+    ap.add_argument("--runs", nargs="+", default=[], metavar="SCENE",
+                    help="also these scenes as `fem-grasp run SCENE` answers by default (the accuracy loop: the time "
+                         "to an answer with its stated error); SCENE:key=value,... adds the scene's changes, e.g. "
+                         "tomato:refinement=nested,max_finger_contacts=600")
     ap.add_argument("--against", nargs="+", default=[], metavar="SETTING",
                     help="instead of a commit, this checkout with these settings: settings.FIELD=VALUE (a field "
                          "of fem_grasp.settings.EngineSettings, e.g. settings.implicit_contacts=0), "
@@ -583,7 +621,7 @@ def main(argv: list[str] | None = None) -> int:
     print_tracker(section_tracker(args.baseline, args.reps, tuple(args.scenes), quick=args.quick,
                                   large=tuple(args.large), routes=ROUTES if args.routes else (),
                                   against=tuple(args.against), searches=tuple(args.search),
-                                  candidates=args.candidates))
+                                  candidates=args.candidates, runs=tuple(args.runs)))
     return 0
 
 

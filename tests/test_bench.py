@@ -312,6 +312,25 @@ def test_the_tracker_section_runs_a_placement_search_in_both_workers():
     assert "phases" not in row["current"] or row["current"]["phases"] == {}
 
 
+def test_the_tracker_section_runs_a_scene_as_fem_grasp_run_does_in_both_workers():
+    """--runs: both workers answer the scene as ``run_scene`` does with the spec's changes (here one level on the
+    foam block's mesh, the baseline worker's polish factorising in double precision); the answers are compared as a
+    pickup's.  A spec whose changes are not key=value pairs stops before any work."""
+    from bench.tracker import scene_run_request, section_tracker
+
+    assert scene_run_request("tomato:refinement=nested,max_finger_contacts=600") == {
+        "run": "tomato", "changes": {"refinement": "nested", "max_finger_contacts": 600}}
+    assert scene_run_request("orange") == {"run": "orange", "changes": {}}
+    with pytest.raises(SystemExit, match="expected NAME:key=value"):
+        section_tracker(reps=1, scenes=(), warm_up=None, runs=("tomato:nested",))
+    sec = section_tracker(reps=1, scenes=(), warm_up=None, runs=("foam_block:accuracy=off",),
+                          against=("settings.single_precision_factors=False",))
+    (row,) = sec["rows"]
+    assert row["scene"] == "foam_block:accuracy=off (run)" and row["repeatable"]
+    assert row["answer"]["same"] and row["answer"]["events"][0] > 0
+    assert row["current"]["phases"]["total"] > 0
+
+
 def _fake_answer(success=True, rho=0.011, force=6.6, seconds=2.0, stated=None, vertices=600, max_liftable=2.0):
     return {"seconds": seconds, "later_seconds": 0.75 * seconds, "later_same": True, "vertices": vertices,
             "levels": 1, "converged": False, "note": "",
