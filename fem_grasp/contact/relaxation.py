@@ -350,8 +350,8 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
         position: a nearby state (a relaxation of the same start positions with fewer contacts, say). Only where
         the sweeps begin: the static state they find is a property of the problem, wherever they begin.
     settings : the iteration bounds (``drift_*``, ``growth_sweeps``, ``stuck_sweeps``, ``stall_sweeps``) and the
-        polish (``polish_*``, ``chord_contraction``, ``single_precision_factors``, ``compiled_polish``) of :class:`~fem_grasp.settings.EngineSettings`
-        (default: the defaults)
+        polish (``polish_*``, ``chord_contraction``, ``single_precision_factors``, ``compiled_polish``) of
+        :class:`~fem_grasp.settings.EngineSettings` (default: the defaults)
 
     Raises
     ------
