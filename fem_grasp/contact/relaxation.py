@@ -223,10 +223,13 @@ def _fresh_step(jac: np.ndarray, r: np.ndarray, single: bool) -> tuple[tuple | N
     return (None, None) if lu is None else (lu, -scipy.linalg.lu_solve(lu, r, check_finite=False))
 
 
-#: The polish's settings as :func:`_polish` takes them: (iterations, step halvings, chord contraction, single
-#: precision factors).
-DEFAULT_POLISH_LIMITS = (DEFAULT_SETTINGS.polish_iterations, DEFAULT_SETTINGS.polish_halvings,
-                         DEFAULT_SETTINGS.chord_contraction, DEFAULT_SETTINGS.single_precision_factors)
+def _polish_limits(cfg: EngineSettings) -> tuple[int, int, float, bool]:
+    """The polish's settings as :func:`_polish` takes them: (iterations, step halvings, chord contraction, single
+    precision factors)."""
+    return cfg.polish_iterations, cfg.polish_halvings, cfg.chord_contraction, cfg.single_precision_factors
+
+
+DEFAULT_POLISH_LIMITS = _polish_limits(DEFAULT_SETTINGS)
 
 
 def _polish(rec: np.ndarray, c: np.ndarray, f0: np.ndarray, mu: np.ndarray, status: np.ndarray,
@@ -361,7 +364,7 @@ def relax_contacts(stiffness: np.ndarray, forces: np.ndarray, positions: np.ndar
     """
     cfg = DEFAULT_SETTINGS if settings is None else settings
     compiled_polish = jit.ENABLED if cfg.compiled_polish is None else cfg.compiled_polish
-    limits = (cfg.polish_iterations, cfg.polish_halvings, cfg.chord_contraction, cfg.single_precision_factors)
+    limits = _polish_limits(cfg)
     c = np.asarray(stiffness, float)
     f0 = np.array(forces, float)
     m = len(f0)

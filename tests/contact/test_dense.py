@@ -26,13 +26,18 @@ def _factor_and_solve(a, b):
 def factor_and_solve():
     """(factors, pivots, info, solution) of random systems of 1 to 300 unknowns, and the info of a singular
     matrix, in the current kernel mode (compiled: inside a compiled function, where lu_factor is numba's binding)."""
-    run, info = _factor_and_solve, lambda a: dense.lu_factor(a)[2]
-    if jit.ENABLED:
-        import numba
-
-        dense.lu_solve(np.eye(1), np.zeros(1, np.int64), np.ones(1))  # puts the compiled kernels in place
-        run, info = numba.njit(run), numba.njit(info)
+    run, info = _in_kernel_mode(_factor_and_solve), _in_kernel_mode(lambda a: dense.lu_factor(a)[2])
     return [tuple(np.asarray(v) for v in run(a, b)) for a, b in _systems()], int(info(np.ones((4, 4))))
+
+
+def _in_kernel_mode(fun):
+    """``fun`` compiled where the kernels are (inside it, lu_factor is numba's binding), else as it is."""
+    if not jit.ENABLED:
+        return fun
+    import numba
+
+    dense.lu_solve(np.eye(1), np.zeros(1, np.int64), np.ones(1))  # puts the compiled kernels in place
+    return numba.njit(fun)
 
 
 def pivot_margin(a: np.ndarray) -> float:
@@ -156,10 +161,5 @@ def test_single_precision_factors_are_an_lu_of_the_matrix_and_solve_in_double(mo
 
 def single_factor_and_solve():
     """:func:`factor_and_solve` with the matrices in single precision and the right-hand sides in double."""
-    run = _factor_and_solve
-    if jit.ENABLED:
-        import numba
-
-        dense.lu_solve(np.eye(1), np.zeros(1, np.int64), np.ones(1))  # puts the compiled kernels in place
-        run = numba.njit(run)
+    run = _in_kernel_mode(_factor_and_solve)
     return [tuple(np.asarray(v) for v in run(a.astype(np.float32), b)) for a, b in _systems()]
