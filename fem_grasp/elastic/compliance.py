@@ -206,6 +206,7 @@ class Compliance:
         self._columns: dict[int, np.ndarray] = {}
         self._ahead: dict[int, _AheadBatch] = {}  # nodes queued by solve_ahead, not yet taken into _columns
         self._ahead_on = False  # inside solving_ahead()
+        self._submitted: list[futures.Future] = []  # every batch the open section queued, dropped ones too
         self._rotation: np.ndarray | None = None  # see rotated()
         self.surface_nodes = None if surface is None else np.unique(np.asarray(surface, dtype=np.int64))
         self._surface_rows = None if surface is None else self._row_positions(self.surface_nodes)
@@ -251,6 +252,7 @@ class Compliance:
         columns."""
         new = copy.copy(self)
         new._columns = columns
+        new._submitted = []
         new._surface_columns = columns if self._surface_columns is self._columns else surface_columns
         new._ahead = ahead
         return new
@@ -335,7 +337,8 @@ class Compliance:
 
         BLAS keeps one thread throughout and no solve gets the threads back (:func:`~fem_grasp.threads.side_by_side`),
         so every column has the same round-off whichever thread solves it and whenever; on leaving, the section
-        waits for the columns it queued.
+        waits for every batch it queued, those dropped while being solved too: no column solve outlives the
+        section's one-thread limit (leaving it gives BLAS its threads back, a process-wide setting).
         """
         if not getattr(self._solve, "releases_gil", False) or self._ahead_on or not blas_threads_held():
             yield
@@ -346,7 +349,8 @@ class Compliance:
                 yield
             finally:
                 self._ahead_on = False
-                futures.wait([batch.result for batch in self._ahead.values()])
+                futures.wait(self._submitted)
+                self._submitted = []
 
     @property
     def solving_ahead_now(self) -> bool:
@@ -384,6 +388,7 @@ class Compliance:
             if len(part) < AHEAD_MIN_NODES:
                 break
             batch = _AheadBatch(tuple(part), _background().submit(self._solved_columns, part))
+            self._submitted.append(batch.result)
             for k in part:
                 self._ahead[k] = batch
 

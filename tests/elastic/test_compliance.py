@@ -1,6 +1,8 @@
 """The generalised inverse X of K (fem_grasp.elastic.compliance) with every sparse solver of
 fem_grasp.elastic.sparse_solvers: the solvers, the column cache, kept rows."""
 
+import threading
+
 import numpy as np
 import pytest
 import scipy.sparse as sp
@@ -355,3 +357,31 @@ def test_a_queued_batch_the_contacts_moved_away_from_is_dropped(body):
     assert all(twin.is_cached(int(k)) for k in surface[:20])
     np.testing.assert_allclose(twin.node_columns(surface[:3]), comp.node_columns(surface[:3]), rtol=0,
                                atol=1e-12 * np.abs(comp.node_columns(surface[:3])).max())
+
+
+@pytest.mark.skipif("cholmod" not in AVAILABLE, reason="CHOLMOD is not installed")
+def test_leaving_the_section_waits_for_a_dropped_batch_still_being_solved(body):
+    """A batch dropped while the background thread solves it cannot be cancelled; the section must still wait
+    for it, or that solve would run on after the section gives BLAS its threads back."""
+    comp = _ahead_compliance(body)
+    surface = body.mesh.surface_nodes
+    started, release = threading.Event(), threading.Event()
+    solved = comp._solved_columns
+
+    def held_solve(part):
+        started.set()
+        release.wait(10.0)
+        return solved(part)
+
+    comp._solved_columns = held_solve  # the batches queued below run this in the background thread
+    timer = threading.Timer(0.3, release.set)
+    with comp.solving_ahead():
+        comp.solve_ahead(surface[:10], 10)
+        first = next(iter(comp._ahead.values())).result
+        assert started.wait(10.0)
+        # the first batch is stale now, and running; too few nodes for a new batch (cp.AHEAD_MIN_NODES)
+        comp.solve_ahead(surface[-5:], 10)
+        assert not comp._ahead and not first.cancelled()
+        timer.start()
+    assert first.done() and release.is_set()  # the section waited for the held solve to be released
+    timer.join()
