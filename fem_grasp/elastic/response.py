@@ -329,18 +329,26 @@ class ContactResponse:
     def _solve_bordered(self, rhs_top: np.ndarray, rhs_bottom: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         m3 = len(self.dofs)
         rhs = np.concatenate([rhs_top, rhs_bottom])
-        sol = self._inverse @ rhs if self._lu is None else la.lu_solve(self._lu, rhs, check_finite=False)
+        if self._lu is None:
+            sol = self._inverse @ rhs
+        else:
+            lu, piv = self._lu
+            sol = la.lu_solve((lu, piv.copy()), rhs, check_finite=False)  # pivots of its own: see _inverse
         return sol[:m3], sol[m3:] * self._scale
 
     @cached_property
     def _inverse(self) -> np.ndarray:
         """M⁻¹ ((3m+6)-square): from the LU factors (LAPACK's getri: a third of the time of n solves at 850 rows), or
-        kept up to date by :meth:`neighbour`."""
+        kept up to date by :meth:`neighbour`.
+
+        scipy's getri and getrs (``lu_solve``) wrappers turn the pivots 1-based in place around the LAPACK call,
+        with the GIL released; a response and its :meth:`branch` share the factors, and two lift tests solve with
+        them at once, so each call gets a copy of the pivots (two threads on one pivot array corrupted the heap)."""
         n = len(self.dofs) + 6
         lu, piv = self._lu
         getri, getri_lwork = la.lapack.get_lapack_funcs(("getri", "getri_lwork"), (lu,))
         with blas_threads_for(n):
-            inverse, info = getri(lu, piv, lwork=max(int(getri_lwork(n)[0]), 1))
+            inverse, info = getri(lu, piv.copy(), lwork=max(int(getri_lwork(n)[0]), 1))
         if info != 0:  # a zero pivot: the constructor's condition test refuses such a set before this is asked
             raise np.linalg.LinAlgError(f"M is singular (getri info {info})")
         return inverse

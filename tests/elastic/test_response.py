@@ -362,3 +362,42 @@ def test_the_in_place_dense_updates_are_their_formulas(n):
     strided = np.asfortranarray(a)  # not C-ordered: updated all the same
     add_symmetric_product(strided, u, w)
     assert np.abs(strided - expected).max() <= 1e-13 * np.abs(expected).max()
+
+
+def test_two_threads_solving_with_one_factorisation_get_the_same_forces(tmp_path):
+    """A response and its branch share M's LU factors, and two lift tests solve with them at once.  scipy's LAPACK
+    wrappers turn the pivots 1-based in place with the GIL released, so two threads on one pivot array shifted them
+    twice: row swaps past the matrix's end, wrong forces, and a corrupted heap (glibc aborts the process within a
+    second here).  Run in a process of its own: the forces of 3,000 solves per thread equal a sequential solve's."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = tmp_path / "race.py"
+    script.write_text(
+        "import sys, threading\n"
+        f"sys.path.insert(0, {str(Path(__file__).resolve().parents[2])!r})\n"
+        "import numpy as np\n"
+        "from fem_grasp import Body, ContactResponse\n"
+        "from tests.helpers import perturbed_box\n"
+        "body = Body(perturbed_box(np.random.default_rng(7), divisions=(8, 8, 8)), 8e4, 0.32, weight=0.9)\n"
+        "p, (lo, hi) = body.mesh.points, body.mesh.bounds\n"
+        "nodes = np.union1d(np.flatnonzero(p[:, 2] <= lo[2] + 1e-9), np.flatnonzero(p[:, 0] >= hi[0] - 1e-9)[:20])\n"
+        "resp = ContactResponse(body, nodes)\n"
+        "twin = resp.branch(body.branch())\n"
+        "rng = np.random.default_rng(1)\n"
+        "disp = [1e-4 * rng.standard_normal((len(nodes), 3)) for _ in range(4)]\n"
+        "ref = [resp.forces(d) for d in disp]\n"
+        "worst = [0.0, 0.0]\n"
+        "def work(k, r):\n"
+        "    for i in range(3000):\n"
+        "        f = r.forces(disp[i % 4])\n"
+        "        worst[k] = max(worst[k], float(np.abs(f - ref[i % 4]).max() / np.abs(ref[i % 4]).max()))\n"
+        "threads = [threading.Thread(target=work, args=(k, r)) for k, r in enumerate((resp, twin))]\n"
+        "[t.start() for t in threads]\n"
+        "[t.join() for t in threads]\n"
+        "print(len(nodes), max(worst))\n")
+    run = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, (run.returncode, run.stderr[-2000:])
+    contacts, worst = run.stdout.split()[-2:]
+    assert int(contacts) > 50 and float(worst) <= 1e-12
