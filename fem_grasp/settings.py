@@ -166,10 +166,10 @@ class EngineSettings:
         go; with none, 6 of the tomato's 64 search placements lift one or two squeeze increments later, 4 of
         them by more than one: ``python -m bench.tracker --against settings.load_halvings=0 --search tomato``).
     parallel_lift_tests : bool
-        A squeeze whose first lift test is at a given depth (the accuracy loop's finer levels) tests the end of
-        the sub-increment below it too, for the case the first passes
-        (:class:`~fem_grasp.grasp.lift_test.SpeculativeTest`): beside the first test in a second thread (True,
-        where numba compiles the kernels, which release the GIL) or after it in the same thread (False); the
+        A squeeze whose first lift test is at a given depth (the accuracy loop's finer levels) tests the end of the
+        sub-increment below it too, for the case the first passes, and each end of the walk down from a passing first
+        test the one below it (:class:`~fem_grasp.grasp.lift_test.SpeculativeTest`): beside it in a second thread
+        (True, where numba compiles the kernels, which release the GIL) or after it in the same thread (False); the
         same numbers either way.  A placement search's candidates use False (their workers fill the cores:
         :data:`~fem_grasp.grasp.evaluation.SEARCH_SETTINGS`).
     """

@@ -230,14 +230,15 @@ class LiftTestCancelled(Exception):
 class SpeculativeTest:
     """The lift test of another squeeze state, made beside the squeeze's own test (on the other core).
 
-    A squeeze with a first lift test at a given depth (``PickupOptions.first_lift_test``: the accuracy loop's
-    finer levels, at the coarser level's ρ*) tests the end of the sub-increment below it next whenever that
-    first test passes, and that test usually fails (ρ* confirmed): the two tests are independent (each hangs
-    its own squeeze state), so this one starts with the first, in a helper thread, and is abandoned if the
-    first fails.  It runs on a branch of the lift test's tracker (:meth:`Tracker.branch`: caches of its own)
-    whether or not a thread runs it (``threaded=False``: at :meth:`result`, in the calling thread), so both
-    ways give the same numbers; while it lasts BLAS keeps one thread (:func:`side_by_side`).  The
-    compiled kernels release the GIL; a sparse solve for new compliance columns waits for the other thread's.
+    A squeeze with a first lift test at a given depth (``PickupOptions.first_lift_test``: the accuracy loop's finer
+    levels, at the coarser level's ρ*) tests the end of the sub-increment below it next whenever that first test
+    passes, and that test usually fails (ρ* confirmed): the two tests are independent (each hangs its own squeeze
+    state), so this one starts with the first, in a helper thread, and is abandoned if the first fails; a walk
+    further down tests each end beside the one above it the same way.  It runs on a branch of the lift test's tracker
+    (:meth:`Tracker.branch`: caches of its own) whether or not a thread runs it (``threaded=False``: at
+    :meth:`result`, in the calling thread), so both ways give the same numbers; while it lasts BLAS keeps one thread
+    (:func:`side_by_side`).  The compiled kernels release the GIL; a sparse solve for new compliance columns waits
+    for the other thread's.
     """
 
     def __init__(self, lift_test: LiftTest, state: ContactState, *, threaded: bool) -> None:

@@ -150,7 +150,9 @@ def squeeze(tracker: Tracker, state: ContactState, directions: tuple[np.ndarray,
         the next sub-increment is tested, and should that fail too, the squeeze goes on from it as without a
         first test.  ρ* is that of testing every sub-increment wherever w(ρ) crosses mg once; a first test at a
         good guess of ρ* costs two tests, which run side by side (the one below in a second thread,
-        :class:`~fem_grasp.grasp.lift_test.SpeculativeTest`; ``EngineSettings.parallel_lift_tests``)
+        :class:`~fem_grasp.grasp.lift_test.SpeculativeTest`; ``EngineSettings.parallel_lift_tests``), and a walk
+        further down goes on two ends at a time (each end's test beside the one above it, abandoned where that
+        fails)
     on_event : called with the state after every event (of the increments kept: a passing increment squeezed
         again reports its events once, from the second pass)
     """
@@ -315,8 +317,9 @@ def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *
     to the first test and, should it fail, the next.
 
     ``speculate`` starts the lift test of the end below the first test's beside it (:class:`SpeculativeTest`), as
-    soon as the squeeze reaches that end; ``adopt`` records its outcome in place of testing that end again, should
-    the first test pass (both None: that end is tested after the first, as the others).
+    soon as the squeeze reaches that end, and on the walk down each end's beside the one above it; ``adopt`` records
+    its outcome in place of testing that end again, should the one above pass (both None: each end is tested after
+    the one above it).
 
     Returns (state, outcome, bracket, above): outcome ``"passed"`` (the state is at ρ*, or, with a ``bracket``,
     w(ρ) crossed mg in an untested increment from the bracket's state to this one, still to be divided),
@@ -425,13 +428,28 @@ def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *
         """The passing ends above ρ* (walked[-1]), shallowest first, where ρ* is on the chain of ends."""
         return walked[-2::-1] if id(walked[-1]) in chain else []
 
-    for n, st in enumerate(below_first()):
-        if not (adopt(st, ahead[0]) if n == 0 and ahead and adopt is not None else test(st)):
-            if final.squeeze_depth - st.squeeze_depth > 1.5 * sub:
-                return final, "passed", st, []
-            return final, "passed", None, above()
-        final = st
-        walked.append(st)
+    # Two ends at a time: while one is tested, the end below it is tested beside it (the walk needs it only if
+    # this one passes, and is abandoned otherwise), as the first test's end below was.
+    ends = below_first()
+    try:
+        for n, st in enumerate(ends):
+            if n == 0 and ahead and adopt is not None:
+                held = adopt(st, ahead[0])
+            elif beside_it and beside_it[0].state is st and adopt is not None:
+                held = adopt(st, beside_it.pop().result())
+            else:
+                if speculate is not None and n + 1 < len(ends):
+                    start_beside(ends[n + 1])
+                held = test(st)
+            if not held:
+                if final.squeeze_depth - st.squeeze_depth > 1.5 * sub:
+                    return final, "passed", st, []
+                return final, "passed", None, above()
+            final = st
+            walked.append(st)
+    finally:
+        while beside_it:  # the walk ended above the end tested beside it
+            beside_it.pop().cancel()
     return final, "passed", None, above()
 
 
