@@ -363,6 +363,10 @@ def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *
         if speculate is not None and not beside_it:
             beside_it.append(speculate(at))
 
+    def cancel_beside() -> None:
+        while beside_it:
+            beside_it.pop().cancel()
+
     def below_first() -> list[ContactState]:
         """The ends below the first test, from the deepest down: those a passing first test walks down."""
         return subs[:-1][::-1] + untested[::-1]
@@ -385,7 +389,7 @@ def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *
         # The first test, and beside it the end below it, which a pass walks down to first (SpeculativeTest),
         # started while the squeeze went on to this end where it could be.
         if beside_it and beside_it[0].state is not below_first()[0]:
-            beside_it.pop().cancel()
+            cancel_beside()
         start_beside(below_first()[0])
         beside = beside_it.pop()
         try:
@@ -410,8 +414,7 @@ def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *
             final, _, _ = run(tracker, state, velocities, stop=max_squeeze, step=sub, param=Parameter.SQUEEZE_DEPTH,
                               phase="squeeze", after_step=after_sub, on_event=record)
         finally:
-            while beside_it:  # the squeeze failed, or ended without a first test
-                beside_it.pop().cancel()
+            cancel_beside()  # the squeeze failed, or ended without a first test
     if not tests or not tests[-1]:
         on = len(tests) == 2 and final.squeeze_depth < max_squeeze * (1.0 - 1e-9)
         return final, ("failed twice" if on else "stopped"), None, []
@@ -438,7 +441,7 @@ def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *
             elif beside_it and beside_it[0].state is st and adopt is not None:
                 held = adopt(st, beside_it.pop().result())
             else:
-                if speculate is not None and n + 1 < len(ends):
+                if n + 1 < len(ends):
                     start_beside(ends[n + 1])
                 held = test(st)
             if not held:
@@ -448,8 +451,7 @@ def _tests_from(tracker: Tracker, state: ContactState, velocities: np.ndarray, *
             final = st
             walked.append(st)
     finally:
-        while beside_it:  # the walk ended above the end tested beside it
-            beside_it.pop().cancel()
+        cancel_beside()  # the walk ended above the end tested beside it
     return final, "passed", None, above()
 
 
