@@ -80,9 +80,10 @@ Sections (``--only NAME``, repeatable; default all):
     as shipped (``Scene.run()``: the adaptive loop at the scene's accuracy,
     5 % unless it says otherwise), and of the adaptive loop at 5 %
     (``pickup(..., accuracy=0.05)``, needs gmsh; not run again where it is
-    the scene's default, whose row it repeats), and of that loop with nested
-    levels (``refinement="nested"``: each level bisects the one before at
-    the patches, :mod:`fem_grasp.mesh.bisection`); with the error each run
+    the scene's default, whose row it repeats: its levels nested, each
+    bisecting the one before at the patches, :mod:`fem_grasp.mesh.bisection`),
+    and of that loop with remeshed levels (``refinement="remesh"``: each
+    level a new gmsh mesh graded at the patches); with the error each run
     states (the scene's ``expected_error``, the loop's estimate, or
     "unknown") and whether it covers the actual one.  One subprocess per run
     (``--accuracy-cap`` seconds, beyond which the row says "not run").
@@ -101,8 +102,8 @@ Sections (``--only NAME``, repeatable; default all):
     other tetrahedra, as another CPU's round-off would do to them
     unrounded); the row gives how often the loop converges, the spread of
     its time, its answer's error and its stated error, and how often that
-    covers the error.  The nested levels are run again on the same draws
-    (their draw is level 0's mesh, which they refine).
+    covers the error (for nested levels the draw is level 0's mesh, which
+    they refine).  The remeshed levels are run again on the same draws.
 ``divisions``
     Per shipped scene, the pickup at its squeeze increment s, at s with the
     increment in which the lift test passes divided in four
@@ -741,10 +742,10 @@ ACCURACY_TARGET = 0.05
 #: (``Scene.run()``: whatever its default is), and the adaptive loop at :data:`ACCURACY_TARGET`.
 ACCURACY_RUNS = (("one_level", "one level (accuracy off)"), ("default", "Scene.run() as shipped"),
                  ("adaptive", f"adaptive, accuracy = {100 * ACCURACY_TARGET:g} %"),
-                 ("nested", f"nested levels, {100 * ACCURACY_TARGET:g} %"))
+                 ("remesh", f"remeshed levels, {100 * ACCURACY_TARGET:g} %"))
 #: The quantities compared, as named in the answer and in the loop's estimate.
 ACCURACY_QUANTITIES = ("squeeze_depth", "finger_force")
-#: Other draws of the default's and the nested levels' meshes (``--accuracy-draws``): draw k rounds gmsh's inputs to
+#: Other draws of the default's and the remeshed levels' meshes (``--accuracy-draws``): draw k rounds gmsh's inputs to
 #: a grid 2**k times :data:`fem_grasp.mesh.gmsh_session.POINT_QUANTUM`.
 ACCURACY_DRAWS = 4
 
@@ -816,8 +817,8 @@ def accuracy_worker(name: str, run: str, draw: int = 0, outer_exponent: float | 
         shipped = Scene.load(name)
         if run == "one_level":
             return shipped.with_(accuracy=None)
-        if run == "nested":
-            return shipped.with_(accuracy=ACCURACY_TARGET, refinement="nested")
+        if run == "remesh":
+            return shipped.with_(accuracy=ACCURACY_TARGET, refinement="remesh")
         return shipped.with_(accuracy=ACCURACY_TARGET) if run == "adaptive" else shipped
 
     from fem_grasp.contact.warm_up import prepare_kernels
@@ -936,8 +937,8 @@ def section_accuracy(cap: float = 600.0, quick: bool = False, compute: bool = Fa
     :mod:`verification.converge.references`) where it has one, with the error against the study's (each mesh
     grasping at its own nodes) beside it as ``error_study``; else the study's.  Objects without either are
     skipped.  The default is run again on ``draws`` other draws of its meshes (``rows["draws"]``, a list of
-    rows), and so are the nested levels (``rows["nested_draws"]``: their draw is level 0's mesh, which they
-    refine).  ``outer_exponent``: every loop refines the bulk by that instead of the library's rule (the rows then
+    rows; for nested levels the draw is level 0's mesh, which they refine), and so are the remeshed levels
+    (``rows["remesh_draws"]``).  ``outer_exponent``: every loop refines the bulk by that instead of the library's rule (the rows then
     measure that rule; ``out["outer_exponent"]`` says so)."""
     from verification.converge import references
 
@@ -966,7 +967,7 @@ def section_accuracy(cap: float = 600.0, quick: bool = False, compute: bool = Fa
             if "answer" in raw and pinned and study:
                 rows[run]["error_study"] = accuracy_errors(raw, study)["error"]
             log.info("accuracy %s, %s: %s", name, run, rows[run].get("status"))
-        for run, key in (("default", "draws"), ("nested", "nested_draws")):
+        for run, key in (("default", "draws"), ("remesh", "remesh_draws")):
             rows[key] = []
             for draw in range(1, draws + 1):
                 raw = run_accuracy_worker(name, run, cap, draw, outer_exponent)
@@ -1028,7 +1029,7 @@ def print_accuracy(sec: dict[str, Any]) -> None:
                 print(f"{'':<11} {label:<28} the same run as {dict(ACCURACY_RUNS)[r['same_as']]}")
                 continue
             _print_accuracy_row(label, r)
-        for run, key, name_of in (("default", "draws", "Scene.run()"), ("nested", "nested_draws", "nested levels")):
+        for run, key, name_of in (("default", "draws", "Scene.run()"), ("remesh", "remesh_draws", "remeshed levels")):
             draws = obj["rows"].get(key) or []
             for k, r in enumerate(draws, 1):
                 _print_accuracy_row(f"{name_of}, mesh draw {k}", r)
@@ -1131,7 +1132,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ap.add_argument("--accuracy-objects", nargs="+", choices=ACCURACY_OBJECTS, default=list(ACCURACY_OBJECTS),
                     help="section accuracy: the shipped scenes to run (default: all five)")
     ap.add_argument("--accuracy-draws", type=int, default=ACCURACY_DRAWS,
-                    help="section accuracy: run the default and the nested levels again on this many other draws "
+                    help="section accuracy: run the default and the remeshed levels again on this many other draws "
                          f"of their meshes (gmsh's inputs rounded to other grids; default {ACCURACY_DRAWS}, 0: none)")
     ap.add_argument("--accuracy-compute", action="store_true",
                     help="section accuracy: compute the convergence study's missing references first (hours; "

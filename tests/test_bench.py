@@ -356,7 +356,7 @@ def test_the_accuracy_section_measures_each_run_against_the_study_reference(monk
            # states 5 %: covers ρ* (4 %) but not the force (10 %)
            "default": _fake_answer(rho=0.0104, force=6.6, stated={"squeeze_depth": 0.05, "finger_force": 0.05}),
            "adaptive": {"status": "cap", "cap_s": 7.0},
-           "nested": _fake_answer(rho=0.0101, force=6.06, stated={"squeeze_depth": 0.02, "finger_force": 0.02})}
+           "remesh": _fake_answer(rho=0.0101, force=6.06, stated={"squeeze_depth": 0.02, "finger_force": 0.02})}
     ran, exponents = [], set()
     # another draw of the default's meshes: 8 % / 3 % off, stating 10 % / 10 %
     drawn = _fake_answer(rho=0.0108, force=6.18, stated={"squeeze_depth": 0.1, "finger_force": 0.1})
@@ -370,9 +370,9 @@ def test_the_accuracy_section_measures_each_run_against_the_study_reference(monk
     monkeypatch.setattr(bench, "default_accuracy", lambda name: None)  # a default of one run: three runs
     sec = bench.section_accuracy(cap=7.0, objects=("orange", "tomato"), draws=2)
     assert asked == [(False, False, ("orange", "tomato"))]  # read only: the study is not started
-    # tomato: no reference, not run; the default and the nested levels again on two other draws of their meshes
+    # tomato: no reference, not run; the default and the remeshed levels again on two other draws of their meshes
     assert ran == [("orange", run, 7.0, 0) for run, _ in bench.ACCURACY_RUNS] + [
-        ("orange", run, 7.0, k) for run in ("default", "nested") for k in (1, 2)]
+        ("orange", run, 7.0, k) for run in ("default", "remesh") for k in (1, 2)]
     assert sec["objects"]["tomato"] == {"reference": None}
     assert exponents == {None} and sec["outer_exponent"] is None  # the library's rule for the bulk
     rows = sec["objects"]["orange"]["rows"]
@@ -381,7 +381,7 @@ def test_the_accuracy_section_measures_each_run_against_the_study_reference(monk
     assert one["error"]["finger_force"] == pytest.approx(0.1) and one["covers"] is True
     assert default["error"]["squeeze_depth"] == pytest.approx(0.04) and default["covers"] is False
     assert rows["adaptive"]["status"] == "cap"
-    assert rows["nested"]["error"]["squeeze_depth"] == pytest.approx(0.01) and rows["nested"]["covers"] is True
+    assert rows["remesh"]["error"]["squeeze_depth"] == pytest.approx(0.01) and rows["remesh"]["covers"] is True
 
     # stated 5 % against 6 % off a reference uncertain by 2 %: not covered, but within the two errors
     close = bench.accuracy_errors(_fake_answer(rho=0.0106, force=6.0, stated={"squeeze_depth": 0.05,
@@ -415,17 +415,17 @@ def test_the_accuracy_section_measures_each_run_against_the_study_reference(monk
     # the default and its two draws: the largest error of each quantity, covered by two of the three
     (summary,) = [line for line in text.splitlines() if "Scene.run(), all 3 draws" in line]
     assert "largest error 8 % / 10 %" in summary and "covers it 2/3" in summary and "verdict 3/3" in summary
-    # the nested levels (1 % / 1 %) and the same two draws: their own line
-    assert len(rows["nested_draws"]) == 2
-    (summary,) = [line for line in text.splitlines() if "nested levels, all 3 draws" in line]
+    # the remeshed levels (1 % / 1 %) and the same two draws: their own line
+    assert len(rows["remesh_draws"]) == 2
+    (summary,) = [line for line in text.splitlines() if "remeshed levels, all 3 draws" in line]
     assert "largest error 8 % / 3 %" in summary and "covers it 3/3" in summary
 
     # where the scene's default is the adaptive loop at the target, that run is not made twice: its row repeats
     monkeypatch.setattr(bench, "default_accuracy", lambda name: bench.ACCURACY_TARGET)
     ran.clear()
     again = bench.section_accuracy(cap=7.0, objects=("orange",), draws=0)["objects"]["orange"]["rows"]
-    assert ran == [("orange", "one_level", 7.0, 0), ("orange", "default", 7.0, 0), ("orange", "nested", 7.0, 0)]
-    assert again["draws"] == again["nested_draws"] == []
+    assert ran == [("orange", "one_level", 7.0, 0), ("orange", "default", 7.0, 0), ("orange", "remesh", 7.0, 0)]
+    assert again["draws"] == again["remesh_draws"] == []
     assert again["adaptive"]["same_as"] == "default" and again["adaptive"]["error"] == again["default"]["error"]
     bench.print_accuracy({"study": "full", "cap_s": 7.0, "target": 0.05,
                           "objects": {"orange": {"reference": reference, "rows": again}}})

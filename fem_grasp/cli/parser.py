@@ -75,8 +75,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "(default 300; each level has about four times the contacts of the one before, and costs "
                         "several times as much)")
     p.add_argument("--refinement", choices=REFINEMENTS,
-                   help="when refining: 'remesh' (default) meshes the object afresh at each level; 'nested' bisects "
-                        "the level before at the contact patches, so that the levels differ only in resolution")
+                   help="when refining: 'nested' (default) bisects the level before at the contact patches, so "
+                        "that the levels differ only in resolution; 'remesh' meshes the object afresh at each level")
     p.add_argument("--max-seconds", metavar="S", type=float,
                    help="when refining: a time budget; no level is started that would carry the loop past S "
                         "seconds (predicted from the levels so far), and the answer is the last level's with its "

@@ -22,13 +22,13 @@ contacts, or those the placement rule gives on the geometry's surface,
 :func:`placement_target`); where the body's own finger nodes lie away from the
 points and the geometry can make them nodes, level 0 is the body remeshed at
 its spacing with them as nodes (:data:`GRASP_TOLERANCE`: the answer moves with
-the grasp); each next level remeshes the
-geometry (:mod:`fem_grasp.mesh.remesh`) with half the spacing at those patches
+the grasp); each next level asks for half the spacing at those patches
 (:data:`LEVEL_RATIO`), the table patch at four times that (:data:`TABLE_LAG`) and the
-bulk √2 finer (:data:`OUTER_EXPONENT`) — or, with ``PickupOptions.refinement = "nested"``, bisects the
-level before to the same sizes (:mod:`fem_grasp.mesh.bisection`, :data:`NESTED_EDGE_RATIO`),
-so that the levels differ only in resolution —, grasps at the same points (as nodes where the geometry can
-embed them, else at each level's nearest surface nodes), and takes
+bulk √2 finer (:data:`OUTER_EXPONENT`), and by default (``PickupOptions.refinement = "nested"``) gets them
+by bisecting the level before (:mod:`fem_grasp.mesh.bisection`, :data:`NESTED_EDGE_RATIO`), so that the
+levels differ only in resolution and gmsh's draw of tetrahedra enters at level 0 alone — or, with
+``refinement = "remesh"``, by remeshing the geometry (:mod:`fem_grasp.mesh.remesh`); it grasps at the same
+points (as nodes where the geometry can embed them, else at each level's nearest surface nodes), and takes
 a squeeze increment small enough that the lift
 test's quantisation of ρ* (at most one increment) uses at most a quarter of the
 target, half where the last two levels predict that this one will not meet it
@@ -44,8 +44,8 @@ or, from the third level on, the larger of that and the
 uncertainty of the last three levels (:func:`~fem_grasp.grasp.level_error.three_level_errors`, after Eça and
 Hoekstra, :mod:`fem_grasp.grasp.estimates`: 1.25 × the extrapolated error
 where they converge monotonically, at least 1.25 × their spread where faster
-than order 2, three times their spread where they swing; remeshed levels
-are not in an asymptotic range, so three levels never state less than two
+than order 2, three times their spread where they swing; the levels are
+not in an asymptotic range, so three levels never state less than two
 would), plus the resolution
 of ρ* (one increment); for ρ* the part before the resolution is at least one
 resolution too (two levels that find the same ρ* agree only to within it).  Where three levels are
@@ -361,7 +361,8 @@ def converged_pickup(body: Any, *, solve: Callable[..., Any], accuracy: float = 
     solve : one run of Algorithm 1, :func:`fem_grasp.grasp.pickup.pickup` (which passes itself when called
         with ``accuracy=``; taken as an argument so that this module sits above the pickup, not beside it)
     accuracy : relative accuracy wanted of ρ* and of the finger force Σ f·n̂ (0 < accuracy < 1)
-    geometry : :class:`fem_grasp.mesh.remesh.Geometry` to remesh (default: ``body``'s boundary surface,
+    geometry : :class:`fem_grasp.mesh.remesh.Geometry` of the levels: level 0 and remeshed levels are meshed from
+        it, nested levels' new boundary vertices moved onto it (default: ``body``'s boundary surface,
         :func:`fem_grasp.mesh.remesh.geometry_of_mesh`, which raises
         :class:`~fem_grasp.mesh.remesh.NoGeometryError` when that surface is not closed and manifold)
     max_levels : refinements tried after level 0

@@ -142,9 +142,10 @@ class PickupOptions:
         None (default): no budget.  The budget is wall-clock time, so how many levels it allows depends on the
         machine: an answer under a budget is reproducible only with its levels (``result.accuracy``).
     refinement : str
-        With ``accuracy``: how each level's mesh is made finer, one of :data:`REFINEMENTS`.  "remesh" (default):
-        the geometry meshed afresh by gmsh, graded at the patches; "nested": the level before bisected at the
-        patches (:mod:`fem_grasp.mesh.bisection`), so that successive levels differ only in resolution.
+        With ``accuracy``: how each level's mesh is made finer, one of :data:`REFINEMENTS`.  "nested" (default):
+        the level before bisected at the patches (:mod:`fem_grasp.mesh.bisection`), so that successive levels
+        differ only in resolution; "remesh": the geometry meshed afresh by gmsh at each level, graded at the
+        patches.  Level 0 is a gmsh mesh either way.
     geometry : Geometry or None
         What the ``accuracy`` loop remeshes (:class:`fem_grasp.mesh.remesh.Geometry`).  None: the body's boundary
         surface (:func:`fem_grasp.mesh.remesh.geometry_of_mesh`).  Not compared: two records that differ only
@@ -170,7 +171,7 @@ class PickupOptions:
     accuracy: float | None = None
     max_finger_contacts: int = MAX_FINGER_CONTACTS
     max_seconds: float | None = None
-    refinement: str = "remesh"
+    refinement: str = "nested"
     geometry: Any = field(default=None, compare=False)
 
     def __post_init__(self) -> None:

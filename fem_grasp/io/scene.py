@@ -45,8 +45,8 @@ optional)::
                               # "off" for one run on the scene's mesh, the paper's Algorithm 1 as printed
     max_finger_contacts = 300 # with accuracy: a level predicted to put more contacts on a fingertip is not run
     max_seconds = 120         # with accuracy: a time budget; a level predicted to overrun it is not run
-    refinement = "remesh"     # with accuracy: mesh the object afresh at each level ("remesh", the default) or
-                              # bisect the level before at the patches ("nested")
+    refinement = "nested"     # with accuracy: bisect the level before at the patches ("nested", the default)
+                              # or mesh the object afresh at each level ("remesh")
     expected_error = 0.3      # how far a single run of this scene (no accuracy loop, e.g. its [quick] variant) is
                               # from the converged answer, as measured by `make converge`: printed with its answer
 

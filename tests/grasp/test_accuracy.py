@@ -76,9 +76,9 @@ TARGET = 0.05
 
 @pytest.fixture(scope="module")
 def levels():
-    """The loop at 5 % on the foam box (6×6×6 grid, 1 cm fingertips), each level run to the lift test's pass:
-    levels 0 and 1 differ by 8 % in ρ* (within level 0's resolution), levels 1 and 2 by 1.2 % in ρ* and 2.5 %
-    in the force."""
+    """The loop at 5 % on the foam box (6×6×6 grid, 1 cm fingertips), its levels remeshed, each run to the lift
+    test's pass: levels 0 and 1 differ by 8 % in ρ* (within level 0's resolution), levels 1 and 2 by 1.2 % in ρ*
+    and 2.5 % in the force."""
     body = Body(BOX.grid((6, 6, 6)), 2e4, 0.3, weight=0.3)
     asked = []  # the deepest squeeze each level was asked to stop at
 
@@ -87,7 +87,8 @@ def levels():
         return pickup(body, options, **kw)
 
     res = converged_pickup(body, solve=solve, accuracy=TARGET, geometry=BOX, max_levels=2,
-                           contacts=_centre_nodes(body.mesh), mu_finger=0.5, finger_radius=0.01, lift=False)
+                           contacts=_centre_nodes(body.mesh), mu_finger=0.5, finger_radius=0.01, lift=False,
+                           refinement="remesh")
     res.asked_max_squeeze = asked
     return res
 
@@ -442,9 +443,9 @@ def test_scene_key_and_cli_flag():
         with pytest.raises(SceneError, match="solver.accuracy"):
             parse_scene(dict(base, solver={"accuracy": bad}))
     assert isinstance(parse_scene(base).geometry(), remesh.BoxGeometry)
-    assert parse_scene(base).pickup_options().refinement == "remesh"
-    assert parse_scene(dict(base, solver={"refinement": "nested"})).pickup_options().refinement == "nested"
-    assert parse_scene(base).with_(refinement="nested").pickup_options().refinement == "nested"
+    assert parse_scene(base).pickup_options().refinement == "nested"  # the default: each level bisects the last
+    assert parse_scene(dict(base, solver={"refinement": "remesh"})).pickup_options().refinement == "remesh"
+    assert parse_scene(base).with_(refinement="remesh").pickup_options().refinement == "remesh"
     with pytest.raises(SceneError, match="solver.refinement"):
         parse_scene(dict(base, solver={"refinement": "bisect"}))
     with pytest.raises(SceneError, match="refinement"):

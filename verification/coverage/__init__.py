@@ -11,7 +11,8 @@ density 300–1500 kg/m³, μ 0.3–1.0 at the fingers and the table, a fingerti
 squeezed 0–30° below the horizontal with ratio s 0–1; its first mesh has about 500 vertices.
 
 * the **answer**: ``converged_pickup`` at accuracy A (5 %; 10 % with ``--quick``) with a time budget, its levels
-  remeshed (``--refinement nested``: bisected, ``PickupOptions.refinement``); its whole ``result.accuracy``
+  made as the library makes them (nested by default; ``--refinement remesh``: remeshed,
+  ``PickupOptions.refinement``); its whole ``result.accuracy``
   (levels, estimated error, convergence, note) is kept;
 * the **reference**: one pickup a level beyond the answer's last — the patch spacing halved at the answer's
   contact patches (the table patch four times coarser, as the loop grades it), the loop's next outer spacing,

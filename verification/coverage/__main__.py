@@ -10,7 +10,7 @@ import math
 import sys
 from pathlib import Path
 
-from fem_grasp.grasp.options import REFINEMENTS
+from fem_grasp.grasp.options import REFINEMENTS, PickupOptions
 
 from . import CONFIGS, sweep
 from .summary import HEADER, passed, reference_of, summarise, summary_lines, table_line
@@ -31,9 +31,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--objects", type=int, help="objects to draw (default: 10; 3 with --quick)")
     ap.add_argument("--seed", type=int, default=0, help="object i is drawn from numpy's default_rng(seed + i)")
     ap.add_argument("--accuracy", type=float, help="the target accuracy A (default: 0.05; 0.10 with --quick)")
-    ap.add_argument("--refinement", choices=REFINEMENTS, default="remesh",
-                    help="how the answer's levels are made finer (PickupOptions.refinement; default remesh); the "
-                         "reference is a remeshed level either way")
+    ap.add_argument("--refinement", choices=REFINEMENTS, default=PickupOptions.refinement,
+                    help="how the answer's levels are made finer (PickupOptions.refinement; default the library's, "
+                         f"{PickupOptions.refinement}); the reference is a remeshed level either way")
     ap.add_argument("--reference-draws", type=int,
                     help="draws of the reference's mesh whose mean is the reference (default: 3; 1 with --quick)")
     ap.add_argument("--references", type=Path, metavar="JSON",

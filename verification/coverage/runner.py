@@ -142,6 +142,7 @@ def run_object(seed: int, config: dict[str, Any], send: Callable[[tuple[str, Any
     from fem_grasp import Body
     from fem_grasp.grasp.accuracy import _level_meshes, converged_pickup
     from fem_grasp.grasp.answer import patch_points
+    from fem_grasp.grasp.options import PickupOptions
     from fem_grasp.grasp.pickup import pickup
     from fem_grasp.mesh.remesh import geometry_of_mesh, nearest_surface_nodes
 
@@ -157,7 +158,7 @@ def run_object(seed: int, config: dict[str, Any], send: Callable[[tuple[str, Any
         res = converged_pickup(body, solve=pickup, accuracy=config["accuracy"], geometry=geometry,
                                max_seconds=config["answer_seconds"], on_level=on_level,
                                max_finger_contacts=config["answer_max_contacts"],
-                               refinement=config.get("refinement", "remesh"), **kw)
+                               refinement=config.get("refinement", PickupOptions.refinement), **kw)
         row["answer"] = _answer_row(res, time.perf_counter() - t0)
         row["answer"]["accuracy"] = res.accuracy
     except Exception as exc:  # noqa: BLE001 - recorded: the object has no answer, the study goes on
