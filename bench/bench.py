@@ -938,8 +938,8 @@ def section_accuracy(cap: float = 600.0, quick: bool = False, compute: bool = Fa
     grasping at its own nodes) beside it as ``error_study``; else the study's.  Objects without either are
     skipped.  The default is run again on ``draws`` other draws of its meshes (``rows["draws"]``, a list of
     rows; for nested levels the draw is level 0's mesh, which they refine), and so are the remeshed levels
-    (``rows["remesh_draws"]``).  ``outer_exponent``: every loop refines the bulk by that instead of the library's rule (the rows then
-    measure that rule; ``out["outer_exponent"]`` says so)."""
+    (``rows["remesh_draws"]``).  ``outer_exponent``: every loop refines the bulk by that instead of the library's
+    rule (the rows then measure that rule; ``out["outer_exponent"]`` says so)."""
     from verification.converge import references
 
     refs = study_references(quick=quick, compute=compute, objects=objects)

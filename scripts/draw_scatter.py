@@ -1,9 +1,10 @@
 """Where draws of one level's mesh differ: in the squeeze's force, or in where the lift test first holds mg.
 
-The accuracy loop's levels are gmsh meshes, and meshes of one spacing differ by a few per cent in ρ* (docs/accuracy.md,
-"The draw of a level's mesh").  This script runs a scene's default (``Scene.run()``) on several draws of its meshes,
-as ``python -m bench.bench --only accuracy`` does (gmsh's inputs rounded to grids 2, 4, … times as coarse: a move of
-at most a millionth of a spacing), and compares, on each draw's last level:
+Remeshed levels of the accuracy loop (``refinement = "remesh"``) are each a new gmsh mesh, and meshes of one spacing
+differ by a few per cent in ρ* (docs/accuracy.md, "The draw of a level's mesh").  This script runs a scene's loop
+with remeshed levels (``--refinement nested``: the default's nested levels, whose draw is level 0's alone) on
+several draws of its meshes, as ``python -m bench.bench --only accuracy`` does (gmsh's inputs rounded to grids 2,
+4, … times as coarse: a move of at most a millionth of a spacing), and compares, on each draw's last level:
 
 * the squeeze: Σ f·n̂ over both fingers at five depths that every draw squeezed through (the elastic and contact
   response of the mesh, node contact and all);
@@ -38,15 +39,16 @@ import numpy as np
 DEPTHS, FIRST_DEPTH = 5, 0.3
 
 
-def draw_worker(name: str, draw: int, lift_test_step: float | None = None) -> dict[str, Any]:
-    """One draw of a scene's default run: the last level's squeeze (ρ, Σ f·n̂) at every event, its w(ρ) points,
-    ρ*, the force at lift-off and the weight each finger carries there; ``lift_test_step``: the lift test's step h
-    as a fraction of the weight instead of the scene's."""
+def draw_worker(name: str, draw: int, lift_test_step: float | None = None,
+                refinement: str = "remesh") -> dict[str, Any]:
+    """One draw of a scene's run with ``refinement``'s levels: the last level's squeeze (ρ, Σ f·n̂) at every event,
+    its w(ρ) points, ρ*, the force at lift-off and the weight each finger carries there; ``lift_test_step``: the
+    lift test's step h as a fraction of the weight instead of the scene's."""
     from fem_grasp.io.scene import Scene
     from fem_grasp.mesh import gmsh_session
 
     gmsh_session.POINT_QUANTUM *= 2.0 ** draw
-    scene = Scene.load(name)
+    scene = Scene.load(name).with_(refinement=refinement)
     if lift_test_step is not None:
         if scene.weight is None:
             raise SystemExit(f"{name}: --lift-test-step needs a scene that states its weight ([material] weight)")
@@ -109,10 +111,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--draws", type=int, default=5, help="draws per scene (default 5)")
     parser.add_argument("--lift-test-step", type=float, metavar="FRACTION",
                         help="the lift test's step h as a fraction of the weight (default: the scene's, mg/20)")
+    parser.add_argument("--refinement", choices=("remesh", "nested"), default="remesh",
+                        help="the levels' refinement (default remesh: every level a new draw)")
     parser.add_argument("--worker", nargs=2, metavar=("NAME", "DRAW"), help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.worker:
-        print(json.dumps(draw_worker(args.worker[0], int(args.worker[1]), args.lift_test_step)))
+        print(json.dumps(draw_worker(args.worker[0], int(args.worker[1]), args.lift_test_step, args.refinement)))
         return 0
     if args.draws < 2:
         parser.error("--draws must be at least 2 (a spread needs two draws)")
@@ -128,7 +132,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         draws = []
         for draw in range(args.draws):  # each in a process of its own: the rounding grid is the process's
             step = [] if args.lift_test_step is None else ["--lift-test-step", repr(args.lift_test_step)]
-            run = subprocess.run([sys.executable, __file__, "--worker", name, str(draw), *step],
+            run = subprocess.run([sys.executable, __file__, "--worker", name, str(draw), *step,
+                                  "--refinement", args.refinement],
                                  capture_output=True, text=True)
             if run.returncode != 0:
                 tail = "\n".join(run.stderr.strip().splitlines()[-5:])
