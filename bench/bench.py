@@ -739,7 +739,8 @@ ACCURACY_OBJECTS = ("tomato", "orange", "steam_bun", "football", "foam_block")
 #: The target of the adaptive row (``pickup(..., accuracy=ACCURACY_TARGET)``).
 ACCURACY_TARGET = 0.05
 #: The runs of each object: the paper's method once on the shipped mesh (the loop off), the scene as shipped
-#: (``Scene.run()``: whatever its default is), and the adaptive loop at :data:`ACCURACY_TARGET`.
+#: (``Scene.run()``: whatever its default is), the adaptive loop at :data:`ACCURACY_TARGET`, and that loop with
+#: remeshed levels (the default's are nested).
 ACCURACY_RUNS = (("one_level", "one level (accuracy off)"), ("default", "Scene.run() as shipped"),
                  ("adaptive", f"adaptive, accuracy = {100 * ACCURACY_TARGET:g} %"),
                  ("remesh", f"remeshed levels, {100 * ACCURACY_TARGET:g} %"))

@@ -63,8 +63,11 @@ def test_the_python_snippet_runs(index, tmp_path, monkeypatch):
         # README prints are this answer's: rho* within one squeeze increment, the force within the two answers'
         # stated errors (each is within its own of the converged answer), beside the printed rounding.  A resting
         # state read from the cache differs from a solved one by round-off, and that moves this force by 1 %
-        # (0.502 N solved, 0.507 N cached, both stating more): a knife edge, not a promise of 1 % of mg.
+        # (remeshed levels gave 0.502 N solved, 0.507 N cached, both stating more): a knife edge, not a promise.
         assert len(result.accuracy["levels"]) >= 2 and result.accuracy["target"] == 0.05
+        assert result.accuracy["refinement"] == "nested"  # the default: each level bisects the one before
+        fine = result.accuracy["levels"][-1]["vertices"]
+        assert fine == result.body.n_nodes and fine > result.accuracy["levels"][-2]["vertices"]
         assert all(0 < e < 0.5 for e in result.estimated_error.values())
         shown = re.search(r"# True rho\* = ([\d.]+) mm ± ([\d.]+) %, finger force ([\d.]+) N ± ([\d.]+) %", PYTHON[0])
         assert shown, "the first snippet's comment shows its answer and its stated errors"
