@@ -106,12 +106,14 @@ def summary(draws: Sequence[dict[str, Any]]) -> dict[str, Any]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    from fem_grasp.grasp.options import REFINEMENTS
+
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("scenes", nargs="*", default=["tomato", "orange"])
     parser.add_argument("--draws", type=int, default=5, help="draws per scene (default 5)")
     parser.add_argument("--lift-test-step", type=float, metavar="FRACTION",
                         help="the lift test's step h as a fraction of the weight (default: the scene's, mg/20)")
-    parser.add_argument("--refinement", choices=("remesh", "nested"), default="remesh",
+    parser.add_argument("--refinement", choices=REFINEMENTS, default="remesh",
                         help="the levels' refinement (default remesh: every level a new draw)")
     parser.add_argument("--worker", nargs=2, metavar=("NAME", "DRAW"), help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
