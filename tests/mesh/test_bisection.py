@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fem_grasp.mesh.bisection import bisect_longest_edges, refine_to_size
+from fem_grasp.mesh.bisection import _boundary_edge_keys, bisect_longest_edges, refine_to_size
 from fem_grasp.mesh.gmsh_session import shape_quality
 from fem_grasp.mesh.remesh import PaperGeometry
 from fem_grasp.mesh.shapes import PAPER_SHAPES
@@ -34,6 +34,16 @@ def test_one_pass_is_conforming_and_nested():
     # the boundary is the box's: the same area, and no new vertex off it or inside a face of the coarse mesh only
     assert fine.volume == pytest.approx(0.125, rel=1e-12)
     assert (fine.n_tets > coarse.n_tets) and marked.sum() <= fine.n_tets - coarse.n_tets
+
+
+def test_boundary_edges_are_the_edges_of_the_surface_triangles():
+    mesh = PaperGeometry("tomato").build(0.008)
+    tri = mesh.surface_faces
+    pairs = np.sort(np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]]), axis=1)
+    expected = np.unique(pairs[:, 0] * np.int64(mesh.n_points) + pairs[:, 1])
+    got = _boundary_edge_keys(np.asarray(mesh.tets, np.int64), mesh.n_points)
+    np.testing.assert_array_equal(got, expected)
+    assert len(got) == 3 * len(tri) // 2  # a closed surface: each edge on two triangles
 
 
 def test_a_marked_tetrahedron_has_its_longest_edge_halved():
