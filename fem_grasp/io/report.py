@@ -50,6 +50,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import require
+from ..grasp.accuracy import percent_error
 from .output import MARKER, add_to_marker, atomic_write_text, read_result
 from .plots import plot_liftable, plot_patches, plot_timeline
 from .render import (
@@ -91,7 +92,7 @@ def _accuracy_state(acc: dict[str, Any]) -> str:
             return "one run on this mesh, its error not known"
         if not np.isfinite(e):
             return "one run on this mesh, whose verdict may differ from a finer mesh's"
-        return f"one run on this mesh, within about {100 * e:.2g} % (the scene's convergence study)"
+        return f"one run on this mesh, within about {percent_error(e)} (the scene's convergence study)"
     return f"the error estimate is above the requested {goal}" if goal else "the error estimate is above the target"
 
 
@@ -102,7 +103,7 @@ def _accuracy_html(acc: dict[str, Any] | None) -> str:
 
     def change(lv: dict[str, Any]) -> str:
         c = lv.get("change")
-        return "—" if not c else f"{100 * c['squeeze_depth']:.2g} % / {100 * c['finger_force']:.2g} %"
+        return "—" if not c else f"{percent_error(c['squeeze_depth'])} / {percent_error(c['finger_force'])}"
 
     rows = "".join(
         f"<tr><td>{lv['level']}</td><td>{lv['vertices']:,}</td><td>{1e3 * lv['inner_size']:.3g}</td>"
@@ -111,12 +112,14 @@ def _accuracy_html(acc: dict[str, Any] | None) -> str:
         f"<td>{lv['finger_force']:.4g}</td>"
         f"<td>{lv['finger_nodes'][0]} / {lv['finger_nodes'][1]} / {lv['table_nodes']}</td>"
         f"<td>{change(lv)}</td><td>{lv['seconds'] + lv['mesh_seconds']:.1f}</td></tr>" for lv in acc["levels"])
+    made = ("bisects the level before (nested levels) on" if acc.get("refinement") == "nested"
+            else "remeshes")
     return (f"<h2>Accuracy: {html.escape(_accuracy_state(acc))}</h2>"
-            f"<p>{html.escape(acc.get('note', ''))}. Each level remeshes "
+            f"<p>{html.escape(acc.get('note', ''))}. Each level {made} "
             f"{html.escape(acc.get('geometry', '') or 'the object')} with half the spacing at the contact patches, "
             "grasps at the same two points and resolves ρ* to a share of the target; the estimated error is three "
-            "times the change of the last two levels, or from three levels on their uncertainty (Eça and Hoekstra), "
-            "plus the resolution of ρ*.</p>"
+            "times the change of the last two levels or, from three levels on, the larger of that and their "
+            "uncertainty (Eça and Hoekstra), plus the resolution of ρ*.</p>"
             "<table><tr><th>level</th><th>vertices</th><th>spacing at the patches (mm)</th><th>outer (mm)</th>"
             "<th>increment (mm)</th><th>h (N)</th><th>verdict</th><th>ρ* (mm)</th><th>finger force (N)</th>"
             "<th>contacts finger 1 / 2 / table</th><th>change of ρ* / force</th><th>s</th></tr>"
@@ -154,10 +157,9 @@ def _html(doc: dict[str, Any]) -> str:
     if doc.get("accuracy"):
         acc = doc["accuracy"]
         e = acc["estimated_error"]
-        pct = lambda x: "unknown" if x is None or not np.isfinite(x) else f"{100 * x:.2g} %"  # noqa: E731
         rows.insert(5, _row("accuracy", f"{_accuracy_state(acc)}: estimated error of ρ* "
-                                        f"{pct(e.get('squeeze_depth'))}, of the finger force "
-                                        f"{pct(e.get('finger_force'))}"))
+                                        f"{percent_error(e.get('squeeze_depth'))}, of the finger force "
+                                        f"{percent_error(e.get('finger_force'))}"))
     lifted = ("At the end: lifted off the table, drawn a little above the lift-off state (raising the fingers "
               "further moves the hanging object rigidly)." if ok else "At the end: where the pickup stopped.")
     pics = {
