@@ -321,14 +321,21 @@ class Compliance:
                 sol = self._solve(rhs)
         del rhs
         rows = self._free_position if self._row_dofs is None else self._free_position[self._row_dofs]
-        cols = np.where((rows >= 0)[:, None], sol[np.maximum(rows, 0)], 0.0)
-        del sol
-        if self._rotation is not None:  # Q on the kept rows only (whole node blocks): a tenth of them above 20k
-            cols = _rotate_nodes(cols, self._rotation)
+        kept = np.flatnonzero(rows >= 0)  # the kept rows that are free (grounded ones stay 0)
+        source = rows[kept]
+        every = len(source) == len(sol) and bool(np.all(source == np.arange(len(source))))
         apart = self._surface_rows is not None and self._surface_columns is not self._columns
-        return [(k, np.ascontiguousarray(cols[:, 3 * j: 3 * j + 3]),
-                 np.ascontiguousarray(cols[self._surface_rows, 3 * j: 3 * j + 3]) if apart else None)
-                for j, k in enumerate(new)]
+        out = []
+        # Node by node from CHOLMOD's columns (Fortran order: each one contiguous), into a C-ordered (rows, 3) block
+        # each: one pass over the solution (the whole block gathered row-wise, then copied column-wise, took three:
+        # a third of a 9,700-vertex level's column time).
+        for j, k in enumerate(new):
+            column = np.zeros((len(rows), 3))
+            column[kept] = sol[:, 3 * j: 3 * j + 3] if every else sol[source, 3 * j: 3 * j + 3]
+            if self._rotation is not None:  # Q on the kept rows only (whole node blocks): a tenth of them above 20k
+                column = _rotate_nodes(column, self._rotation)
+            out.append((k, column, np.ascontiguousarray(column[self._surface_rows]) if apart else None))
+        return out
 
     @contextlib.contextmanager
     def solving_ahead(self) -> Iterator[None]:
