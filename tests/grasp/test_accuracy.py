@@ -2,6 +2,7 @@
 loop on a cheap body, and the scene key / CLI flag / result.json block that carry it."""
 
 import json
+import logging
 import math
 
 import numpy as np
@@ -258,6 +259,27 @@ def test_the_spectral_backend_does_not_refine_past_what_its_dense_eigendecomposi
     assert len(converged_pickup(body, solve=pickup, **kw).accuracy["levels"]) == 2
 
 
+def test_a_level_large_enough_to_take_seconds_is_announced_before_it_runs(monkeypatch, caplog):
+    """A fine level can take tens of seconds: one above ANNOUNCE_VERTICES says what runs before its result line,
+    one below it does not."""
+    from fem_grasp.grasp import accuracy
+
+    body = Body(BOX.grid((2, 2, 2)), 2e4, 0.3, weight=0.3)
+    kw = dict(accuracy=TARGET, geometry=BOX, contacts=_centre_nodes(body.mesh), mu_finger=0.5, finger_radius=0.01,
+              lift=False, max_levels=1)
+    for bound, announced in ((body.n_nodes, True), (10**9, False)):
+        monkeypatch.setattr(accuracy, "ANNOUNCE_VERTICES", bound)
+        caplog.clear()
+        with caplog.at_level(logging.INFO, logger="fem_grasp.grasp.accuracy"):
+            res = converged_pickup(body, solve=pickup, **kw)
+        vertices = res.accuracy["levels"][1]["vertices"]
+        lines = [r.getMessage() for r in caplog.records if r.getMessage().startswith("accuracy level 1:")]
+        running = [line for line in lines if " running; level 0 took " in line]
+        assert len(running) == int(announced) and len(lines) == 1 + int(announced)
+        if announced:
+            assert lines[0] == running[0] and f"level 1: {vertices} vertices" in running[0]
+
+
 def test_a_level_that_would_crowd_the_table_with_contacts_is_not_run():
     """A flat base rests on many table contacts, which the rest and the squeeze track: a level predicted to put
     more than TABLE_CONTACT_SHARE × max_finger_contacts on the table is not run either."""
@@ -464,8 +486,6 @@ def test_a_scene_without_gmsh_runs_once_and_says_so(monkeypatch, caplog):
     """The core install has no gmsh: a scene's default refinement cannot remesh, so the run is one run on its mesh
     whose answer states the scene's error for such a run and why it was not refined (a warning names the extra),
     the same answer as the run with accuracy off."""
-    import logging
-
     from fem_grasp import errors
     from fem_grasp.io.scene import Scene
 
