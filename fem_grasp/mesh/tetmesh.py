@@ -24,8 +24,8 @@ log = logging.getLogger(__name__)
 #: is degenerate: its stiffness would be singular or meaningless.
 DEGENERATE_VOLUME_RATIO = 1e-10
 
-__all__ = ["DEGENERATE_VOLUME_RATIO", "MeshError", "TetMesh", "box_mesh", "check_rotation", "signed_volumes",
-           "vertex_normals"]
+__all__ = ["DEGENERATE_VOLUME_RATIO", "MeshError", "TetMesh", "box_mesh", "check_rotation", "face_keys",
+           "signed_volumes", "vertex_normals"]
 
 
 def signed_volumes(points: np.ndarray, tets: np.ndarray) -> np.ndarray:
@@ -112,8 +112,9 @@ def check_rotation(rotation: Any) -> np.ndarray:
     return rotation
 
 
-def _face_keys(tri: np.ndarray, n: int) -> np.ndarray:
-    """One integer per unordered vertex triple (or pair, for (k, 2) input)."""
+def face_keys(tri: np.ndarray, n: int) -> np.ndarray:
+    """One integer per unordered vertex triple (or pair, for (k, 2) input) of ``n`` vertices: equal keys, equal
+    triangles (or edges), whichever order their vertices are given in."""
     s = np.sort(tri, axis=1)
     if n ** s.shape[1] < 2**62:
         key = s[:, 0]
@@ -137,7 +138,7 @@ def _check_topology(points: np.ndarray, tets: np.ndarray, inverted: np.ndarray) 
 
     faces = tets[:, _TET_FACES].reshape(-1, 3)  # outward for positively oriented tets
     owner = np.repeat(np.arange(t), 4)
-    keys = _face_keys(faces, n)
+    keys = face_keys(faces, n)
     order = np.argsort(keys, kind="stable")
     ks = keys[order]
     start = np.flatnonzero(np.r_[True, ks[1:] != ks[:-1]])
@@ -185,7 +186,7 @@ def _check_topology(points: np.ndarray, tets: np.ndarray, inverted: np.ndarray) 
     # The boundary surface must be a 2-manifold: every surface edge in two surface faces ...
     surf = faces[np.sort(order[start[counts == 1]])]
     edges = surf[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
-    ekeys = _face_keys(edges, n)
+    ekeys = face_keys(edges, n)
     uniq, e_inv, e_counts = np.unique(ekeys, return_inverse=True, return_counts=True)
     if (e_counts != 2).any():
         bad = e_counts[e_inv] != 2
@@ -297,7 +298,7 @@ class TetMesh:
     def surface_faces(self) -> np.ndarray:
         """(f, 3) boundary triangles, ordered so their normals point out of the body."""
         faces = self.tets[:, _TET_FACES].reshape(-1, 3)
-        _, inv, counts = np.unique(_face_keys(faces, self.n_points), return_inverse=True, return_counts=True)
+        _, inv, counts = np.unique(face_keys(faces, self.n_points), return_inverse=True, return_counts=True)
         inv = inv.reshape(-1)
         if (counts > 2).any():
             raise MeshError(f"{int((counts > 2).sum())} triangle(s) are shared by more than two tets (non-manifold)")
