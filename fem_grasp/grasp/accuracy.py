@@ -91,8 +91,8 @@ from .options import PickupOptions
 __all__ = ["AccuracyLevel", "AccuracyReport", "single_run_report", "next_step", "predicted_mesh_error",
            "predicted_level_seconds", "first_lift_test", "placement_target", "converged_pickup", "GRASP_TOLERANCE",
            "ANNOUNCE_VERTICES", "LEVEL_COST_GROWTH", "LEVEL_RATIO", "STEP_SHARE", "FINE_STEP_SHARE", "STEP_DIVISIONS",
-           "DEFAULT_ACCURACY", "MAX_LEVELS", "MAX_FINGER_CONTACTS", "SPECTRAL_MAX_VERTICES", "NESTED_EDGE_RATIO", "OUTER_EXPONENT",
-           "outer_spacing", "levels_label", "percent_error"]
+           "DEFAULT_ACCURACY", "MAX_LEVELS", "MAX_FINGER_CONTACTS", "SPECTRAL_MAX_VERTICES", "NESTED_EDGE_RATIO",
+           "OUTER_EXPONENT", "outer_spacing", "levels_label", "percent_error"]
 
 log = logging.getLogger(__name__)
 
