@@ -200,6 +200,13 @@ class Compliance:
                                  f"from {kept.min(initial=0)} to {kept.max(initial=0)}")
             self.kept_nodes = kept
             self._row_dofs = _node_dofs(kept)
+        # Where each kept row's value is in a solve's solution: the kept rows that are free, and their rows there
+        # (None where those are the solution's rows in order: all rows kept); the grounded ones stay 0.
+        kept_rows = self._free_position if self._row_dofs is None else self._free_position[self._row_dofs]
+        self._n_kept_rows = len(kept_rows)
+        self._kept_free = np.flatnonzero(kept_rows >= 0)
+        source = kept_rows[self._kept_free]
+        self._kept_source = None if np.array_equal(source, np.arange(len(self.free))) else source
         self._position = None if rows is None else np.full(self.n_nodes, -1, dtype=np.int64)
         if self._position is not None:
             self._position[self.kept_nodes] = np.arange(len(self.kept_nodes))
@@ -320,18 +327,15 @@ class Compliance:
             with self._solve_lock():
                 sol = self._solve(rhs)
         del rhs
-        rows = self._free_position if self._row_dofs is None else self._free_position[self._row_dofs]
-        kept = np.flatnonzero(rows >= 0)  # the kept rows that are free (grounded ones stay 0)
-        source = rows[kept]
-        every = len(source) == len(sol) and bool(np.all(source == np.arange(len(source))))
         apart = self._surface_rows is not None and self._surface_columns is not self._columns
+        kept, source = self._kept_free, self._kept_source
         out = []
         # Node by node from CHOLMOD's columns (Fortran order: each one contiguous), into a C-ordered (rows, 3) block
         # each: one pass over the solution (the whole block gathered row-wise, then copied column-wise, took three:
         # a third of a 9,700-vertex level's column time).
         for j, k in enumerate(new):
-            column = np.zeros((len(rows), 3))
-            column[kept] = sol[:, 3 * j: 3 * j + 3] if every else sol[source, 3 * j: 3 * j + 3]
+            column = np.zeros((self._n_kept_rows, 3))
+            column[kept] = sol[:, 3 * j: 3 * j + 3] if source is None else sol[source, 3 * j: 3 * j + 3]
             if self._rotation is not None:  # Q on the kept rows only (whole node blocks): a tenth of them above 20k
                 column = _rotate_nodes(column, self._rotation)
             out.append((k, column, np.ascontiguousarray(column[self._surface_rows]) if apart else None))
