@@ -239,3 +239,18 @@ def test_the_references_written_from_the_study_are_read_back_by_the_benchmarks_w
     refs = bench.study_references(objects=("orange", "steam_bun"))
     assert refs["orange"]["source"] == "cache" and refs["orange"]["pinned"]["force"]["value"] == 5.6
     assert refs["steam_bun"] == {"pinned": kept["steam_bun"]["pinned"]}  # no study reference, the pinned one
+
+
+def test_the_plots_of_a_study_with_no_records_are_drawn_without_warnings(tmp_path):
+    # What the benchmarks draw on a machine whose cache holds no study: empty axes, no legend to complain about.
+    pytest.importorskip("matplotlib")
+    import warnings
+
+    from verification.converge.report import plots
+
+    analysis = analyse({}, ("orange", "tomato"), {})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        images = plots(analysis, tmp_path)
+    assert sorted(images) == ["converge_error_time", "converge_liftable"]
+    assert all((tmp_path / name).stat().st_size > 0 for name in images.values())

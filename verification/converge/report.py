@@ -56,7 +56,7 @@ def plots(analysis: dict[str, Any], out: Path) -> dict[str, str]:
             ax.set_xlabel("run time: meshing + pickup (s)", fontsize=8)
             ax.set_ylabel("relative error vs reference", fontsize=8)
             ax.grid(True, which="both", alpha=0.3)
-            if i == 0 and j == 0:
+            if i == 0 and j == 0 and ax.get_legend_handles_labels()[0]:  # none without cached series
                 ax.legend(fontsize=6)
     fig.tight_layout()
     p = out / "converge_error_time.png"
@@ -84,7 +84,8 @@ def plots(analysis: dict[str, Any], out: Path) -> dict[str, str]:
         ax.set_title(f"{name}: w(ρ), uniform levels", fontsize=9)
         ax.set_xlabel("squeeze depth ρ (mm)", fontsize=8)
         ax.set_ylabel("liftable weight w (N)", fontsize=8)
-        ax.legend(fontsize=5)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=5)
         ax.grid(True, alpha=0.3)
     fig.tight_layout()
     p = out / "converge_liftable.png"
